@@ -1,0 +1,219 @@
+"""Behavior-tree node types: immutable, named, and checked when the model is built.
+
+Composites: ``ReactiveSequence``, ``MemorySequence``, ``ReactiveFallback``,
+``MemoryFallback`` and ``Parallel``. Decorators: ``Inverter``, ``ForceSuccess``,
+``ForceFailure``, ``Retry``, ``Repeat``, ``Guard`` and ``Effects``. Leaves: ``Condition``,
+``Action`` and ``SkillRequest``. Their tick rules are in docs/semantics.md and in exactly
+one implementation, ``btfsm.semantics``.
+
+Name mapping to other libraries:
+
+================== =============================== ==========================
+btfsm              py_trees 2.x                    BehaviorTree.CPP 4.x
+================== =============================== ==========================
+ReactiveSequence   ``Sequence(memory=False)``      ``ReactiveSequence``
+MemorySequence     ``Sequence(memory=True)``       ``Sequence``
+ReactiveFallback   ``Selector(memory=False)``      ``ReactiveFallback``
+MemoryFallback     ``Selector(memory=True)``       ``Fallback``
+================== =============================== ==========================
+
+>>> tree = ReactiveFallback("root", [Condition("done", "count >= 3"), Action("work")])
+>>> [n.name for n in walk(tree)]
+['root', 'done', 'work']
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Iterator
+
+from .expr import Expr, as_expr
+from .primitives import Outcome, effects_of
+
+__all__ = [
+    "Node", "Composite", "Decorator", "Leaf",
+    "ReactiveSequence", "MemorySequence", "ReactiveFallback", "MemoryFallback", "Parallel",
+    "Inverter", "ForceSuccess", "ForceFailure", "Retry", "Repeat", "Guard", "Effects",
+    "Condition", "Action", "SkillRequest", "walk", "NODE_TYPES",
+]
+
+
+@dataclass(frozen=True)
+class Node:
+    name: str
+
+    def children_of(self) -> tuple:
+        return ()
+
+
+@dataclass(frozen=True)
+class Composite(Node):
+    children: tuple = ()
+
+    def __post_init__(self):
+        object.__setattr__(self, "children", tuple(self.children))
+
+    def children_of(self) -> tuple:
+        return self.children
+
+
+class ReactiveSequence(Composite):
+    """Ticks children from the first on every tick; fails or runs with the first child that does."""
+
+
+class MemorySequence(Composite):
+    """Resumes at the child that was running; starts again from the first after a result."""
+
+
+class ReactiveFallback(Composite):
+    """Ticks children from the first on every tick; succeeds or runs with the first that does."""
+
+
+class MemoryFallback(Composite):
+    """Resumes at the child that was running; starts again from the first after a result."""
+
+
+@dataclass(frozen=True)
+class Parallel(Composite):
+    """Ticks every child each tick; SUCCESS at ``success_threshold`` successes (default: all),
+    FAILURE at ``failure_threshold`` failures or when success became impossible."""
+
+    success_threshold: "int | None" = None
+    failure_threshold: int = 1
+
+
+@dataclass(frozen=True)
+class Decorator(Node):
+    child: "Node | None" = None
+
+    def children_of(self) -> tuple:
+        return (self.child,)
+
+
+class Inverter(Decorator):
+    """SUCCESS <-> FAILURE; RUNNING unchanged."""
+
+
+class ForceSuccess(Decorator):
+    """RUNNING unchanged, anything else SUCCESS."""
+
+
+class ForceFailure(Decorator):
+    """RUNNING unchanged, anything else FAILURE."""
+
+
+@dataclass(frozen=True)
+class Retry(Decorator):
+    """Up to ``attempts`` tries: a FAILURE with tries left returns RUNNING and the child
+    starts again on the next tick."""
+
+    attempts: int = 1
+
+
+@dataclass(frozen=True)
+class Repeat(Decorator):
+    """Runs the child to SUCCESS ``times`` times (RUNNING in between); FAILURE stops it."""
+
+    times: int = 1
+
+
+@dataclass(frozen=True)
+class Guard(Decorator):
+    """Checks ``condition`` before every tick of the child; when false, halts the child
+    and returns FAILURE (py_trees' EternalGuard)."""
+
+    condition: Expr = None  # type: ignore[assignment]
+
+    def __post_init__(self):
+        object.__setattr__(self, "condition", as_expr(self.condition))
+
+
+@dataclass(frozen=True)
+class Effects(Decorator):
+    """Applies effects when the child starts, succeeds, fails or is halted
+    (BehaviorTree.CPP's ``_onSuccess`` / ``_onFailure`` / ``_onHalted`` scripts)."""
+
+    on_start: tuple = ()
+    on_success: tuple = ()
+    on_failure: tuple = ()
+    on_halt: tuple = ()
+
+    def __post_init__(self):
+        for f in ("on_start", "on_success", "on_failure", "on_halt"):
+            object.__setattr__(self, f, effects_of(getattr(self, f)))
+
+
+@dataclass(frozen=True)
+class Leaf(Node):
+    pass
+
+
+@dataclass(frozen=True)
+class Condition(Leaf):
+    """SUCCESS when the expression holds, else FAILURE. Never RUNNING."""
+
+    expr: Expr = None  # type: ignore[assignment]
+
+    def __post_init__(self):
+        object.__setattr__(self, "expr", as_expr(self.expr))
+
+
+@dataclass(frozen=True)
+class Action(Leaf):
+    """Runs a primitive. ``primitive`` names one declared in the model; ``outcomes`` declares
+    it inline instead (under ``primitive`` or, when that is empty, the node's name).
+    ``args`` are constants handed to the implementation."""
+
+    primitive: str = ""
+    outcomes: "tuple | None" = None
+    args: tuple = ()
+
+    def __post_init__(self):
+        if not self.primitive:
+            object.__setattr__(self, "primitive", self.name)
+        if self.outcomes is not None:
+            object.__setattr__(self, "outcomes", tuple(o if isinstance(o, Outcome) else Outcome(**o) for o in self.outcomes))
+        object.__setattr__(self, "args", _pairs(self.args))
+
+
+@dataclass(frozen=True)
+class SkillRequest(Leaf):
+    """The paper's execution node: ticks FSM ``fsm`` toward ``goal`` with ``params``.
+
+    ``pre``: when false the request returns FAILURE without ticking the FSM.
+    ``post``: a contract that must hold whenever the skill reports SUCCESS (the runtime
+    records a violation event; ``btfsm check`` proves it or shows a counterexample).
+    Halting the request withdraws its goal from the FSM.
+    """
+
+    fsm: str = ""
+    goal: str = ""
+    params: tuple = ()
+    pre: "Expr | None" = None
+    post: "Expr | None" = None
+
+    def __post_init__(self):
+        object.__setattr__(self, "params", tuple((str(k), as_expr(x)) for k, x in _pairs(self.params)))
+        for f in ("pre", "post"):
+            val = getattr(self, f)
+            object.__setattr__(self, f, None if val is None else as_expr(val))
+
+
+def _pairs(x) -> tuple:
+    if not x:
+        return ()
+    return tuple(sorted(x.items())) if hasattr(x, "items") else tuple(tuple(p) for p in x)
+
+
+def walk(node: Node) -> Iterator[Node]:
+    """Pre-order traversal of a (sub)tree."""
+    stack = [node]
+    while stack:
+        n = stack.pop()
+        yield n
+        stack.extend(reversed(n.children_of()))
+
+
+NODE_TYPES = {cls.__name__: cls for cls in (
+    ReactiveSequence, MemorySequence, ReactiveFallback, MemoryFallback, Parallel,
+    Inverter, ForceSuccess, ForceFailure, Retry, Repeat, Guard, Effects,
+    Condition, Action, SkillRequest)}

@@ -1,0 +1,32 @@
+"""Errors raised for bad models and bad input. Each names where the problem is."""
+
+__all__ = ["ModelError", "DomainError", "ConformanceError"]
+
+
+class ModelError(ValueError):
+    """A model is malformed. ``element`` is a path such as ``fsms.arm.edges[3].guard``."""
+
+    def __init__(self, element: str, problem: str, file: "str | None" = None):
+        self.element, self.problem, self.file = element, problem, file
+        super().__init__(self._text())
+
+    def _text(self) -> str:
+        where = f"{self.file}: " if self.file else ""
+        return f"{where}{self.element}: {self.problem}" if self.element else f"{where}{self.problem}"
+
+    def at(self, prefix: str = "", file: "str | None" = None) -> "ModelError":
+        """The same error with ``prefix`` put before its element path and ``file`` set."""
+        element = f"{prefix}.{self.element}" if prefix and self.element else (prefix or self.element)
+        return ModelError(element, self.problem, file or self.file)
+
+
+class DomainError(RuntimeError):
+    """An effect wrote a value outside its variable's domain while the model ran."""
+
+    def __init__(self, var: str, value: int, where: str):
+        self.var, self.value, self.where = var, value, where
+        super().__init__(f"{where}: writes {var} = {value}, outside its domain")
+
+
+class ConformanceError(RuntimeError):
+    """An implementation did something the model does not declare."""

@@ -1,0 +1,243 @@
+"""A BT-FSM model: world variables, primitives, skill FSMs, the tree and its environment.
+
+Models are immutable and check themselves when built (automata-lib style): every name,
+type, id and reference is resolved, every expression type-checked, and the compiled
+program (``model.program``) is ready to run. Structural doubts that do not make the model
+unusable (unreachable states, edges that never fire) are kept in ``model.warnings``.
+
+>>> from btfsm import *
+>>> m = Model("counter", variables=[Int("n", 0, 3)],
+...           tree=ReactiveFallback("root", [Condition("full", "n == 3"),
+...                                          Action("add", outcomes=[success(n="n + 1")])]))
+>>> m.program.initial
+(0,)
+>>> from btfsm.oracles import FirstOracle
+>>> m.program.step(m.program.initial, FirstOracle()).state
+(1,)
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+from .bt import Action, Node, SkillRequest, walk
+from .errors import ModelError
+from .expr import Expr, as_expr
+from .fsm import FSM
+from .primitives import PASS, Primitive, effects_of
+from .world import Var, check_name
+
+__all__ = ["EnvEvent", "EnvChoice", "Model"]
+
+
+@dataclass(frozen=True)
+class EnvEvent:
+    """Something the environment may do before any tick while ``guard`` holds (a part
+    arrives, a sensor flips). Each enabled event independently happens or not."""
+
+    name: str
+    guard: "Expr | None" = None
+    effects: tuple = ()
+
+    def __post_init__(self):
+        object.__setattr__(self, "guard", None if self.guard is None else as_expr(self.guard))
+        object.__setattr__(self, "effects", effects_of(self.effects))
+
+
+@dataclass(frozen=True)
+class EnvChoice:
+    """The environment takes exactly one of the enabled ``options`` (EnvEvents) each tick,
+    like a Promela ``if``. With no option enabled the tick cannot happen (a dead state)."""
+
+    name: str
+    options: tuple = ()
+
+    def __post_init__(self):
+        object.__setattr__(self, "options", tuple(self.options))
+
+
+@dataclass(frozen=True)
+class Model:
+    """The whole model. ``tree`` may be None for a model of FSMs alone.
+
+    ``workable``: the predicate of states from which work can go on (default: every FSM
+    token on its initial state). ``invariants``: ``(name, expr)`` that must hold in every
+    reachable state. ``terminal``: states where stopping is intended. ``tick_rate`` in Hz.
+    """
+
+    name: str
+    variables: tuple = ()
+    primitives: tuple = ()
+    fsms: tuple = ()
+    tree: "Node | None" = None
+    environment: tuple = ()
+    invariants: tuple = ()
+    workable: "Expr | None" = None
+    terminal: "Expr | None" = None
+    tick_rate: float = 10.0
+    description: str = ""
+    warnings: tuple = field(default=(), compare=False, repr=False)
+
+    def __post_init__(self):
+        for f in ("variables", "primitives", "fsms", "environment"):
+            object.__setattr__(self, f, tuple(getattr(self, f)))
+        object.__setattr__(self, "invariants", tuple((str(k), as_expr(x)) for k, x in
+                                                      (self.invariants.items() if hasattr(self.invariants, "items") else self.invariants)))
+        for f in ("workable", "terminal"):
+            val = getattr(self, f)
+            object.__setattr__(self, f, None if val is None else as_expr(val))
+        object.__setattr__(self, "warnings", tuple(self._validate()))
+
+    # ------------------------------------------------------------------ lookups
+    def fsm(self, name: str) -> FSM:
+        for f in self.fsms:
+            if f.name == name:
+                return f
+        raise KeyError(name)
+
+    def var(self, name: str) -> Var:
+        for x in self.variables:
+            if x.name == name:
+                return x
+        raise KeyError(name)
+
+    def all_primitives(self) -> dict:
+        """Every primitive by name: declared ones plus those declared inline."""
+        prims = {p.name: p for p in self.primitives}
+        for node in self.nodes():
+            if isinstance(node, Action) and node.outcomes is not None:
+                prims[node.primitive] = Primitive(node.primitive, node.outcomes)
+        for f in self.fsms:
+            for st in f.states:
+                if st.outcomes is not None:
+                    prims[st.primitive or st.id] = Primitive(st.primitive or st.id, st.outcomes)
+        prims.setdefault(PASS.name, PASS)
+        return prims
+
+    def roots(self) -> list:
+        """``(element path, subtree)`` for the tree and every FSM state's subtree."""
+        out = [("tree", self.tree)] if self.tree is not None else []
+        for f in self.fsms:
+            for st in f.states:
+                if st.subtree is not None:
+                    out.append((f"fsms.{f.name}.states.{st.id}.subtree", st.subtree))
+        return out
+
+    def nodes(self) -> list:
+        return [n for _, root in self.roots() for n in walk(root)]
+
+    @property
+    def program(self):
+        """The compiled program (``btfsm.semantics.Program``), built once."""
+        prog = self.__dict__.get("_program")
+        if prog is None:
+            from .semantics import Program
+
+            prog = Program(self)
+            object.__setattr__(self, "_program", prog)
+        return prog
+
+    # ------------------------------------------------------------------ validation
+    def _validate(self) -> list:
+        if not isinstance(self.name, str) or not self.name:
+            raise ModelError("name", "a model needs a non-empty name")
+        names = set()
+        for i, var in enumerate(self.variables):
+            if not isinstance(var, Var):
+                raise ModelError(f"variables[{i}]", "not a variable declaration")
+            var.validated(f"variables.{var.name}")
+            if var.name in names:
+                raise ModelError(f"variables.{var.name}", f"duplicate variable '{var.name}'")
+            names.add(var.name)
+        fsm_names = set()
+        for f in self.fsms:
+            if f.name in fsm_names or f.name in names:
+                raise ModelError(f"fsms.{f.name}", f"name '{f.name}' is used twice")
+            fsm_names.add(f.name)
+        declared = set()
+        for p in self.primitives:
+            if not isinstance(p.name, str) or not p.name:
+                raise ModelError("primitives", "a primitive needs a non-empty name")
+            if p.name in declared:
+                raise ModelError(f"primitives.{p.name}", f"duplicate primitive '{p.name}'")
+            declared.add(p.name)
+            if not p.outcomes:
+                raise ModelError(f"primitives.{p.name}", "declares no outcome")
+            _unique_outcomes(p.outcomes, f"primitives.{p.name}")
+        self._check_nodes(declared)
+        env_names = []
+        for i, ev in enumerate(self.environment):
+            if not isinstance(ev, (EnvEvent, EnvChoice)):
+                raise ModelError(f"environment[{i}]", "not an event or a choice")
+            check_name(ev.name, f"environment[{i}]", "event name")
+            env_names.append(ev.name)
+            if isinstance(ev, EnvChoice):
+                if not ev.options:
+                    raise ModelError(f"environment.{ev.name}", "a choice needs options")
+                for k, opt in enumerate(ev.options):
+                    if not isinstance(opt, EnvEvent):
+                        raise ModelError(f"environment.{ev.name}.options[{k}]", "not an option (EnvEvent)")
+                    check_name(opt.name, f"environment.{ev.name}.options[{k}]", "option name")
+                    env_names.append(opt.name)
+        _no_dup_names(env_names, "environment")
+        _no_dup_names([k for k, _ in self.invariants], "invariants")
+        if not isinstance(self.tick_rate, (int, float)) or not self.tick_rate > 0:
+            raise ModelError("tick_rate", "must be a positive number of ticks per second")
+        prims = self.all_primitives()
+        warnings = []
+        for f in self.fsms:
+            for st in f.states:
+                if st.primitive and st.outcomes is None and st.primitive not in prims:
+                    raise ModelError(f"fsms.{f.name}.states.{st.id}.primitive", f"unknown primitive '{st.primitive}'")
+            statuses = {name: p.statuses() for name, p in prims.items()}
+            warnings += f.validate(statuses)
+        self.program  # compiles and type-checks every expression
+        return warnings
+
+    def _check_nodes(self, declared):
+        seen, inline = {}, {}
+        for path, root in self.roots():
+            for node in walk(root):
+                if not isinstance(node, Node):
+                    raise ModelError(path, f"{node!r} is not a tree node")
+                where = f"{path}.{node.name}" if isinstance(node.name, str) else path
+                if not isinstance(node.name, str) or not node.name:
+                    raise ModelError(path, "every node needs a non-empty name")
+                if node.name in seen:
+                    raise ModelError(where, f"duplicate node name '{node.name}' (node names are trace ids)")
+                seen[node.name] = where
+                for k, child in enumerate(node.children_of()):
+                    if not isinstance(child, Node):
+                        raise ModelError(f"{where}.children[{k}]", "missing or not a node")
+                if isinstance(node, Action):
+                    if node.outcomes is not None:
+                        if not node.outcomes:
+                            raise ModelError(where, "declares no outcome")
+                        _unique_outcomes(node.outcomes, where)
+                        if node.primitive in declared or (node.primitive in inline and inline[node.primitive] != node.outcomes):
+                            raise ModelError(where, f"primitive '{node.primitive}' is declared twice")
+                        inline[node.primitive] = node.outcomes
+                    elif node.primitive not in declared and node.primitive not in inline:
+                        raise ModelError(where, f"unknown primitive '{node.primitive}' (declare it, or give outcomes)")
+                if isinstance(node, SkillRequest):
+                    try:
+                        f = self.fsm(node.fsm)
+                    except KeyError:
+                        raise ModelError(f"{where}.fsm", f"unknown FSM '{node.fsm}'") from None
+                    if node.goal not in f.goals:
+                        raise ModelError(f"{where}.goal", f"'{node.goal}' is not a goal of {f.name} ({', '.join(f.goals)})")
+                    pnames = {p.name for p in f.params}
+                    given = {k for k, _ in node.params}
+                    if given != pnames:
+                        raise ModelError(f"{where}.params", f"{f.name} takes parameters {sorted(pnames)}, got {sorted(given)}")
+
+
+def _unique_outcomes(outcomes, where):
+    _no_dup_names([o.name for o in outcomes], f"{where}.outcomes")
+
+
+def _no_dup_names(names, where):
+    seen = set()
+    for n in names:
+        if n in seen:
+            raise ModelError(where, f"duplicate name '{n}'")
+        seen.add(n)

@@ -1,0 +1,87 @@
+"""Oracles answer the step function's questions (environment events, primitive outcomes).
+
+* ``FirstOracle``: no event happens, every primitive has its first declared outcome.
+* ``ScriptOracle``: answers from a list of choices and records every choice point; the
+  model checker enumerates choice lists with it, replay feeds it a trace.
+* ``RandomOracle``: seeded random answers, for simulating a model without implementations.
+
+Only real choices (two or more options) consume a script entry.
+
+>>> o = ScriptOracle([1])
+>>> o.env(0), o.env(1), o.arities
+(True, False, [2, 2])
+"""
+from __future__ import annotations
+
+import random
+
+__all__ = ["FirstOracle", "ScriptOracle", "RandomOracle"]
+
+
+class FirstOracle:
+    def env(self, i: int) -> bool:
+        return False
+
+    def choose(self, i: int, enabled: list) -> int:
+        """Index into ``enabled`` (the enabled options of choice ``i``)."""
+        return 0
+
+    def outcome(self, site) -> int:
+        return 0
+
+    def halt(self, site) -> None:
+        pass
+
+
+class ScriptOracle:
+    """Answers choice point k with ``script[k]`` (0 past its end) and records arities.
+
+    ``labels[k]`` says what point k was: ``("env", i)`` or the primitive's Site."""
+
+    __slots__ = ("script", "pos", "arities", "labels", "taken")
+
+    def __init__(self, script=()):
+        self.script, self.pos = tuple(script), 0
+        self.arities: list = []
+        self.labels: list = []
+        self.taken: list = []
+
+    def _choose(self, n: int, label) -> int:
+        k = self.pos
+        self.pos = k + 1
+        self.arities.append(n)
+        self.labels.append(label)
+        c = self.script[k] if k < len(self.script) else 0
+        if not 0 <= c < n:
+            raise ValueError(f"choice {c} at point {k} is out of range 0..{n - 1}")
+        self.taken.append(c)
+        return c
+
+    def env(self, i: int) -> bool:
+        return self._choose(2, ("env", i)) == 1
+
+    def choose(self, i: int, enabled: list) -> int:
+        return self._choose(len(enabled), ("choice", i))
+
+    def outcome(self, site) -> int:
+        n = len(site.outcomes)
+        return 0 if n == 1 else self._choose(n, site)
+
+    def halt(self, site) -> None:
+        pass
+
+
+class RandomOracle(FirstOracle):
+    """Each enabled event happens with probability ``p_env``; outcomes are uniform."""
+
+    def __init__(self, seed: int = 0, p_env: float = 0.5):
+        self.rng, self.p_env = random.Random(seed), p_env
+
+    def env(self, i: int) -> bool:
+        return self.rng.random() < self.p_env
+
+    def choose(self, i: int, enabled: list) -> int:
+        return self.rng.randrange(len(enabled))
+
+    def outcome(self, site) -> int:
+        return self.rng.randrange(len(site.outcomes))

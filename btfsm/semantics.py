@@ -1,0 +1,737 @@
+"""The BT-FSM tick semantics, written once: ``Program.step(state, oracle) -> Step``.
+
+A model compiles into a ``Program``: a flat state layout (world variables, then each FSM's
+token, held goal and parameters, then one running flag or memory slot per tree node that
+needs one) and one closure per node. ``step`` is a pure function of the state tuple and
+the oracle's answers:
+
+* ``oracle.env(i)``: does enabled environment event ``i`` happen this tick?
+* ``oracle.outcome(site)``: which declared outcome did the primitive at ``site`` have?
+* ``oracle.halt(site)``: notification that a running primitive was abandoned.
+
+The runtime answers from implementations and sensors, the model checker answers every
+way the model allows, replay answers from a trace. docs/semantics.md states the rules;
+each rule's implementation below carries the same name as its row there.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from .bt import (Action, Condition, Effects, ForceFailure, ForceSuccess, Guard, Inverter,
+                 MemoryFallback, MemorySequence, Node, Parallel, ReactiveFallback,
+                 ReactiveSequence, Repeat, Retry, SkillRequest, walk)
+from .errors import ModelError
+from .expr import BOOL, Scope, Slot, Type, compile_effects, compile_fn
+from .status import Status
+
+__all__ = ["Program", "Site", "Step", "SlotInfo"]
+
+RUNNING, SUCCESS, FAILURE = int(Status.RUNNING), int(Status.SUCCESS), int(Status.FAILURE)
+_INVERT = (RUNNING, FAILURE, SUCCESS)
+
+
+class Site:
+    """A place where a primitive runs: an Action node or an FSM state."""
+
+    __slots__ = ("kind", "node", "fsm", "state", "primitive", "args", "outcomes", "index")
+
+    def __init__(self, kind, node, fsm, state, primitive, args, outcomes, index):
+        self.kind, self.node, self.fsm, self.state = kind, node, fsm, state
+        self.primitive, self.args, self.outcomes, self.index = primitive, args, outcomes, index
+
+    @property
+    def label(self) -> str:
+        return self.node if self.kind == "action" else f"{self.fsm}/{self.state}"
+
+    def __repr__(self) -> str:
+        return f"Site({self.label} runs {self.primitive})"
+
+
+@dataclass(frozen=True)
+class SlotInfo:
+    """What a state slot holds: ``kind`` is var, token, goal, param, flag or memory."""
+
+    name: str
+    kind: str
+    size: int  # number of values: 0..size-1 (ints: lo..hi stored as is, size = hi-lo+1)
+    lo: int = 0
+
+
+class Step:
+    """The result of one tick: next state, root status, trace events, contract violations.
+
+    ``state`` is None when the tick cannot happen (an environment choice had no enabled
+    option); ``violations`` then holds ``("blocked", choice)``."""
+
+    __slots__ = ("state", "status", "events", "violations")
+
+    def __init__(self, state, status, events, violations):
+        self.state, self.status, self.events, self.violations = state, status, events, violations
+
+    def __repr__(self) -> str:
+        return f"Step(status={Status(self.status).name}, state={self.state})"
+
+
+class _Ctx:
+    __slots__ = ("s", "oracle", "rec", "fsm_done", "violations")
+
+    def __init__(self, s, oracle, rec):
+        self.s, self.oracle, self.rec, self.fsm_done, self.violations = s, oracle, rec, {}, []
+
+
+class _N:
+    """Compile-time facts about one node."""
+
+    __slots__ = ("node", "can_run", "flag", "mem", "kids", "parent", "tick", "halt", "on_halt", "root", "node_site")
+
+    def __init__(self, node, parent, root):
+        self.node, self.parent, self.root = node, parent, root
+        self.kids: list = []
+        self.can_run = False
+        self.flag = self.mem = None
+        self.tick = self.halt = self.on_halt = None
+
+
+class Program:
+    """A model compiled for execution and exploration. Build it with ``model.program``."""
+
+    def __init__(self, model):
+        self.model = model
+        self._initial: list = []
+        self.slots: list[SlotInfo] = []
+        self.sites: list[Site] = []
+        self.scope = Scope()
+        for var in model.variables:
+            self._slot(var.name, "var", var.hi - var.lo + 1, var.lo)
+            self.scope[var.name] = Scope.of([var], len(self.slots) - 1)[var.name]
+        self.prims = model.all_primitives()
+        self._layout_fsms()
+        self._layout_nodes()
+        self._compile_fsms()
+        self.env = [self._compile_env(i, ev) for i, ev in enumerate(model.environment)]
+        self.root = self.nodes[model.tree.name].tick if model.tree is not None else None
+        self.invariants = [(name, compile_fn(e, self.scope, f"invariants.{name}", BOOL)) for name, e in model.invariants]
+        self.workable = self._predicate(model.workable, "workable")
+        self.terminal = self._predicate(model.terminal, "terminal") if model.terminal is not None else None
+        self.initial = tuple(self._initial)
+        self.width = len(self.slots)
+
+    # ------------------------------------------------------------------ layout
+    def _slot(self, name, kind, size, lo=0, init=0) -> int:
+        self.slots.append(SlotInfo(name, kind, size, lo))
+        if kind == "var":
+            init = self.model.var(name).init_code
+        self._initial.append(init)
+        return len(self.slots) - 1
+
+    def _layout_fsms(self):
+        self.fsm_index = {}
+        self.fsm_info = []
+        for fi, f in enumerate(self.model.fsms):
+            ids = tuple(st.id for st in f.states)
+            tok = self._slot(f"{f.name}.state", "token", len(ids), 0, ids.index(f.initial))
+            goal = self._slot(f"{f.name}.goal", "goal", len(f.goals) + 1)
+            self.scope[f"{f.name}.state"] = Slot(tok, Type("enum", ids), 0, len(ids) - 1, writable=False)
+            self.scope[f"{f.name}.goal"] = Slot(goal, Type("enum", ("none",) + f.goals), 0, len(f.goals), writable=False)
+            pslots = []
+            for p in f.params:
+                ps = self._slot(f"{f.name}.{p.name}", "param", p.hi - p.lo + 1, p.lo, p.init_code)
+                self.scope[f"{f.name}.{p.name}"] = Slot(ps, Type(p.kind, p.values) if p.kind == "enum" else Type(p.kind), p.lo, p.hi, writable=False)
+                pslots.append(ps)
+            self.fsm_index[f.name] = fi
+            self.fsm_info.append((f, ids, tok, goal, tuple(pslots)))
+
+    def fsm_scope(self, f) -> Scope:
+        """World scope plus the FSM's parameters by their bare names."""
+        scope = Scope(self.scope)
+        for p in f.params:
+            if p.name in self.scope:
+                raise ModelError(f"fsms.{f.name}.params.{p.name}", f"parameter '{p.name}' hides a variable")
+            scope[p.name] = self.scope[f"{f.name}.{p.name}"]
+        return scope
+
+    def _layout_nodes(self):
+        self.nodes: dict[str, _N] = {}
+        for path, root in self.model.roots():
+            self._collect(root, None, root.name)
+        for info in reversed(list(self.nodes.values())):  # children before parents
+            info.can_run = self._can_run(info)
+        for info in self.nodes.values():
+            n = info.node
+            if info.can_run:
+                info.flag = self._slot(f"{n.name}:running", "flag", 2)
+            if isinstance(n, (MemorySequence, MemoryFallback)):
+                info.mem = self._slot(f"{n.name}:child", "memory", len(n.children))
+            elif isinstance(n, Retry):
+                info.mem = self._slot(f"{n.name}:failures", "memory", max(n.attempts, 1))
+            elif isinstance(n, Repeat):
+                info.mem = self._slot(f"{n.name}:done", "memory", max(n.times, 1))
+
+    def _collect(self, node: Node, parent, root):
+        info = _N(node, parent, root)
+        self.nodes[node.name] = info
+        if parent is not None:
+            parent.kids.append(info)
+        for child in node.children_of():
+            self._collect(child, info, root)
+
+    def _can_run(self, info) -> bool:
+        n = info.node
+        if isinstance(n, Condition):
+            return False
+        if isinstance(n, Action):
+            return Status.RUNNING in self.prims[n.primitive].statuses()
+        if isinstance(n, SkillRequest):
+            return True
+        if isinstance(n, Retry):
+            if n.attempts < 1:
+                raise ModelError(f"tree.{n.name}.attempts", "must be at least 1")
+            return n.attempts > 1 or info.kids[0].can_run
+        if isinstance(n, Repeat):
+            if n.times < 1:
+                raise ModelError(f"tree.{n.name}.times", "must be at least 1")
+            return n.times > 1 or info.kids[0].can_run
+        if isinstance(n, Parallel):
+            return len(n.children) > 1 or any(k.can_run for k in info.kids)
+        return any(k.can_run for k in info.kids)
+
+    # ------------------------------------------------------------------ helpers
+    def _predicate(self, expr, where):
+        if expr is None:  # default workable: every FSM token on its initial state
+            pairs = [(tok, ids.index(f.initial)) for f, ids, tok, _, _ in self.fsm_info]
+            return lambda s: all(s[t] == v for t, v in pairs)
+        return compile_fn(expr, self.scope, where, BOOL)
+
+    def _compile_env(self, i, ev, where=None):
+        """(name, guard, effects, options): options is None for an event, else a tuple
+        of compiled options for a choice."""
+        where = where or f"environment.{ev.name}"
+        options = getattr(ev, "options", None)
+        if options is not None:
+            opts = tuple(self._compile_env(i, o, f"{where}.options.{o.name}") for o in options)
+            return (ev.name, None, None, opts)
+        guard = compile_fn(ev.guard, self.scope, f"{where}.guard", BOOL) if ev.guard is not None else None
+        return (ev.name, guard, compile_effects(ev.effects, self.scope, f"{where}.effects"), None)
+
+    def _site(self, kind, node, fsm, state, primitive, args, where) -> Site:
+        prim = self.prims.get(primitive)
+        if prim is None:
+            raise ModelError(where, f"unknown primitive '{primitive}'")
+        outs = tuple((int(o.status), compile_effects(o.effects, self.scope, f"{where}.outcomes.{o.name}"), o.name)
+                     for o in prim.outcomes)
+        site = Site(kind, node, fsm, state, primitive, dict(args), outs, len(self.sites))
+        self.sites.append(site)
+        return site
+
+    def _halt_fn(self, info):
+        """halt(ctx): halt every running node of ``info``'s subtree, children first."""
+        items = []
+
+        def post(i):
+            for k in i.kids:
+                post(k)
+            if i.can_run:
+                items.append((i.flag, i.on_halt, i.node.name))
+        post(info)
+        items = tuple(items)
+
+        def halt(ctx):
+            s = ctx.s
+            for flag, on_halt, name in items:
+                if s[flag]:
+                    s[flag] = 0
+                    if on_halt is not None:
+                        on_halt(ctx)
+                    if ctx.rec is not None:
+                        ctx.rec.append(("halt", name))
+        return halt
+
+    # ------------------------------------------------------------------ FSMs
+    def _compile_fsms(self):
+        self.fsm_rows = []  # per FSM: rows[state][goal]
+        # node on_halt/tick closures need FSM ticks, and FSM states may run subtrees,
+        # so compile subtrees first (their closures only look FSM ticks up at run time)
+        for info in self.nodes.values():
+            info.halt = None
+        for info in self.nodes.values():
+            self._prepare_on_halt(info)
+        for info in self.nodes.values():
+            info.halt = self._halt_fn(info)
+        for info in reversed(list(self.nodes.values())):
+            info.tick = self._compile_node(info)
+        self._lint_reactive_sequences()
+        for fi, (f, ids, tok, goal, pslots) in enumerate(self.fsm_info):
+            self.fsm_rows.append(self._compile_fsm(fi, f, ids))
+        self.fsm_ticks = [self._fsm_tick_fn(fi) for fi in range(len(self.fsm_info))]
+
+    def _compile_fsm(self, fi, f, ids):
+        scope = self.fsm_scope(f)
+        where = f"fsms.{f.name}"
+        index = {sid: k for k, sid in enumerate(ids)}
+        rows = []
+        for st in f.states:
+            runner, leave = self._state_runner(f, st, f"{where}.states.{st.id}")
+            row_for_goal = []
+            for g in f.goals:
+                dedges, dmarkers = [], []
+                edges = ([], [], [])
+                markers = ([], [], [])
+                applicable = False
+                for e in f.edges:
+                    if e.source != st.id or g not in e.goals:
+                        continue
+                    applicable = True
+                    ew = f"{where}.edges.{e.id}"
+                    guard = compile_fn(e.guard, scope, f"{ew}.guard", BOOL) if e.guard is not None else None
+                    item = (guard, index[e.target], compile_effects(e.effects, self.scope, f"{ew}.effects"), e.id)
+                    (dedges if e.direct else edges[int(e.on)]).append(item)
+                for m in f.markers:
+                    if m.state != st.id or g not in m.goals:
+                        continue
+                    applicable = True
+                    guard = compile_fn(m.guard, scope, f"{where}.markers.{m.id}.guard", BOOL) if m.guard is not None else None
+                    item = (guard, int(m.outcome), m.id)
+                    (dmarkers if m.direct else markers[int(m.on)]).append(item)
+                row_for_goal.append((tuple(dedges), tuple(dmarkers), applicable,
+                                     tuple(map(tuple, edges)), tuple(map(tuple, markers)), runner, leave))
+            rows.append(row_for_goal)
+        return rows
+
+    def _state_runner(self, f, st, where):
+        """(run(ctx) -> status, leave(ctx)) for one FSM state."""
+        if st.subtree is not None:
+            info = self.nodes[st.subtree.name]
+            tick, halt, flag = info.tick, info.halt, info.flag
+
+            def leave(ctx):
+                if flag is not None and ctx.s[flag]:
+                    halt(ctx)
+            return tick, leave
+        prim = st.primitive or (st.id if st.outcomes is not None else "pass")
+        site = self._site("state", None, f.name, st.id, prim, st.args, where)
+        return self._primitive_runner(site), (lambda ctx: ctx.oracle.halt(site))
+
+    def _primitive_runner(self, site):
+        outs = site.outcomes
+
+        def run(ctx):
+            k = ctx.oracle.outcome(site)
+            status, eff, oname = outs[k]
+            if eff is not None:
+                eff(ctx.s)
+            if ctx.rec is not None:
+                ctx.rec.append(("outcome", site.label, oname))
+                if eff is not None:
+                    _record_writes(ctx, eff)
+            return status
+        return run
+
+    def _fsm_tick_fn(self, fi):
+        f, ids, tok, goal_slot, pslots = self.fsm_info[fi]
+        rows = self.fsm_rows[fi]
+        name = f.name
+        withdraw = f.goals.index(f.withdraw_goal) if f.retarget == "withdraw" else None
+        bound = len(ids)
+
+        def move(ctx, row, target, eff, eid):
+            row[6](ctx)  # leave the source state
+            s = ctx.s
+            s[tok] = target
+            if eff is not None:
+                eff(s)
+            if ctx.rec is not None:
+                ctx.rec.append(("fire", name, eid))
+                if eff is not None:
+                    _record_writes(ctx, eff)
+
+        def drive(ctx, g):
+            """FSM tick rule (docs/semantics.md, 'FSM tick'), steps 1-6."""
+            s = ctx.s
+            row = rows[s[tok]][g]
+            for _ in range(bound + 1):  # 1. direct edges first (a chain is bounded)
+                for guard, target, eff, eid in row[0]:
+                    if guard is None or guard(s):
+                        move(ctx, row, target, eff, eid)
+                        row = rows[target][g]
+                        break
+                else:
+                    break
+            else:
+                raise RuntimeError(f"{name}: direct-edge chain longer than {bound}")
+            for guard, outcome, mid in row[1]:  # 2. direct markers
+                if guard is None or guard(s):
+                    if ctx.rec is not None:
+                        ctx.rec.append(("fire", name, mid))
+                    return outcome
+            if not row[2]:  # 3. goal not applicable here
+                if ctx.rec is not None:
+                    ctx.rec.append(("not-applicable", name, ids[s[tok]]))
+                return FAILURE
+            st = row[5](ctx)  # 4. run the state once
+            reply = RUNNING
+            for guard, outcome, mid in row[4][st]:  # 5. marker on that status
+                if guard is None or guard(s):
+                    reply = outcome
+                    if ctx.rec is not None:
+                        ctx.rec.append(("fire", name, mid))
+                    break
+            for guard, target, eff, eid in row[3][st]:  # 6. edge on that status
+                if guard is None or guard(s):
+                    move(ctx, row, target, eff, eid)
+                    break
+            return reply
+
+        def tick(ctx, g, pvals, requester):
+            done = ctx.fsm_done.get(fi)
+            if done is not None:  # one step per FSM per BT tick
+                if done[0] == g:
+                    return done[1]
+                if ctx.rec is not None:
+                    ctx.rec.append(("busy", name, requester))
+                return FAILURE
+            s = ctx.s
+            if pslots and tuple(s[p] for p in pslots) != pvals:
+                if withdraw is None:
+                    for p, val in zip(pslots, pvals):
+                        s[p] = val
+                    result = drive(ctx, g)
+                else:  # the original protocol: withdraw first, adopt on success
+                    if drive(ctx, withdraw) == SUCCESS:
+                        for p, val in zip(pslots, pvals):
+                            s[p] = val
+                    result = RUNNING
+            else:
+                result = drive(ctx, g)
+            s[goal_slot] = g + 1 if result == RUNNING else 0
+            ctx.fsm_done[fi] = (g, result, requester)
+            return result
+
+        def withdraw_goal(ctx, requester):
+            done = ctx.fsm_done.get(fi)
+            if done is not None and done[2] != requester:
+                return  # another request drove the FSM this tick
+            s = ctx.s
+            if s[goal_slot]:
+                s[goal_slot] = 0
+                rows[s[tok]][0][6](ctx)  # abandon the current state's run
+                if ctx.rec is not None:
+                    ctx.rec.append(("withdraw", name, requester))
+
+        tick.withdraw = withdraw_goal
+        return tick
+
+    # ------------------------------------------------------------------ nodes
+    def _prepare_on_halt(self, info):
+        n = info.node
+        if isinstance(n, Action):
+            site_holder = info  # the site is made in _compile_node; look it up lazily
+
+            def on_halt(ctx):
+                ctx.oracle.halt(site_holder.node_site)
+            info.on_halt = on_halt
+        elif isinstance(n, SkillRequest):
+            fi, name = self.fsm_index[n.fsm], n.name
+            info.on_halt = lambda ctx: self.fsm_ticks[fi].withdraw(ctx, name)
+        elif info.mem is not None:
+            mem = info.mem
+            info.on_halt = lambda ctx: ctx.s.__setitem__(mem, 0)
+        elif isinstance(n, Effects) and n.on_halt:
+            eff = compile_effects(n.on_halt, self.scope, f"tree.{n.name}.on_halt")
+            info.on_halt = lambda ctx: _apply(ctx, eff)
+
+    def _compile_node(self, info):
+        n = info.node
+        where = f"tree.{n.name}"
+        kids = tuple(k.tick for k in info.kids)
+        flag, name = info.flag, n.name
+
+        def finish(st, ctx):
+            if flag is not None:
+                ctx.s[flag] = 1 if st == RUNNING else 0
+            if ctx.rec is not None:
+                ctx.rec.append(("status", name, st))
+            return st
+
+        def later_halts(i):
+            return tuple((k.flag, k.halt) for k in info.kids[i + 1:] if k.can_run)
+
+        if isinstance(n, (ReactiveSequence, ReactiveFallback)):
+            go_on = SUCCESS if isinstance(n, ReactiveSequence) else FAILURE
+            halts = tuple(later_halts(i) for i in range(len(kids)))
+            pairs = tuple(zip(kids, halts))
+
+            def tick(ctx):
+                for child, hs in pairs:
+                    st = child(ctx)
+                    if st != go_on:
+                        s = ctx.s
+                        for fl, h in hs:
+                            if s[fl]:
+                                h(ctx)
+                        return finish(st, ctx)
+                return finish(go_on, ctx)
+            return tick
+
+        if isinstance(n, (MemorySequence, MemoryFallback)):
+            go_on = SUCCESS if isinstance(n, MemorySequence) else FAILURE
+            mem, count = info.mem, len(kids)
+
+            def tick(ctx):
+                s = ctx.s
+                i = s[mem]
+                while i < count:
+                    st = kids[i](ctx)
+                    if st != go_on:
+                        s[mem] = i if st == RUNNING else 0
+                        return finish(st, ctx)
+                    i += 1
+                s[mem] = 0
+                return finish(go_on, ctx)
+            return tick
+
+        if isinstance(n, Parallel):
+            count = len(kids)
+            need = count if n.success_threshold is None else n.success_threshold
+            fail_at = n.failure_threshold
+            if not 1 <= need <= count or fail_at < 1:
+                raise ModelError(where, f"thresholds must satisfy 1 <= success <= {count} and failure >= 1")
+            halts = tuple((k.flag, k.halt) for k in info.kids if k.can_run)
+
+            def tick(ctx):
+                ok = bad = 0
+                for child in kids:
+                    st = child(ctx)
+                    if st == SUCCESS:
+                        ok += 1
+                    elif st == FAILURE:
+                        bad += 1
+                if ok >= need:
+                    st = SUCCESS
+                elif bad >= fail_at or bad > count - need:
+                    st = FAILURE
+                else:
+                    return finish(RUNNING, ctx)
+                s = ctx.s
+                for fl, h in halts:
+                    if s[fl]:
+                        h(ctx)
+                return finish(st, ctx)
+            return tick
+
+        if isinstance(n, (Inverter, ForceSuccess, ForceFailure)):
+            child = kids[0]
+            table = _INVERT if isinstance(n, Inverter) else (
+                (RUNNING, SUCCESS, SUCCESS) if isinstance(n, ForceSuccess) else (RUNNING, FAILURE, FAILURE))
+            return lambda ctx: finish(table[child(ctx)], ctx)
+
+        if isinstance(n, (Retry, Repeat)):
+            child, mem = kids[0], info.mem
+            again, stop = (FAILURE, SUCCESS) if isinstance(n, Retry) else (SUCCESS, FAILURE)
+            limit = n.attempts if isinstance(n, Retry) else n.times
+
+            def tick(ctx):
+                st = child(ctx)
+                s = ctx.s
+                if st == again:
+                    k = s[mem] + 1
+                    if k < limit:
+                        s[mem] = k
+                        return finish(RUNNING, ctx)
+                    s[mem] = 0
+                elif st == stop:
+                    s[mem] = 0
+                return finish(st, ctx)
+            return tick
+
+        if isinstance(n, Guard):
+            child, kid = kids[0], info.kids[0]
+            cond = compile_fn(n.condition, self.scope, f"{where}.condition", BOOL)
+
+            def tick(ctx):
+                s = ctx.s
+                if cond(s):
+                    return finish(child(ctx), ctx)
+                if kid.flag is not None and s[kid.flag]:
+                    kid.halt(ctx)
+                return finish(FAILURE, ctx)
+            return tick
+
+        if isinstance(n, Effects):
+            child = kids[0]
+            start = compile_effects(n.on_start, self.scope, f"{where}.on_start")
+            done = (None,
+                    compile_effects(n.on_success, self.scope, f"{where}.on_success"),
+                    compile_effects(n.on_failure, self.scope, f"{where}.on_failure"))
+
+            def tick(ctx):
+                if start is not None and (flag is None or not ctx.s[flag]):
+                    _apply(ctx, start)
+                st = child(ctx)
+                if done[st] is not None:
+                    _apply(ctx, done[st])
+                return finish(st, ctx)
+            return tick
+
+        if isinstance(n, Condition):
+            cond = compile_fn(n.expr, self.scope, f"{where}.expr", BOOL)
+            return lambda ctx: finish(SUCCESS if cond(ctx.s) else FAILURE, ctx)
+
+        conflicts = self._conflicts(info)
+
+        if isinstance(n, Action):
+            site = self._site("action", n.name, None, None, n.primitive, n.args, where)
+            info.node_site = site
+            run = self._primitive_runner(site)
+
+            def tick(ctx):
+                if flag is not None and not ctx.s[flag]:
+                    _halt_before_start(ctx, conflicts)
+                return finish(run(ctx), ctx)
+            return tick
+
+        if isinstance(n, SkillRequest):
+            fi = self.fsm_index[n.fsm]
+            f = self.model.fsms[fi]
+            g = f.goals.index(n.goal)
+            pre = compile_fn(n.pre, self.scope, f"{where}.pre", BOOL) if n.pre is not None else None
+            post = compile_fn(n.post, self.scope, f"{where}.post", BOOL) if n.post is not None else None
+            pfns = []
+            for p in f.params:
+                expr = dict(n.params)[p.name]
+                ptype = Type(p.kind, p.values) if p.kind == "enum" else Type(p.kind)
+                fn = compile_fn(expr, self.scope, f"{where}.params.{p.name}", ptype)
+                pfns.append((fn, p.lo, p.hi, p.kind == "bool", p.name))
+            pfns = tuple(pfns)
+            prog = self
+
+            def tick(ctx):
+                s = ctx.s
+                if not s[flag]:
+                    _halt_before_start(ctx, conflicts)
+                if pre is not None and not pre(s):
+                    return finish(FAILURE, ctx)
+                pvals = tuple(_param(fn(s), lo, hi, is_bool, pname, name) for fn, lo, hi, is_bool, pname in pfns)
+                st = prog.fsm_ticks[fi](ctx, g, pvals, name)
+                if st == SUCCESS and post is not None and not post(s):
+                    ctx.violations.append(("post", name))
+                    if ctx.rec is not None:
+                        ctx.rec.append(("violation", name, "post"))
+                return finish(st, ctx)
+            return tick
+        raise ModelError(where, f"unknown node type {type(n).__name__}")
+
+    def _conflicts(self, info):
+        """Halt-before-start: branches to halt before this leaf starts (rule 'halt order')."""
+        if not info.can_run:
+            return ()
+        out, seen = [], set()
+        for other in self.nodes.values():
+            if other is info or other.root != info.root or not other.can_run or other.kids:
+                continue
+            lca, branch = _lca(info, other)
+            if isinstance(lca.node, Parallel) or branch.name in seen:
+                continue
+            seen.add(branch.name)
+            b = self.nodes[branch.name]
+            out.append((b.flag, b.halt))
+        return tuple(out)
+
+    def _lint_reactive_sequences(self):
+        self.lints = []
+        for info in self.nodes.values():
+            if isinstance(info.node, ReactiveSequence):
+                running = [k.node.name for k in info.kids if k.can_run]
+                if len(running) > 1:
+                    self.lints.append((f"tree.{info.node.name}", f"reactive sequence with several children that can run ({', '.join(running)}): an earlier one restarts each tick and halts the later ones; use MemorySequence"))
+
+    # ------------------------------------------------------------------ running
+    def step(self, state, oracle, record: bool = False) -> Step:
+        """One BT tick: environment events, then the tree. Pure in ``state``."""
+        ctx = _Ctx(list(state), oracle, [] if record else None)
+        s = ctx.s
+        for i, (name, guard, eff, options) in enumerate(self.env):
+            if options is not None:  # a choice: exactly one enabled option
+                enabled = [k for k, o in enumerate(options) if o[1] is None or o[1](s)]
+                if not enabled:
+                    return Step(None, FAILURE, ctx.rec, [("blocked", name)])
+                name, _, eff, _ = options[enabled[oracle.choose(i, enabled)] if len(enabled) > 1 else enabled[0]]
+            elif not ((guard is None or guard(s)) and oracle.env(i)):
+                continue
+            if eff is not None:
+                eff(s)
+            if ctx.rec is not None:
+                ctx.rec.append(("env", name))
+                if eff is not None:
+                    _record_writes(ctx, eff)
+        status = self.root(ctx) if self.root is not None else SUCCESS
+        return Step(tuple(s), status, ctx.rec, ctx.violations)
+
+    def fsm_step(self, state, fsm: "str | int", goal: "str | int", params, oracle, record: bool = False) -> Step:
+        """One tick of one FSM requested from outside a tree (the FSM-level open system)."""
+        fi = self.fsm_index[fsm] if isinstance(fsm, str) else fsm
+        f = self.fsm_info[fi][0]
+        g = f.goals.index(goal) if isinstance(goal, str) else goal
+        ctx = _Ctx(list(state), oracle, [] if record else None)
+        status = self.fsm_ticks[fi](ctx, g, tuple(params), "<request>")
+        return Step(tuple(ctx.s), status, ctx.rec, ctx.violations)
+
+    def decode(self, state) -> dict:
+        """Readable values of a state: variables, FSM states/goals/params, node memory."""
+        return {info.name: self.decode_slot(i, val) for i, (info, val) in enumerate(zip(self.slots, state))}
+
+    def decode_slot(self, index: int, value: int):
+        """The readable value of one slot."""
+        info = self.slots[index]
+        if info.kind == "var":
+            return self.model.var(info.name).decode(value)
+        slot = self.scope.get(info.name)
+        if slot is not None and slot.type.kind == "enum":
+            return slot.type.values[value]
+        return bool(value) if slot is not None and slot.type == BOOL else value
+
+    def fsm_state(self, state, fsm: str) -> tuple:
+        """(state id, held goal or None) of an FSM."""
+        f, ids, tok, goal, _ = self.fsm_info[self.fsm_index[fsm]]
+        return ids[state[tok]], (f.goals[state[goal] - 1] if state[goal] else None)
+
+
+def _halt_before_start(ctx, conflicts):
+    s = ctx.s
+    for flag, halt in conflicts:
+        if s[flag]:
+            halt(ctx)
+
+
+def _apply(ctx, eff):
+    eff(ctx.s)
+    if ctx.rec is not None:
+        _record_writes(ctx, eff)
+
+
+def _record_writes(ctx, eff):
+    s = ctx.s
+    for idx in eff.targets:
+        ctx.rec.append(("write", idx, s[idx]))
+
+
+def _param(value, lo, hi, is_bool, pname, node):
+    value = int(value)
+    if not lo <= value <= hi:
+        from .errors import DomainError
+
+        raise DomainError(pname, value, f"tree.{node}.params")
+    return value
+
+
+def _lca(a, b):
+    """Lowest common ancestor of two node infos and the child of it on b's side."""
+    ancestors = []
+    x = a
+    while x is not None:
+        ancestors.append(x)
+        x = x.parent
+    seen = {id(x) for x in ancestors}
+    prev, y = None, b
+    while id(y) not in seen:
+        prev, y = y, y.parent
+    return y, (prev.node if prev is not None else b.node)

@@ -1,0 +1,163 @@
+"""Structured traces (JSON Lines) and their exact replay.
+
+Line 1 is a header ``{"format": "btfsm-trace/1", "model": ..., "tick_rate": ...,
+"initial": {...}}``. Then one object per tick:
+
+``tick``, ``time``, ``status`` (root), ``env`` (events that happened), ``outcomes``
+([site, outcome] in the order primitives ran), ``changes`` ({node: status} for nodes whose
+status changed, ``"halted"`` for halted ones), ``fired`` ([fsm, edge or marker id]),
+``fsm`` ({name: [state, goal]}), ``writes`` ({variable: value}), ``violations``.
+
+``replay(lines, model)`` re-runs the model answering every choice from the trace and
+returns the first tick whose regenerated record differs (None when all agree).
+"""
+from __future__ import annotations
+
+import io
+import json
+from typing import Iterable
+
+from .status import Status
+
+__all__ = ["TraceWriter", "tick_record", "read_trace", "replay", "ReplayOracle", "FORMAT"]
+
+FORMAT = "btfsm-trace/1"
+_NAMES = ("RUNNING", "SUCCESS", "FAILURE")
+
+
+def tick_record(program, clock, step, last_status: dict) -> dict:
+    """The trace object of one tick (``last_status`` is updated in place)."""
+    env, outcomes, fired, writes, changes, violations = [], [], [], {}, {}, []
+    slots = program.slots
+    for ev in step.events or ():
+        kind = ev[0]
+        if kind == "status":
+            name, st = ev[1], _NAMES[ev[2]]
+            if last_status.get(name) != st:
+                changes[name] = st
+                last_status[name] = st
+        elif kind == "halt":
+            changes[ev[1]] = "halted"
+            last_status[ev[1]] = "halted"
+        elif kind == "outcome":
+            outcomes.append([ev[1], ev[2]])
+        elif kind == "fire":
+            fired.append([ev[1], ev[2]])
+        elif kind == "write":
+            name = slots[ev[1]].name
+            writes[name] = program.decode_slot(ev[1], ev[2])
+        elif kind == "env":
+            env.append(ev[1])
+        elif kind in ("violation", "busy"):
+            violations.append([kind, ev[1], ev[2]])
+        elif kind in ("not-applicable", "withdraw"):
+            fired.append([ev[1], f"<{kind}>"])
+    fsm = {}
+    for f, ids, tok, goal, _ in program.fsm_info:
+        s = step.state
+        fsm[f.name] = [ids[s[tok]], f.goals[s[goal] - 1] if s[goal] else None]
+    return {"tick": clock.tick, "time": round(clock.time, 9), "status": _NAMES[step.status], "env": env,
+            "outcomes": outcomes, "changes": changes, "fired": fired, "fsm": fsm, "writes": writes,
+            "violations": violations}
+
+
+class TraceWriter:
+    """Writes a header and tick records as JSON Lines to a path or a text stream."""
+
+    def __init__(self, target, program, initial_state):
+        self._own = not hasattr(target, "write")
+        self.out = open(target, "w", encoding="utf-8") if self._own else target
+        header = {"format": FORMAT, "model": program.model.name, "tick_rate": program.model.tick_rate,
+                  "initial": _jsonable(program.decode(initial_state))}
+        self.out.write(json.dumps(header) + "\n")
+
+    def write(self, record: dict) -> None:
+        self.out.write(json.dumps(record) + "\n")
+
+    def close(self) -> None:
+        if self._own:
+            self.out.close()
+        else:
+            self.out.flush()
+
+
+def _jsonable(d: dict) -> dict:
+    return {k: (v if isinstance(v, (bool, int, str)) or v is None else str(v)) for k, v in d.items()}
+
+
+def read_trace(source) -> tuple[dict, list]:
+    """(header, tick records) from a path, a text stream or a list of lines."""
+    if isinstance(source, (list, tuple)):
+        lines = list(source)
+    elif hasattr(source, "read"):
+        lines = source.read().splitlines()
+    else:
+        with open(source, encoding="utf-8") as fh:
+            lines = fh.read().splitlines()
+    objs = [json.loads(line) for line in lines if line.strip()]
+    if not objs or objs[0].get("format") != FORMAT:
+        raise ValueError(f"not a {FORMAT} trace (first line must be its header)")
+    return objs[0], objs[1:]
+
+
+class ReplayOracle:
+    """Answers from one tick record: events by name, outcomes in recorded order."""
+
+    def __init__(self, program, record: dict):
+        self.program = program
+        self.env_names = set(record.get("env", ()))
+        self.outcomes = list(record.get("outcomes", ()))
+        self.pos = 0
+        self.error = None
+
+    def env(self, i):
+        return self.program.env[i][0] in self.env_names
+
+    def choose(self, i, enabled):
+        options = self.program.env[i][3]
+        for k, opt in enumerate(enabled):
+            if options[opt][0] in self.env_names:
+                return k
+        self.error = f"choice '{self.program.env[i][0]}': the trace names none of its enabled options"
+        return 0
+
+    def outcome(self, site):
+        if self.pos >= len(self.outcomes):
+            self.error = f"{site.label} ran but the trace records no more outcomes"
+            return 0
+        label, name = self.outcomes[self.pos]
+        self.pos += 1
+        if label != site.label:
+            self.error = f"{site.label} ran where the trace has {label}"
+        for k, o in enumerate(site.outcomes):
+            if o[2] == name:
+                return k
+        self.error = f"{site.label}: outcome '{name}' is not declared"
+        return 0
+
+    def halt(self, site):
+        pass
+
+
+def replay(source, model, state=None) -> "tuple[int, str] | None":
+    """Re-run a trace; return ``(tick, why)`` at the first difference, or None."""
+    from .runtime import Clock
+
+    header, records = read_trace(source)
+    program = model.program
+    if header.get("model") != model.name:
+        return (0, f"trace is of model '{header.get('model')}', not '{model.name}'")
+    s = tuple(state) if state is not None else program.initial
+    clock, last = Clock(model.tick_rate), {}
+    for rec in records:
+        oracle = ReplayOracle(program, rec)
+        step = program.step(s, oracle, True)
+        if oracle.error:
+            return (rec["tick"], oracle.error)
+        mine = tick_record(program, clock, step, last)
+        if mine != rec:
+            diff = sorted(k for k in rec if mine.get(k) != rec.get(k))
+            return (rec["tick"], f"regenerated record differs in {', '.join(diff)}")
+        s = step.state
+        clock.tick += 1
+    return None

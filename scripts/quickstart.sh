@@ -1,0 +1,14 @@
+#!/usr/bin/env bash
+# Set up btfsm on a fresh machine, model-check the paper's ARIAC model and run a short
+# simulation of it in the pymunk cell. Usage: bash scripts/quickstart.sh
+set -euo pipefail
+cd "$(dirname "$0")/.."
+PY=${PYTHON:-python3}
+if [ ! -x .venv/bin/python ]; then "$PY" -m venv .venv; fi
+.venv/bin/python -m pip install -q --upgrade pip >/dev/null
+.venv/bin/python -m pip install -q -e .
+B=.venv/bin/btfsm
+set -x
+$B check ariac-preemptive
+$B check ariac-baseline
+$B experiment --k 1 --k 40 --workers 2

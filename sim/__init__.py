@@ -1,0 +1,1 @@
+"""sim: the pymunk ARIAC kitting cell that runs checked models."""

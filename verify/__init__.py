@@ -1,0 +1,1 @@
+"""verify: compile BT-FSM models to explicit transition systems and check them."""
