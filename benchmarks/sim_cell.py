@@ -1,0 +1,165 @@
+#!/usr/bin/env python3
+"""Simulated seconds per wall second of sim.cell, beside the shared reference pymunk cell.
+
+Ours: physics at 240 Hz, a small BT-like kitting controller ticked at 10 Hz that picks
+detected belt parts first and bin 2/3 parts otherwise and places them on free tray slots,
+belt arrivals every 30.2 s. Reference: ``pymunk_cell_bench.py --view top`` run as a
+subprocess (it excludes a 2 s warm-up from its timing; ours times the whole run).
+
+    python3 benchmarks/sim_cell.py [--sim-seconds 120] [--repeats 3] [--json out.json]
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+sys.path.insert(0, ROOT)
+
+from sim.cell import BELT, Cell, CellConfig, Place, periodic_arrivals  # noqa: E402
+
+DEFAULT_REFERENCE = os.path.join(os.path.dirname(ROOT), "shared", "bench", "pymunk_cell_bench.py")
+TICK_STEPS = 24  # 10 Hz at dt = 1/240
+
+
+class KittingController:
+    """Sequence-with-memory of (start, done) steps per task; a new task when idle."""
+
+    def __init__(self, cell: Cell):
+        self.cell = cell
+        self.plan: list = []
+        self.started = False
+        self.picks = 0
+
+    def tick(self) -> None:
+        if not self.plan:
+            self.plan = self._next_task()
+            self.started = False
+        if not self.plan:
+            return
+        start, done = self.plan[0]
+        if not self.started:
+            start()
+            self.started = True
+        elif done():
+            self.plan.pop(0)
+            self.started = False
+
+    def _next_task(self) -> list:
+        c = self.cell
+        slots = c.free_slots()
+        if not slots:
+            return []
+        belt = [pid for pid, _ in c.detections if c.place_of(pid) == BELT and c.time_to_wall(pid) > 4.0]
+        if belt:
+            return self._belt_pick(belt[0]) + self._place(slots[0])
+        for k in (2, 3):
+            pid = c.next_bin_part(k)
+            if pid is not None:
+                return self._bin_pick(pid) + self._place(slots[0])
+        return []
+
+    def _arrived(self) -> bool:
+        return self.cell.arm.arrived
+
+    def _move(self, pose_fn) -> tuple:
+        return (lambda: self.cell.arm.move_to(*pose_fn()), self._arrived)
+
+    def _grasped(self) -> bool:
+        return self.cell.gripper.attached_part is not None
+
+    def _lift(self) -> tuple:
+        c = self.cell
+        return self._move(lambda: (c.arm.pose[0], c.arm.pose[1], c.arm.pose[2] + c.config.clearance))
+
+    def _bin_pick(self, pid: int) -> list:
+        c = self.cell
+        return [self._move(lambda: c.pose_above(pid)),
+                (lambda: (c.gripper.enable(), c.arm.move_to(*c.pose_at(pid))), self._grasped),
+                self._lift()]
+
+    def _belt_pick(self, pid: int) -> list:
+        c = self.cell
+        return [(lambda: c.arm.track(pid, c.pose_above(pid)[2]), self._arrived),
+                (lambda: (c.gripper.enable(), c.arm.track(pid, c.pose_at(pid)[2])), self._grasped),
+                self._lift()]
+
+    def _place(self, slot: int) -> list:
+        c = self.cell
+
+        def release():
+            c.gripper.disable()
+            self.picks += 1
+        return [self._move(lambda: c.pose_above(Place.tray(slot))),
+                self._move(lambda: c.pose_at(Place.tray(slot))),
+                (release, lambda: True),
+                self._move(lambda: c.pose_above(Place.tray(slot)))]
+
+
+def run_ours(sim_seconds: float, seed: int = 1) -> dict:
+    cfg = CellConfig()
+    cell = Cell(cfg, seed=seed, arrivals=periodic_arrivals(30.2, 1 + int(sim_seconds // 30.2)))
+    ctrl = KittingController(cell)
+    ticks = int(round(sim_seconds / cfg.dt)) // TICK_STEPS
+    t0 = time.perf_counter()
+    for _ in range(ticks):
+        ctrl.tick()
+        cell.step(TICK_STEPS)
+    wall = time.perf_counter() - t0
+    steps = ticks * TICK_STEPS
+    return {"steps_per_s": steps / wall, "sim_s_per_wall_s": steps * cfg.dt / wall,
+            "wall_s": wall, "places": ctrl.picks, "tray_count": cell.tray_count,
+            "lost": len(cell.lost_parts), "detections": len(cell.detections),
+            "digest": cell.digest()[:16]}
+
+
+def run_reference(path: str, sim_seconds: float) -> dict:
+    with tempfile.TemporaryDirectory() as tmp:
+        out = os.path.join(tmp, "ref.json")
+        subprocess.run([sys.executable, path, "--view", "top", "--sim-seconds", str(sim_seconds),
+                        "--json", out], check=True, capture_output=True)
+        with open(out) as fh:
+            return json.load(fh)["bench"]
+
+
+def median_run(fn, repeats: int, key: str = "sim_s_per_wall_s") -> dict:
+    runs = [fn() for _ in range(repeats)]
+    mid = statistics.median(r[key] for r in runs)
+    return dict(min(runs, key=lambda r: abs(r[key] - mid)), all=[round(r[key], 1) for r in runs])
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--sim-seconds", type=float, default=120.0)
+    ap.add_argument("--repeats", type=int, default=3)
+    ap.add_argument("--reference", default=DEFAULT_REFERENCE)
+    ap.add_argument("--json", help="also write the result to this file")
+    args = ap.parse_args()
+
+    ours = median_run(lambda: run_ours(args.sim_seconds), args.repeats)
+    print(f"ours:      {ours['sim_s_per_wall_s']:8.1f} sim-s/wall-s  {ours['steps_per_s']:9.0f} steps/s  "
+          f"(runs {ours['all']}; places {ours['places']}, tray {ours['tray_count']}, "
+          f"lost {ours['lost']}, detections {ours['detections']})")
+    result = {"sim_seconds": args.sim_seconds, "ours": ours}
+    if os.path.exists(args.reference):
+        ref = median_run(lambda: run_reference(args.reference, args.sim_seconds), args.repeats)
+        ratio = ours["sim_s_per_wall_s"] / ref["sim_s_per_wall_s"]
+        print(f"reference: {ref['sim_s_per_wall_s']:8.1f} sim-s/wall-s  {ref['steps_per_s']:9.0f} steps/s  "
+              f"(runs {ref['all']}; picks {ref['picks']})")
+        print(f"ratio ours/reference: {ratio:.2f}")
+        result.update(reference=ref, ratio=ratio)
+    else:
+        print(f"reference not found at {args.reference}; skipped")
+    if args.json:
+        with open(args.json, "w") as fh:
+            json.dump(result, fh, indent=2)
+
+
+if __name__ == "__main__":
+    main()
