@@ -24,9 +24,13 @@ from typing import Callable, Iterable, Mapping
 
 from .errors import ConformanceError
 from .status import Status
-from .trace import TraceWriter, tick_record
+from .trace import TraceWriter, render_answers, tick_record
 
 __all__ = ["Runtime", "Call", "Clock"]
+
+_RUNNING = int(Status.RUNNING)
+_STATUS = tuple(sorted(Status, key=int))  # int status -> Status, without Status(x)
+_NO_EVENTS = frozenset()
 
 
 class Clock:
@@ -73,10 +77,22 @@ class Call:
 
 
 class _ImplOracle:
-    """Answers the step function from implementations and observed events."""
+    """Answers the step function from implementations and observed events.
 
-    def __init__(self, rt, events):
+    One per Runtime, reset each tick (no per-tick allocation); it caches, per site, the
+    outcome index of each outcome name so a named answer costs one dict lookup."""
+
+    __slots__ = ("rt", "events", "used", "names", "log")
+
+    def __init__(self, rt, events=frozenset()):
         self.rt, self.events, self.used = rt, events, set()
+        self.names: dict = {}  # site index -> {outcome name: index}
+        self.log = None  # list of outcome indices this tick (deferred tracing)
+
+    def reset(self, events):
+        self.events = events
+        if self.used:
+            self.used = set()
 
     def env(self, i):
         name = self.rt.program.env[i][0]
@@ -99,18 +115,31 @@ class _ImplOracle:
         impl = rt.implementations.get(site.primitive)
         if impl is None:
             if len(site.outcomes) == 1:
-                return 0
-            if rt.fallback is None:
+                k = 0
+            elif rt.fallback is None:
                 raise ConformanceError(f"{site.label}: primitive '{site.primitive}' has {len(site.outcomes)} outcomes and no implementation")
-            return rt.fallback.outcome(site)
-        first = site.index not in rt._busy
-        call = Call(site, first, rt._view, rt.clock.time, rt.clock.tick)
+            else:
+                k = rt.fallback.outcome(site)
+            if self.log is not None:
+                self.log.append(k)
+            return k
+        index, busy, clock = site.index, rt._busy, rt.clock
+        call = Call(site, index not in busy, rt._view, clock.time, clock.tick)
         answer = impl(call) if callable(impl) else impl.tick(call)
-        k = _outcome_index(site, answer)
-        if site.outcomes[k][0] == Status.RUNNING:
-            rt._busy.add(site.index)
+        k = None
+        if type(answer) is str:  # the common case: an outcome name
+            names = self.names.get(index)
+            if names is None:
+                names = self.names[index] = {o[2]: j for j, o in enumerate(site.outcomes)}
+            k = names.get(answer)
+        if k is None:
+            k = _outcome_index(site, answer)  # Status, index, or an error
+        if site.outcomes[k][0] == _RUNNING:
+            busy.add(index)
         else:
-            rt._busy.discard(site.index)
+            busy.discard(index)
+        if self.log is not None:
+            self.log.append(k)
         return k
 
     def halt(self, site):
@@ -149,10 +178,18 @@ class Runtime:
     ``implementations``: primitive name -> implementation. ``fallback``: an oracle for
     nondeterministic primitives without implementation (e.g. ``RandomOracle(seed)``);
     without one they are an error. ``trace``: a path or text stream for JSON Lines.
+
+    ``trace_mode="deferred"`` (default) keeps only each tick's answers (observed events,
+    outcome indices) while running and writes the full records by re-running the pure
+    step function every ``flush_every`` ticks and on ``close()``: the same file as
+    ``"live"``, which builds and writes each record during the tick. ``record=True``
+    makes every step keep its events (``runtime.last.events``, ``runtime.last_record``).
     """
 
+    FLUSH_EVERY = 4096
+
     def __init__(self, model, implementations: "Mapping | None" = None, *, fallback=None,
-                 trace=None, state=None, record: "bool | None" = None):
+                 trace=None, state=None, record: "bool | None" = None, trace_mode: str = "deferred"):
         self.model = model
         self.program = model.program
         self.implementations = dict(implementations or {})
@@ -163,11 +200,18 @@ class Runtime:
         self._busy: set = set()
         self._view = _VarView(self)
         self.trace = None
+        if trace_mode not in ("deferred", "live"):
+            raise ValueError("trace_mode must be 'deferred' or 'live'")
         if trace is not None:
             self.trace = trace if isinstance(trace, TraceWriter) else TraceWriter(trace, self.program, self.state)
-        self.record = self.trace is not None if record is None else record
+        self.deferred = self.trace is not None and trace_mode == "deferred"
+        self.record = (self.trace is not None and not self.deferred) if record is None else record
         self._last_status: dict = {}
+        self._oracle = _ImplOracle(self)
+        self._answers: list = []
+        self._render_from = (self.state, 0, {})  # state, tick and statuses where rendering resumes
         self.last = None
+        self.last_record = None
 
     @property
     def vars(self) -> dict:
@@ -181,22 +225,32 @@ class Runtime:
 
     def tick(self, events: Iterable[str] = ()):
         """One tick. ``events``: names of environment events observed since the last tick."""
-        events = set(events)
-        oracle = _ImplOracle(self, events)
+        if isinstance(events, str):
+            raise TypeError("events is a collection of event names, not one string")
+        events = frozenset(events) if events else _NO_EVENTS
+        oracle = self._oracle
+        oracle.reset(events)
+        if self.deferred:
+            oracle.log = []
         self._live = self.state
         step = self.program.step(self.state, oracle, self.record)
-        unknown = events - oracle.used
-        if unknown:
-            raise ConformanceError(f"tick {self.clock.tick}: observed event(s) {sorted(unknown)} not enabled by the model in this state")
+        if events:
+            unknown = events - oracle.used
+            if unknown:
+                raise ConformanceError(f"tick {self.clock.tick}: observed event(s) {sorted(unknown)} not enabled by the model in this state")
         record = None
         if self.record:
             record = tick_record(self.program, self.clock, step, self._last_status)
-            if self.trace is not None:
+            if self.trace is not None and not self.deferred:
                 self.trace.write(record)
+        if self.deferred:
+            self._answers.append((events, oracle.log))
+            if len(self._answers) >= self.FLUSH_EVERY:
+                self.flush_trace()
         self.state = self._live = step.state
         self.clock.tick += 1
         self.last = step
-        step.status = Status(step.status)
+        step.status = _STATUS[step.status]
         self.last_record = record
         return step
 
@@ -207,6 +261,16 @@ class Runtime:
             step = self.tick(events(self) if events else ())
         return step
 
+    def flush_trace(self):
+        """Write the records of the ticks logged so far (deferred mode)."""
+        if not self.deferred or not self._answers:
+            return
+        state, tick, last = self._render_from
+        state, last = render_answers(self.program, state, self._answers, self.trace, tick, last)
+        self._render_from = (state, tick + len(self._answers), last)
+        self._answers = []
+
     def close(self):
         if self.trace is not None:
+            self.flush_trace()
             self.trace.close()

@@ -313,14 +313,15 @@ class Program:
 
     def _primitive_runner(self, site):
         outs = site.outcomes
+        evs = tuple(("outcome", site.label, o[2]) for o in outs)
 
         def run(ctx):
             k = ctx.oracle.outcome(site)
-            status, eff, oname = outs[k]
+            status, eff, _ = outs[k]
             if eff is not None:
                 eff(ctx.s)
             if ctx.rec is not None:
-                ctx.rec.append(("outcome", site.label, oname))
+                ctx.rec.append(evs[k])
                 if eff is not None:
                     _record_writes(ctx, eff)
             return status
@@ -445,11 +446,13 @@ class Program:
         kids = tuple(k.tick for k in info.kids)
         flag, name = info.flag, n.name
 
+        evs = (("status", name, RUNNING), ("status", name, SUCCESS), ("status", name, FAILURE))
+
         def finish(st, ctx):
             if flag is not None:
                 ctx.s[flag] = 1 if st == RUNNING else 0
             if ctx.rec is not None:
-                ctx.rec.append(("status", name, st))
+                ctx.rec.append(evs[st])  # preallocated: no tuple per tick
             return st
 
         def later_halts(i):
@@ -609,6 +612,8 @@ class Program:
                 if not s[flag]:
                     _halt_before_start(ctx, conflicts)
                 if pre is not None and not pre(s):
+                    if s[flag]:  # a running request ends: withdraw its goal
+                        prog.fsm_ticks[fi].withdraw(ctx, name)
                     return finish(FAILURE, ctx)
                 pvals = tuple(_param(fn(s), lo, hi, is_bool, pname, name) for fn, lo, hi, is_bool, pname in pfns)
                 st = prog.fsm_ticks[fi](ctx, g, pvals, name)
@@ -710,8 +715,7 @@ def _apply(ctx, eff):
 
 def _record_writes(ctx, eff):
     s = ctx.s
-    for idx in eff.targets:
-        ctx.rec.append(("write", idx, s[idx]))
+    ctx.rec.extend([("write", idx, s[idx]) for idx in eff.targets])
 
 
 def _param(value, lo, hi, is_bool, pname, node):

@@ -19,33 +19,44 @@ from typing import Iterable
 
 from .status import Status
 
-__all__ = ["TraceWriter", "tick_record", "read_trace", "replay", "ReplayOracle", "FORMAT"]
+__all__ = ["TraceWriter", "tick_record", "read_trace", "replay", "ReplayOracle", "AnswerOracle",
+           "render_answers", "FORMAT"]
 
 FORMAT = "btfsm-trace/1"
 _NAMES = ("RUNNING", "SUCCESS", "FAILURE")
 
 
+def _slot_names(program) -> tuple:
+    """(name, decode) per slot, computed once per program."""
+    cached = program.__dict__.get("_trace_slots")
+    if cached is None:
+        cached = tuple((info.name, (lambda v, i=i: program.decode_slot(i, v))) for i, info in enumerate(program.slots))
+        program._trace_slots = cached
+    return cached
+
+
 def tick_record(program, clock, step, last_status: dict) -> dict:
     """The trace object of one tick (``last_status`` is updated in place)."""
     env, outcomes, fired, writes, changes, violations = [], [], [], {}, {}, []
-    slots = program.slots
+    slots = _slot_names(program)
+    get = last_status.get
     for ev in step.events or ():
         kind = ev[0]
         if kind == "status":
             name, st = ev[1], _NAMES[ev[2]]
-            if last_status.get(name) != st:
+            if get(name) != st:
                 changes[name] = st
                 last_status[name] = st
+        elif kind == "outcome":
+            outcomes.append([ev[1], ev[2]])
+        elif kind == "write":
+            name, decode = slots[ev[1]]
+            writes[name] = decode(ev[2])
         elif kind == "halt":
             changes[ev[1]] = "halted"
             last_status[ev[1]] = "halted"
-        elif kind == "outcome":
-            outcomes.append([ev[1], ev[2]])
         elif kind == "fire":
             fired.append([ev[1], ev[2]])
-        elif kind == "write":
-            name = slots[ev[1]].name
-            writes[name] = program.decode_slot(ev[1], ev[2])
         elif kind == "env":
             env.append(ev[1])
         elif kind in ("violation", "busy"):
@@ -53,8 +64,8 @@ def tick_record(program, clock, step, last_status: dict) -> dict:
         elif kind in ("not-applicable", "withdraw"):
             fired.append([ev[1], f"<{kind}>"])
     fsm = {}
+    s = step.state
     for f, ids, tok, goal, _ in program.fsm_info:
-        s = step.state
         fsm[f.name] = [ids[s[tok]], f.goals[s[goal] - 1] if s[goal] else None]
     return {"tick": clock.tick, "time": round(clock.time, 9), "status": _NAMES[step.status], "env": env,
             "outcomes": outcomes, "changes": changes, "fired": fired, "fsm": fsm, "writes": writes,
@@ -137,6 +148,44 @@ class ReplayOracle:
 
     def halt(self, site):
         pass
+
+
+class AnswerOracle:
+    """Answers from an answer log entry: the observed event names and, in order, the
+    outcome indices the primitives had (what ``Runtime`` keeps in deferred trace mode)."""
+
+    __slots__ = ("program", "events", "it")
+
+    def __init__(self, program, events, outcome_indices):
+        self.program, self.events, self.it = program, events, iter(outcome_indices)
+
+    def env(self, i):
+        return self.program.env[i][0] in self.events
+
+    def choose(self, i, enabled):
+        options = self.program.env[i][3]
+        return next(k for k, o in enumerate(enabled) if options[o][0] in self.events)
+
+    def outcome(self, site):
+        return next(self.it)
+
+    def halt(self, site):
+        pass
+
+
+def render_answers(program, initial, answers, writer: "TraceWriter", first_tick: int = 0, last_status=None):
+    """Write the tick records of an answer log by re-running the pure step function.
+    Returns (state, last_status) after the last tick, to continue rendering later."""
+    from .runtime import Clock
+
+    s, clock = tuple(initial), Clock(program.model.tick_rate, first_tick)
+    last = {} if last_status is None else last_status
+    for events, outcome_indices in answers:
+        step = program.step(s, AnswerOracle(program, events, outcome_indices), True)
+        writer.write(tick_record(program, clock, step, last))
+        s = step.state
+        clock.tick += 1
+    return s, last
 
 
 def replay(source, model, state=None) -> "tuple[int, str] | None":
