@@ -67,13 +67,15 @@ class _VarView(Mapping):
 
 
 class Call:
-    """What an implementation sees: the site, whether this is a fresh start, the time."""
+    """What an implementation sees: the site, whether this is a fresh start, the time, and
+    for an FSM state the goal the FSM is driven toward (``goal``, else None)."""
 
-    __slots__ = ("site", "first", "vars", "time", "tick", "args")
+    __slots__ = ("site", "first", "vars", "time", "tick", "args", "goal")
 
-    def __init__(self, site, first, vars, time, tick):
+    def __init__(self, site, first, vars, time, tick, goal=None):
         self.site, self.first, self.vars, self.time, self.tick = site, first, vars, time, tick
         self.args = site.args
+        self.goal = goal
 
 
 class _ImplOracle:
@@ -82,12 +84,13 @@ class _ImplOracle:
     One per Runtime, reset each tick (no per-tick allocation); it caches, per site, the
     outcome index of each outcome name so a named answer costs one dict lookup."""
 
-    __slots__ = ("rt", "events", "used", "names", "log")
+    __slots__ = ("rt", "events", "used", "names", "log", "goals")
 
     def __init__(self, rt, events=frozenset()):
         self.rt, self.events, self.used = rt, events, set()
         self.names: dict = {}  # site index -> {outcome name: index}
         self.log = None  # list of outcome indices this tick (deferred tracing)
+        self.goals: dict = {}  # FSM name -> goal it is driven toward now
 
     def reset(self, events):
         self.events = events
@@ -100,6 +103,10 @@ class _ImplOracle:
             self.used.add(name)
             return True
         return False
+
+    def request(self, fsm_index, goal_index):
+        f = self.rt.program.fsm_info[fsm_index][0]
+        self.goals[f.name] = f.goals[goal_index]
 
     def choose(self, i, enabled):
         name, _, _, options = self.rt.program.env[i]
@@ -124,7 +131,8 @@ class _ImplOracle:
                 self.log.append(k)
             return k
         index, busy, clock = site.index, rt._busy, rt.clock
-        call = Call(site, index not in busy, rt._view, clock.time, clock.tick)
+        call = Call(site, index not in busy, rt._view, clock.time, clock.tick,
+                    self.goals.get(site.fsm) if site.fsm is not None else None)
         answer = impl(call) if callable(impl) else impl.tick(call)
         k = None
         if type(answer) is str:  # the common case: an outcome name

@@ -8,6 +8,8 @@ the oracle's answers:
 * ``oracle.env(i)``: does enabled environment event ``i`` happen this tick?
 * ``oracle.outcome(site)``: which declared outcome did the primitive at ``site`` have?
 * ``oracle.halt(site)``: notification that a running primitive was abandoned.
+* ``oracle.request(fsm_index, goal_index)`` (optional): notification of the goal an FSM is
+  driven toward, before its state runs (implementations may choose targets by goal).
 
 The runtime answers from implementations and sensors, the model checker answers every
 way the model allows, replay answers from a trace. docs/semantics.md states the rules;
@@ -73,10 +75,11 @@ class Step:
 
 
 class _Ctx:
-    __slots__ = ("s", "oracle", "rec", "fsm_done", "violations")
+    __slots__ = ("s", "oracle", "rec", "fsm_done", "violations", "on_request")
 
     def __init__(self, s, oracle, rec):
         self.s, self.oracle, self.rec, self.fsm_done, self.violations = s, oracle, rec, {}, []
+        self.on_request = getattr(oracle, "request", None)  # optional: told which goal an FSM drives
 
 
 class _N:
@@ -348,6 +351,8 @@ class Program:
         def drive(ctx, g):
             """FSM tick rule (docs/semantics.md, 'FSM tick'), steps 1-6."""
             s = ctx.s
+            if ctx.on_request is not None:
+                ctx.on_request(fi, g)
             row = rows[s[tok]][g]
             for _ in range(bound + 1):  # 1. direct edges first (a chain is bounded)
                 for guard, target, eff, eid in row[0]:

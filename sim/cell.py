@@ -145,6 +145,8 @@ class CellConfig:
     dt: float = 1.0 / 240.0
     iterations: int = 10
     collision_slop: float = 5e-4
+    sleep_time: float = 0.5  # seconds at rest before a body sleeps (0: never)
+    idle_speed: float = 0.005  # m/s below which a body counts as resting
     # conveyor
     belt_x: float = 1.21
     belt_width: float = 0.65
@@ -489,6 +491,9 @@ class Cell:
         self.space = pymunk.Space()
         self.space.iterations = cfg.iterations
         self.space.collision_slop = cfg.collision_slop
+        if cfg.sleep_time > 0:  # resting bin and tray parts sleep (about half the physics cost)
+            self.space.sleep_time_threshold = cfg.sleep_time
+            self.space.idle_speed_threshold = cfg.idle_speed
         self.space.gravity = (0.0, 0.0)
         self._steps = 0
         self._parts: dict[int, _Part] = {}
