@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import os
 import sys
 
 from .errors import ModelError
@@ -102,8 +103,38 @@ def _args_skills(sp):
     sp.add_argument("--max-states", type=int, default=None)
 
 
+def _args_experiment(sp):
+    sp.add_argument("--k", type=int, action="append", default=[], help="run this k (1..40; repeatable)")
+    sp.add_argument("--trials", type=int, help="run this many k values spread evenly over 1..40")
+    sp.add_argument("--variant", action="append", choices=("preemptive", "baseline"), help="default: both")
+    sp.add_argument("--workers", type=int, default=os.cpu_count() or 1, help="parallel processes (default: all cores)")
+    sp.add_argument("--out", default="out/experiment", help="folder for trials.csv, trials.json and the figure")
+    sp.add_argument("--quiet", action="store_true", help="no progress bar")
+
+
+def _args_sim(sp):
+    _args_model(sp)
+    sp.add_argument("--k", type=int, default=1, help="belt parts every 30 + 0.2 k s (default 1)")
+    sp.add_argument("--time", type=float, default=1500.0, help="time limit in simulated seconds")
+    sp.add_argument("--render", metavar="PNG", help="draw the cell at the end of the run")
+    sp.add_argument("--gif", metavar="GIF", help="write an animation of the run")
+    sp.add_argument("--fps", type=float, default=2.0, help="animation frames per simulated second")
+    sp.add_argument("--max-frames", type=int, default=600)
+
+
+def _args_conform(sp):
+    _args_model(sp)
+    sp.add_argument("--scenarios", type=int, default=10)
+    sp.add_argument("--seed", type=int, default=0)
+    sp.add_argument("--time", type=float, default=700.0, help="time limit per scenario (simulated s)")
+    sp.add_argument("--drops", action="store_true", help="add faulty-gripper drop regions to some scenarios")
+    sp.add_argument("--no-path", action="store_true", help="skip the path check against the explored system")
+    sp.add_argument("--max-states", type=int, default=2_000_000)
+
+
 _ARGS = {"validate": _args_validate, "show": _args_show, "run": _args_run, "replay": _args_replay,
-         "check": _args_check, "export": _args_export, "skills": _args_skills}
+         "check": _args_check, "export": _args_export, "skills": _args_skills,
+         "experiment": _args_experiment, "sim": _args_sim, "conform": _args_conform}
 
 
 def main(argv=None) -> int:

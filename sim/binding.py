@@ -54,6 +54,22 @@ class CellBinding:
         self.queue_max = qvar.hi
         self.n_tray = model.var("tray").hi
 
+    NEEDS_PRIMITIVES = ("move", "gripper", "grasp")
+    NEEDS_VARIABLES = ("queue", "gripper_full", "tray")
+
+    @classmethod
+    def unsupported(cls, model) -> str:
+        """Why the cell cannot run ``model`` ("" when it can)."""
+        prims = model.all_primitives()
+        names = {v.name for v in model.variables}
+        missing = [f"primitive '{p}'" for p in cls.NEEDS_PRIMITIVES if p not in prims]
+        missing += [f"variable '{v}'" for v in cls.NEEDS_VARIABLES if v not in names]
+        if not any(f.name == "arm" for f in model.fsms):
+            missing.append("FSM 'arm'")
+        if "arrive" not in {ev.name for ev in model.environment}:
+            missing.append("environment event 'arrive'")
+        return ("it lacks " + ", ".join(missing)) if missing else ""
+
     # ------------------------------------------------------------------ runtime glue
     def implementations(self) -> dict:
         impls = {"move": _Impl(self.move, self.stop), "gripper": self.gripper, "grasp": _Impl(self.grasp, self.stop)}

@@ -211,6 +211,9 @@ def plot_reaction_times(results: Sequence[TrialResult], path: str, window: float
     ax.axvline(window, color="red", linestyle="--", label=f"pick window dt* = {window:g} s")
     ax.set_xlabel("reaction time: detection to removal from the belt [s]")
     ax.set_ylabel("conveyor parts")
+    from matplotlib.ticker import MaxNLocator
+
+    ax.yaxis.set_major_locator(MaxNLocator(integer=True))
     ax.set_title("Reaction times, preemptive vs memory baseline")
     ax.legend(fontsize=8)
     fig.tight_layout()

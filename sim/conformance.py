@@ -1,0 +1,135 @@
+"""Runtime conformance: does the cell, driven by the runtime, behave as the checked model?
+
+Two checks run after every tick:
+
+* **path**: the runtime's (state before, state after) is a transition of the compiled
+  transition system that ``btfsm check`` explored (``PathMonitor``);
+* **abstraction**: the model's variables agree with what the cell physically did
+  (``CellBinding.abstraction_errors``: gripper contents, tray count, belt queue).
+
+``run_scenario`` runs one scenario (variant, arrival schedule, seed, optional gripper
+drop regions) and returns the first mismatch with its tick, or None.
+"""
+from __future__ import annotations
+
+import random
+from dataclasses import dataclass, field
+
+__all__ = ["PathMonitor", "Scenario", "Mismatch", "run_scenario", "random_scenarios"]
+
+
+class PathMonitor:
+    """Checks that consecutive runtime states are transitions of an explored system."""
+
+    def __init__(self, ts):
+        import numpy as np
+
+        if ts.kind != "model":
+            raise ValueError("the path monitor needs a whole-model transition system")
+        self.ts = ts
+        self.slots = np.asarray(ts.slots)
+        self.index = {tuple(int(v) for v in row): i for i, row in enumerate(ts.states)}
+        succ: dict = {}
+        for a, b in zip(ts.src.tolist(), ts.dst.tolist()):
+            succ.setdefault(a, set()).add(b)
+        self.succ = succ
+
+    def _key(self, state) -> tuple:
+        return tuple(state[i] for i in self.ts.slots)
+
+    def check(self, before, after) -> "str | None":
+        a, b = self.index.get(self._key(before)), self.index.get(self._key(after))
+        if a is None:
+            return "the state before the tick is not a reachable state of the checked model"
+        if b is None:
+            return "the state after the tick is not a reachable state of the checked model"
+        if b not in self.succ.get(a, ()):
+            return f"no transition {a} -> {b} in the checked model"
+        return None
+
+
+@dataclass(frozen=True)
+class Scenario:
+    variant: str = "preemptive"
+    seed: int = 0
+    detections: tuple = ()  # times (s) at which belt parts reach the sensor
+    drop_regions: tuple = ()  # faulty gripper: ((x_min, y_min, x_max, y_max), ...)
+    time_limit: float = 300.0
+    parts: int = 18
+
+
+@dataclass
+class Mismatch:
+    tick: int
+    time: float
+    kind: str  # "path" | "abstraction" | "conformance"
+    what: str
+
+    def __str__(self) -> str:
+        return f"tick {self.tick} (t = {self.time:.2f} s): {self.kind} mismatch: {self.what}"
+
+
+@dataclass
+class ScenarioResult:
+    scenario: Scenario
+    ticks: int
+    completed: bool
+    mismatch: "Mismatch | None" = None
+    lost: int = 0
+    notes: list = field(default_factory=list)
+
+
+def run_scenario(scenario: Scenario, model=None, monitor: "PathMonitor | None" = None) -> ScenarioResult:
+    """Run the scenario in the cell; stop at the first mismatch."""
+    from btfsm.errors import ConformanceError
+
+    from .cell import CellConfig
+    from .experiment import TrialSpec
+    from .trial import build_model, build_trial
+
+    spec = TrialSpec(scenario.variant, 0, parts=scenario.parts, time_limit=scenario.time_limit)
+    model = model or build_model(spec)
+    config = CellConfig(dt=1.0 / spec.physics_rate, drop_regions=tuple(scenario.drop_regions))
+    model, cell, binding, rt = build_trial(spec, model, config, seed=scenario.seed, detections=scenario.detections)
+    q_slot, tray_slot = model.program.scope["queue"].index, model.program.scope["tray"].index
+    steps = max(1, round(spec.physics_rate / spec.tick_rate))
+    ticks = 0
+    while cell.time < scenario.time_limit:
+        before = rt.state
+        try:
+            step = rt.tick(binding.events(before[q_slot]))
+        except ConformanceError as exc:
+            return ScenarioResult(scenario, ticks, False, Mismatch(ticks, cell.time, "conformance", str(exc)))
+        binding.after_tick(step.state[q_slot])
+        problems = binding.abstraction_errors(rt.vars, rt.fsm_state("arm")[0])
+        if problems:
+            return ScenarioResult(scenario, ticks, False, Mismatch(ticks, cell.time, "abstraction", "; ".join(problems)))
+        if monitor is not None:
+            why = monitor.check(before, step.state)
+            if why:
+                return ScenarioResult(scenario, ticks, False, Mismatch(ticks, cell.time, "path", why))
+        ticks += 1
+        if step.state[tray_slot] >= scenario.parts and cell.tray_count >= scenario.parts:
+            break
+        cell.step(steps)
+        cell.check_invariant()
+    lost = sum(1 for pid in cell.lost_parts)
+    return ScenarioResult(scenario, ticks, cell.tray_count >= scenario.parts, None, lost)
+
+
+def random_scenarios(n: int, seed: int = 0, variant: str = "preemptive", parts: int = 4,
+                     time_limit: float = 150.0, drops: bool = False) -> list:
+    """``n`` seeded random scenarios: arrival schedules, seeds, optional drop regions."""
+    rng = random.Random(seed)
+    out = []
+    for _ in range(n):
+        t, times = 17.0, []
+        while t < time_limit:
+            t += rng.uniform(4.0, 40.0)
+            times.append(round(t, 2))
+        regions = ()
+        if drops and rng.random() < 0.5:
+            x, y = rng.uniform(-0.2, 0.8), rng.uniform(-3.0, 0.0)
+            regions = ((x, y, x + 0.15, y + 0.15),)
+        out.append(Scenario(variant, rng.randrange(10**6), tuple(times), regions, time_limit, parts))
+    return out
