@@ -10,13 +10,9 @@ import importlib
 import os
 import sys
 
-from .errors import ModelError
+from .errors import ModelError, UsageError
 
-__all__ = ["main"]
-
-
-class UsageError(Exception):
-    """Bad input or usage: printed as one line, exit code 2."""
+__all__ = ["main", "UsageError"]
 
 
 def _handler(spec: str):

@@ -1,6 +1,6 @@
 """Errors raised for bad models and bad input. Each names where the problem is."""
 
-__all__ = ["ModelError", "DomainError", "ConformanceError"]
+__all__ = ["ModelError", "DomainError", "ConformanceError", "UsageError"]
 
 
 class ModelError(ValueError):
@@ -30,3 +30,7 @@ class DomainError(RuntimeError):
 
 class ConformanceError(RuntimeError):
     """An implementation did something the model does not declare."""
+
+
+class UsageError(Exception):
+    """Bad command-line input or usage: the CLI prints it as one line and exits 2."""
