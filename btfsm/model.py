@@ -163,7 +163,18 @@ class Model:
             if not p.outcomes:
                 raise ModelError(f"primitives.{p.name}", "declares no outcome")
             _unique_outcomes(p.outcomes, f"primitives.{p.name}")
-        self._check_nodes(declared)
+        inline = self._check_nodes(declared)
+        for f in self.fsms:
+            for st in f.states:
+                if st.outcomes is None:
+                    continue
+                name, where = st.primitive or st.id, f"fsms.{f.name}.states.{st.id}"
+                if not st.outcomes:
+                    raise ModelError(where, "declares no outcome")
+                _unique_outcomes(st.outcomes, where)
+                if name in declared or (name in inline and inline[name] != st.outcomes):
+                    raise ModelError(where, f"primitive '{name}' is declared twice with different outcomes")
+                inline[name] = st.outcomes
         env_names = []
         for i, ev in enumerate(self.environment):
             if not isinstance(ev, (EnvEvent, EnvChoice)):
@@ -229,6 +240,7 @@ class Model:
                     given = {k for k, _ in node.params}
                     if given != pnames:
                         raise ModelError(f"{where}.params", f"{f.name} takes parameters {sorted(pnames)}, got {sorted(given)}")
+        return inline
 
 
 def _unique_outcomes(outcomes, where):

@@ -1,0 +1,272 @@
+"""The paper's ARIAC kitting model, with the corrected skill FSM (docs/models.md).
+
+One arm serves three areas: the AGV tray ``agv`` (A), the ``bins`` (B) and the
+``conveyor`` (C). ``generate_fsm(X, Y, Z)`` is the paper's template for area X (the other
+areas are Y and Z); the arm's FSM is the union of the template over the three cyclic
+rotations of the areas: 42 states, one goal ``pick_<area>`` and ``place_<area>`` per area.
+
+Corrections relative to the authors' original (``models.original``):
+
+* no ``withdraw`` goal: every goal takes over from every state through its own edges. A
+  pick is undone (direct edges to ``put_back``/``disable_gripper``), a place before the
+  release is aborted upward, a place after the release runs on to its escape pose;
+* a failed grasp is retried ``grasp_attempts - 1`` times (a counter guards the retry
+  edge), then the pick replies FAILURE through a marker: nothing is retried silently;
+* no shadowed markers, no direct-edge cycles, disjoint guards (deterministic).
+
+The executive tree is the paper's: a Parallel root that monitors the conveyor, the belt
+branch X (rescue what the gripper holds into the bins, or pick the first belt part),
+the goal condition ``done`` (``tray == n_tray``), Y (place on the tray) and Z (pick from
+the bins). ``preemptive`` puts X in a reactive fallback before the rest, so X takes over
+as soon as a belt part is detected; ``baseline`` puts all four in one memory fallback
+(the paper's memory selector), so a detection waits until the running skill ends.
+
+>>> m = preemptive(n_tray=2)
+>>> len(m.fsm("arm").states), len(m.fsm("arm").goals)
+(42, 6)
+>>> [n for n in SKILLS]
+['S1', 'S2', 'S3', 'S4']
+"""
+from __future__ import annotations
+
+from btfsm import (FSM, Action, Bool, Condition, Edge, Effects, Int, Marker, MemoryFallback,
+                   MemorySequence, Model, Parallel, Primitive, ReactiveFallback, ReactiveSequence,
+                   SkillRequest, State, EnvEvent, failure, running, success)
+
+__all__ = ["AREAS", "ROTATIONS", "SKILLS", "PRIMITIVES", "generate_fsm", "unite", "arm_fsm",
+           "tree", "preemptive", "baseline", "states_of", "HUBS"]
+
+AREAS = ("agv", "bins", "conveyor")
+# the authors' rotation order: (area, area before, area after)
+ROTATIONS = (("bins", "conveyor", "agv"), ("agv", "bins", "conveyor"), ("conveyor", "agv", "bins"))
+HUBS = tuple(f"approach_{a}" for a in AREAS)
+
+# the paper's four skills: (name, goal of the FSM 'arm', SkillRequest node)
+SKILLS = {
+    "S1": ("pick_bins", "pick_part"),
+    "S2": ("place_agv", "place_on_location"),
+    "S3": ("pick_conveyor", "pick_part_from_queue"),
+    "S4": ("place_bins", "place_on_intermediate_location"),
+}
+
+# Generic primitives bound by name; ``args`` say where and how (docs/models.md lists them).
+PRIMITIVES = (
+    Primitive("move", (running("moving"), success("arrived"))),
+    Primitive("gripper", (success("switched"),)),
+    Primitive("grasp", (running("searching"), success("attached", gripper_full=True), failure("missed"))),
+    Primitive("record_pose", (success("recorded"),)),
+    Primitive("detach", (success("detached"),)),
+    Primitive("query_queue", (success("polled"),)),
+)
+
+_TOL_APPROACH = {"conveyor": "huge"}  # the belt moves: the authors use the loose tolerance there
+
+
+def states_of(x: str, y: str, z: str) -> list:
+    """The 14 states of area ``x``: its hub, the two transits arriving at it, the pick
+    chain with its undo states, and the place chain."""
+    approach_tol = _TOL_APPROACH.get(x, "fine")
+    return [
+        State(f"{y}_to_{x}", "move", {"area": x, "pose": f"from_{y}", "tolerance": "via_point"}),
+        State(f"{z}_to_{x}", "move", {"area": x, "pose": f"from_{z}", "tolerance": "via_point"}),
+        State(f"approach_{x}", "move", {"area": x, "pose": "approach", "tolerance": approach_tol}),
+        State(f"enable_gripper_{x}", "gripper", {"on": True}),
+        State(f"grasp_{x}", "grasp", {"area": x, "shaking": x != "conveyor"}),
+        State(f"record_pose_{x}", "record_pose", {"area": x}),
+        State(f"detach_pick_{x}", "detach", {"area": x}),
+        State(f"raise_{x}", "move", {"area": x, "pose": "approach", "tolerance": _TOL_APPROACH.get(x, "coarse")}),
+        State(f"put_back_{x}", "move", {"area": x, "pose": "grasp", "tolerance": "coarse"}),
+        State(f"disable_gripper_{x}", "gripper", {"on": False}),
+        State(f"put_{x}", "move", {"area": x, "pose": "grasp", "tolerance": "coarse"}),
+        State(f"release_{x}", "gripper", {"on": False}),
+        State(f"detach_place_{x}", "detach", {"area": x}),
+        State(f"escape_{x}", "move", {"area": x, "pose": "approach", "tolerance": "fine"}),
+    ]
+
+
+def generate_fsm(x: str, y: str, z: str, grasp_attempts: int = 2) -> tuple:
+    """The template for area ``x`` (other areas ``y``, ``z``): ``(states, edges, markers)``.
+
+    Edges of the goals ``pick_x``/``place_x`` everywhere (the transit part), and the
+    edges of *every* goal inside x's own chains (progress for x's goals, preemption for
+    the others).
+
+    >>> st, ed, mk = generate_fsm("bins", "conveyor", "agv")
+    >>> len(st), sorted({m.state for m in mk})
+    (14, ['disable_gripper_bins', 'escape_bins', 'grasp_bins', 'raise_bins'])
+    """
+    if grasp_attempts < 1:
+        raise ValueError("grasp_attempts must be at least 1")
+    pick, place = f"pick_{x}", f"place_{x}"
+    mine = (pick, place)
+    every = tuple(f"{k}_{a}" for a in (x, y, z) for k in ("pick", "place"))
+    place_elsewhere = (f"place_{y}", f"place_{z}")
+    pick_elsewhere = (f"pick_{y}", f"pick_{z}")
+    A = f"approach_{x}"
+    edges = [
+        # transit part: reach x's hub from anywhere, then enter the chain
+        Edge(A, f"enable_gripper_{x}", [pick], effects={"retries": 0}),
+        Edge(A, f"put_{x}", [place]),
+        Edge(f"approach_{y}", f"{y}_to_{x}", mine),
+        Edge(f"approach_{z}", f"{z}_to_{x}", mine),
+        Edge(f"{y}_to_{x}", A, mine),
+        Edge(f"{z}_to_{x}", A, mine),
+    ]
+    for p, q in ((x, y), (x, z), (y, z), (z, y)):  # transits that do not arrive at x
+        edges.append(Edge(f"{p}_to_{q}", f"approach_{p}", mine, direct=True))
+    others = tuple(g for g in every if g != pick)
+    E, G, R, D, U = (f"{s}_{x}" for s in ("enable_gripper", "grasp", "record_pose", "detach_pick", "raise"))
+    B, OFF = f"put_back_{x}", f"disable_gripper_{x}"
+    edges += [
+        # pick chain; before the part is held every other goal switches the gripper off
+        Edge(E, G, [pick]),
+        Edge(E, OFF, others, direct=True),
+        Edge(G, R, [pick], effects={"retries": 0}),
+        Edge(G, OFF, others, direct=True),
+    ]
+    markers = []
+    if grasp_attempts > 1:
+        last = grasp_attempts - 1
+        edges.append(Edge(G, E, [pick], on="failure", guard=f"retries < {last}", effects={"retries": "retries + 1"}))
+        edges.append(Edge(G, OFF, [pick], on="failure", guard=f"retries >= {last}", effects={"retries": 0}))
+        markers.append(Marker(G, [pick], on="failure", outcome="failure", guard=f"retries >= {last}"))
+    else:
+        edges.append(Edge(G, OFF, [pick], on="failure"))
+        markers.append(Marker(G, [pick], on="failure", outcome="failure"))
+    carry_on = (pick,) + place_elsewhere  # the part is held: finish lifting it
+    put_down = pick_elsewhere + (place,)  # another pick, or a place right here: put it back
+    edges += [
+        Edge(R, D, carry_on), Edge(R, OFF, put_down, direct=True),
+        Edge(D, U, carry_on), Edge(D, OFF, put_down, direct=True),
+        Edge(U, A, carry_on), Edge(U, B, put_down, direct=True),
+        Edge(B, OFF, every),
+        Edge(OFF, A, every, effects={"gripper_full": False}),
+    ]
+    markers += [
+        Marker(U, [pick], outcome="success"),
+        # putting a held part back down is a place on x
+        Marker(OFF, [place], outcome="success", guard="gripper_full"),
+    ]
+    P, L, DP, S = f"put_{x}", f"release_{x}", f"detach_place_{x}", f"escape_{x}"
+    not_place = tuple(g for g in every if g != place)
+    edges += [
+        # place chain: before the release abort upward, after it run on to the escape pose
+        Edge(P, L, [place]), Edge(P, A, not_place, direct=True),
+        Edge(L, DP, [place], effects={"gripper_full": False}), Edge(L, A, not_place, direct=True),
+        Edge(DP, S, every),
+        Edge(S, A, every),
+    ]
+    markers.append(Marker(S, [place], outcome="success"))
+    return states_of(x, y, z), edges, markers
+
+
+def unite(parts) -> tuple:
+    """Union of template instances: states in order, edges and markers that differ only
+    in their goals merged into one element serving all of them."""
+    states, seen = [], set()
+    edges: dict = {}
+    markers: dict = {}
+    for st, ed, mk in parts:
+        for s in st:
+            if s.id not in seen:
+                seen.add(s.id)
+                states.append(s)
+        for e in ed:
+            key = (e.source, e.target, e.direct, e.on, e.guard, e.effects)
+            edges[key] = edges[key] + tuple(g for g in e.goals if g not in edges[key]) if key in edges else e.goals
+        for m in mk:
+            key = (m.state, m.direct, m.on, m.guard, m.outcome)
+            markers[key] = markers[key] + tuple(g for g in m.goals if g not in markers[key]) if key in markers else m.goals
+    out_edges = [Edge(s, t, goals, on=on, guard=gd, direct=d, effects=eff) for (s, t, d, on, gd, eff), goals in edges.items()]
+    out_markers = [Marker(s, goals, on=on, outcome=o, guard=gd, direct=d) for (s, d, on, gd, o), goals in markers.items()]
+    return states, out_edges, out_markers
+
+
+def arm_fsm(grasp_attempts: int = 2) -> FSM:
+    """The arm's skill FSM: the template united over the three rotations."""
+    states, edges, markers = unite(generate_fsm(x, y, z, grasp_attempts) for x, y, z in ROTATIONS)
+    # the hub states first (in AREAS order) for readability; the token starts at the bins
+    order = {sid: k for k, sid in enumerate(HUBS)}
+    states.sort(key=lambda s: order.get(s.id, len(order)))
+    goals = tuple(f"{k}_{a}" for a in AREAS for k in ("pick", "place"))
+    return FSM("arm", states=states, initial="approach_bins", goals=goals, edges=edges, markers=markers)
+
+
+def _at_tray() -> str:
+    near = ", ".join(repr(s) for s in ("approach_agv", "put_agv", "release_agv", "detach_place_agv", "escape_agv"))
+    return f"arm.state in ({near})"
+
+
+def tree(n_tray: int = 18, variant: str = "preemptive"):
+    """The executive tree (the paper's BT with explicit pre/post-conditions)."""
+    s1 = SkillRequest("pick_part", fsm="arm", goal="pick_bins", post="gripper_full")
+    s2 = SkillRequest("place_on_location", fsm="arm", goal="place_agv", post="not gripper_full")
+    s3 = SkillRequest("pick_part_from_queue", fsm="arm", goal="pick_conveyor", post="gripper_full")
+    s4 = SkillRequest("place_on_intermediate_location", fsm="arm", goal="place_bins", post="not gripper_full")
+    belt = ReactiveSequence("belt_branch", [
+        Condition("queue_not_empty", "queue > 0"),
+        MemoryFallback("serve_queue", [
+            MemorySequence("free_gripper", [
+                Condition("gripper_not_empty_for_belt", "gripper_full"),
+                # hold the part in the bins unless the arm is already at the tray
+                Condition("check_intermediate_location", f"not ({_at_tray()})"),
+                s4]),
+            MemorySequence("take_first_in_queue", [
+                Condition("gripper_empty_for_belt", "not gripper_full"),
+                # the part leaves the queue whether it was picked or missed (it rode past)
+                Effects("update_queue", child=s3, on_success={"queue": "queue - 1"},
+                        on_failure={"queue": "queue - 1"})]),
+        ]),
+    ])
+    done = Condition("done", f"tray == {n_tray}")
+    place = MemorySequence("place_branch", [
+        Condition("gripper_not_empty", "gripper_full"),
+        # count the part when the place succeeds, or when it is halted after the release
+        Effects("register_placing", child=s2, on_success={"tray": "tray + 1"},
+                on_halt={"tray": "tray + 1 if not gripper_full else tray"})])
+    pick = MemorySequence("pick_branch", [Condition("gripper_empty", "not gripper_full"), s1])
+    if variant == "preemptive":
+        executive = ReactiveFallback("executive", [belt, MemoryFallback("kitting", [done, place, pick])])
+    elif variant == "baseline":
+        executive = MemoryFallback("executive", [belt, done, place, pick])
+    else:
+        raise ValueError(f"unknown variant {variant!r} (preemptive or baseline)")
+    monitor = Action("monitor_conveyor", primitive="query_queue")
+    return Parallel("root", [monitor, executive])
+
+
+def _model(variant: str, n_tray: int, queue_max: int, grasp_attempts: int) -> Model:
+    if n_tray < 1 or queue_max < 1:
+        raise ValueError("n_tray and queue_max must be at least 1")
+    hubs = ", ".join(repr(h) for h in HUBS)
+    releases = ", ".join(repr(f"release_{a}") for a in AREAS)
+    enables = ", ".join(repr(f"enable_gripper_{a}") for a in AREAS)
+    return Model(
+        f"ariac-{variant}",
+        variables=[Int("queue", 0, queue_max), Bool("gripper_full"), Int("tray", 0, n_tray),
+                   Int("retries", 0, max(grasp_attempts - 1, 0))],
+        primitives=PRIMITIVES,
+        fsms=[arm_fsm(grasp_attempts)],
+        tree=tree(n_tray, variant),
+        environment=[EnvEvent("arrive", f"queue < {queue_max}", {"queue": "queue + 1"})],
+        invariants={
+            # a grasp only starts with an empty gripper: never two parts in the gripper
+            "one_part_at_a_time": f"not (gripper_full and arm.state in ({enables}))",
+            # the gripper is only switched off to release a part it holds
+            "release_holds_a_part": f"gripper_full or not (arm.state in ({releases}))",
+        },
+        workable=f"arm.state in ({hubs}) and arm.goal == 'none'",
+        tick_rate=10.0,
+        description=(f"ARIAC kitting, {variant}: {n_tray} parts on the tray, at most {queue_max} belt parts "
+                     f"waiting, {grasp_attempts} grasp attempts per pick"),
+    )
+
+
+def preemptive(n_tray: int = 18, queue_max: int = 2, grasp_attempts: int = 2) -> Model:
+    """The preemptive executive: the belt branch is checked on every tick."""
+    return _model("preemptive", n_tray, queue_max, grasp_attempts)
+
+
+def baseline(n_tray: int = 18, queue_max: int = 2, grasp_attempts: int = 2) -> Model:
+    """The paper's non-preemptive baseline: one memory fallback over the four branches."""
+    return _model("baseline", n_tray, queue_max, grasp_attempts)

@@ -1,0 +1,70 @@
+"""Built-in models by name: ``BUILTIN[name]`` is ``"module:function"`` returning a Model.
+
+Only these fixed, shipped entries are ever imported (``btfsm.files.load_model`` resolves
+names through this table; ``load_builtin`` here does the same without the file loader).
+
+>>> load_builtin("spectrum-reverse").name
+'spectrum-reverse'
+>>> sorted(n for n in BUILTIN if n.startswith("ariac"))
+['ariac-baseline', 'ariac-preemptive']
+"""
+from __future__ import annotations
+
+import importlib
+
+from btfsm.errors import ModelError
+
+__all__ = ["BUILTIN", "DEFECTS", "load_builtin", "names"]
+
+BUILTIN: dict = {
+    # the paper's ARIAC cell, corrected design (models/ariac.py)
+    "ariac-preemptive": "models.ariac:preemptive",
+    "ariac-baseline": "models.ariac:baseline",
+    # the authors' original FSM and executive, defects kept (models/original.py)
+    "original": "models.original:original",
+    "original-preemptive": "models.original:original_preemptive",
+    # teaching examples (models/examples/)
+    "two-area": "models.examples.two_area:two_area",
+    "spectrum-continue": "models.examples.spectrum:continue_",
+    "spectrum-hold": "models.examples.spectrum:hold",
+    "spectrum-reverse": "models.examples.spectrum:reverse",
+    # the seeded-defect catalogue: one model per property (models/examples/defects.py)
+    "defect-trap": "models.examples.defects:trap",
+    "defect-unreachable-goal": "models.examples.defects:unreachable_goal",
+    "defect-nondeterminism": "models.examples.defects:nondeterminism",
+    "defect-dead-state": "models.examples.defects:dead_state",
+    "defect-nonprogress": "models.examples.defects:nonprogress",
+    "defect-latency": "models.examples.defects:latency",
+    "defect-invariant": "models.examples.defects:invariant",
+    "defect-contract": "models.examples.defects:contract",
+    "defect-domain": "models.examples.defects:domain",
+    "defect-shadowed-marker": "models.examples.defects:shadowed_marker",
+}
+
+# defect model -> the property it is seeded to violate (the catalogue's table)
+DEFECTS: dict = {
+    "defect-trap": "workable-reachability",
+    "defect-unreachable-goal": "goal-reachability",
+    "defect-nondeterminism": "determinism",
+    "defect-dead-state": "no-dead-states",
+    "defect-nonprogress": "no-dead-states",
+    "defect-latency": "request-latency",
+    "defect-invariant": "invariants",
+    "defect-contract": "contracts",
+    "defect-domain": "domain",
+    "defect-shadowed-marker": "lints",
+}
+
+
+def names() -> list:
+    """The built-in model names, sorted."""
+    return sorted(BUILTIN)
+
+
+def load_builtin(name: str):
+    """Build the built-in model ``name``; ModelError (listing the names) when unknown."""
+    entry = BUILTIN.get(name)
+    if entry is None:
+        raise ModelError("", f"'{name}' is neither a model file nor a built-in model ({', '.join(names())})")
+    module, func = entry.split(":")
+    return getattr(importlib.import_module(module), func)()
