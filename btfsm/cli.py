@@ -74,8 +74,12 @@ def _args_run(sp):
 
 
 def _args_replay(sp):
-    sp.add_argument("trace", help="a trace (.jsonl) or a counterexample (.json from btfsm check --json)")
+    sp.add_argument("trace", help="a trace (.jsonl) or a counterexample (.json from btfsm check --counterexample-dir)")
     _args_model(sp)
+    sp.add_argument("--cell", action="store_true", help="also replay the counterexample's situation in the kitting cell")
+    sp.add_argument("--render", metavar="PNG", help="with --cell: draw the cell at the end")
+    sp.add_argument("--gif", metavar="GIF", help="with --cell: write an animation")
+    sp.add_argument("--time", type=float, default=120.0, help="with --cell: time limit (simulated s)")
 
 
 def _args_check(sp):
@@ -218,9 +222,22 @@ def cli_replay(args) -> int:
     if str(args.trace).endswith(".json"):
         from verify.counterexample import replay_counterexample
 
-        ok, text = replay_counterexample(args.trace, model)
+        try:
+            ok, text = replay_counterexample(args.trace, model)
+        except (OSError, ValueError, KeyError) as exc:
+            raise UsageError(f"{args.trace}: not a counterexample of this model ({exc})") from None
         print(text)
+        if args.cell:
+            from sim.binding import CellBinding
+            from sim.replay import replay_in_cell
+
+            why = CellBinding.unsupported(model)
+            if why:
+                raise UsageError(f"{model.name}: the kitting cell cannot run this model ({why})")
+            print(replay_in_cell(model, args.trace, time_limit=args.time, render=args.render, gif=args.gif).text())
         return 0 if ok else 1
+    if args.cell:
+        raise UsageError("--cell replays counterexamples (.json), not traces")
     try:
         result = replay(args.trace, model)
     except (OSError, ValueError) as exc:

@@ -20,20 +20,63 @@ conformance check of what the primitives physically did).
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 from .cell import BELT, GRIPPER, Place
 
-__all__ = ["CellBinding"]
+__all__ = ["CellBinding", "Dialect", "ARIAC", "ORIGINAL", "DIALECTS"]
 
-_INSTANT = {"record_pose": "recorded", "detach": "detached", "query_queue": "polled"}
+@dataclass(frozen=True)
+class Dialect:
+    """How a model names things: its arm FSM, primitives, variables, goals and states.
+    The cell runs any model written in one of the dialects below."""
+
+    fsm: str
+    move: str
+    gripper: str
+    grasp: str
+    instant: tuple  # primitives that just succeed
+    gripper_var: str
+    gripper_var_means_full: bool
+    tray_var: str
+    goal_sep: str  # "pick_bins" (sep "_", kind first) or "bins/pick" (sep "/", area first)
+    roles: tuple  # (state-name prefix, role)
+    tray_end_states: tuple  # states after the release at the tray, before the place reports
+    gripper_var_after_skill: bool = False  # the tree, not the FSM, updates it when a skill ends
+
+    def goal(self, name):
+        """(kind, area) of a goal name, or (None, None) for withdraw-like goals."""
+        if not name or self.goal_sep not in name:
+            return None, None
+        a, b = name.split(self.goal_sep, 1)
+        kind, area = (a, b) if self.goal_sep == "_" else (b, a)
+        return (kind, area) if kind in ("pick", "place") else (None, None)
+
+    def role(self, state: str) -> str:
+        for prefix, role in self.roles:
+            if state.startswith(prefix):
+                return role
+        return "approach"  # hubs and transits go to the goal's work pose
+
+    def area(self, args) -> str:
+        if "area" in args:
+            return args["area"]
+        return args["frame"].split("/")[1]  # "arm1/<area>/<pose>"
 
 
-def _area_of(goal: "str | None") -> "str | None":
-    return goal.split("_", 1)[1] if goal else None
+ARIAC = Dialect("arm", "move", "gripper", "grasp", ("record_pose", "detach", "query_queue"),
+                "gripper_full", True, "tray", "_",
+                (("raise_", "lift"), ("escape_", "lift"), ("put_back_", "put_back"), ("put_", "put")),
+                ("release_agv", "detach_place_agv", "escape_agv"))
+ORIGINAL = Dialect("movement_manager", "move_to", "gripper_control", "grasp_in",
+                   ("record_grasping_pose", "detach_approach", "query_queue"),
+                   "gripper_empty", False, "placed", "/",
+                   (("raise on ", "lift"), ("escape ", "lift"), ("put back on ", "put_back"), ("put on ", "put")),
+                   ("release on agv", "detach approach on agv (place)", "escape agv"), True)
+DIALECTS = (ARIAC, ORIGINAL)
 
 
-def _kind_of(goal: "str | None") -> "str | None":
-    return goal.split("_", 1)[0] if goal else None
+_STATUS = {"RUNNING": 0, "SUCCESS": 1, "FAILURE": 2}
 
 
 class CellBinding:
@@ -42,6 +85,9 @@ class CellBinding:
     def __init__(self, cell, model, bins=(2, 3), speed_scale: float = 0.5):
         self.cell, self.model, self.bins = cell, model, tuple(bins)
         self.speed = speed_scale  # the authors' move_to default velocity scaling is 0.5
+        self.d = self.dialect_of(model)
+        if self.d is None:
+            raise ValueError(f"{model.name}: the kitting cell cannot run this model ({self.unsupported(model)})")
         self.targets: dict = {}  # area -> part id (pick) or Place (place)
         self.origin: dict = {}  # area -> (x, y, z) where the held part was grasped
         self.delivered: list = []  # belt part ids told to the model, in queue order
@@ -52,29 +98,50 @@ class CellBinding:
         self._grasping = None
         qvar = model.var("queue")
         self.queue_max = qvar.hi
-        self.n_tray = model.var("tray").hi
+        self.n_tray = model.var(self.d.tray_var).hi
 
-    NEEDS_PRIMITIVES = ("move", "gripper", "grasp")
-    NEEDS_VARIABLES = ("queue", "gripper_full", "tray")
+    @staticmethod
+    def _missing(model, d: Dialect) -> list:
+        prims = model.all_primitives()
+        names = {v.name for v in model.variables}
+        missing = [f"primitive '{p}'" for p in (d.move, d.gripper, d.grasp) if p not in prims]
+        missing += [f"variable '{v}'" for v in ("queue", d.gripper_var, d.tray_var) if v not in names]
+        if not any(f.name == d.fsm for f in model.fsms):
+            missing.append(f"FSM '{d.fsm}'")
+        if "arrive" not in {ev.name for ev in model.environment}:
+            missing.append("environment event 'arrive'")
+        return missing
+
+    @classmethod
+    def dialect_of(cls, model) -> "Dialect | None":
+        for d in DIALECTS:
+            if not cls._missing(model, d):
+                return d
+        return None
 
     @classmethod
     def unsupported(cls, model) -> str:
         """Why the cell cannot run ``model`` ("" when it can)."""
-        prims = model.all_primitives()
-        names = {v.name for v in model.variables}
-        missing = [f"primitive '{p}'" for p in cls.NEEDS_PRIMITIVES if p not in prims]
-        missing += [f"variable '{v}'" for v in cls.NEEDS_VARIABLES if v not in names]
-        if not any(f.name == "arm" for f in model.fsms):
-            missing.append("FSM 'arm'")
-        if "arrive" not in {ev.name for ev in model.environment}:
-            missing.append("environment event 'arrive'")
-        return ("it lacks " + ", ".join(missing)) if missing else ""
+        if cls.dialect_of(model) is not None:
+            return ""
+        return "it lacks " + ", ".join(cls._missing(model, ARIAC)) + " (the ARIAC dialect)"
 
     # ------------------------------------------------------------------ runtime glue
     def implementations(self) -> dict:
-        impls = {"move": _Impl(self.move, self.stop), "gripper": self.gripper, "grasp": _Impl(self.grasp, self.stop)}
-        impls.update({name: (lambda call, a=answer: a) for name, answer in _INSTANT.items()})
+        d = self.d
+        impls = {d.move: _Impl(self.move, self.stop), d.gripper: self.gripper, d.grasp: _Impl(self.grasp, self.stop)}
+        for name in d.instant:
+            prim = self.model.all_primitives().get(name)
+            if prim is not None:
+                answer = next(o.name for o in prim.outcomes if o.status.name == "SUCCESS")
+                impls[name] = (lambda call, a=answer: a)
         return impls
+
+    def _answer(self, call, status: str) -> str:
+        """The name of the site's declared outcome with ``status``."""
+        for _, _, name in (o for o in call.site.outcomes if o[0] == _STATUS[status]):
+            return name
+        raise KeyError(f"{call.site.primitive} declares no {status} outcome")
 
     def events(self, queue_now: int) -> list:
         """Environment events for the next tick, from the belt sensor."""
@@ -178,55 +245,51 @@ class CellBinding:
 
     def _work_pose(self, area: str, goal: "str | None"):
         """Above the goal's target when the goal works at ``area``; else the area's hub.
-        Returns a pose, or ("track", part) for a belt part."""
-        kind = _kind_of(goal)
-        if _area_of(goal) == area:
+        Returns ("move", pose), or ("track", part) for a belt part."""
+        kind, goal_area = self.d.goal(goal)
+        if goal_area == area:
             tgt = self._target(area, kind)
             if tgt is not None:
                 if kind == "place" and not isinstance(tgt, int):
-                    return self._above(self._place_pose(tgt))
+                    return ("move", self._above(self._place_pose(tgt)))
                 if area == "conveyor":
                     return ("track", tgt)
-                return self.cell.pose_above(tgt)
-        return self._hub(area)
+                return ("move", self.cell.pose_above(tgt))
+        return ("move", self._hub(area))
 
     # ------------------------------------------------------------------ primitives
     def move(self, call):
-        area, state = call.args["area"], call.site.state
         arm = self.cell.arm
+        running, success = self._answer(call, "RUNNING"), self._answer(call, "SUCCESS")
         if call.first:
-            self._moving_to = self._move_target(area, state, call.goal)
+            self._moving_to = self._move_target(self.d.area(call.args), self.d.role(call.site.state), call.goal)
             if self._moving_to is None:
-                return "arrived"  # nothing to reach: the skill learns it at the grasp
+                return success  # nothing to reach: the skill learns it at the grasp
             kind, where = self._moving_to
             if kind == "track":
                 arm.track(where, self.cell.pose_above(where)[2])
             else:
                 arm.move_to(*where, speed_scale=self.speed)
-            return "moving"
+            return running
         if self._moving_to is None:
-            return "arrived"
+            return success
         kind, where = self._moving_to
         if kind == "track" and self.cell.place_of(where) != BELT and self.cell.gripper.attached_part != where:
             arm.stop()
-            return "arrived"  # the part left the belt: stop chasing it
-        return "arrived" if arm.arrived else "moving"
+            return success  # the part left the belt: stop chasing it
+        return success if arm.arrived else running
 
-    def _move_target(self, area: str, state: str, goal):
-        cell = self.cell
-        x, y, z = cell.arm.pose
-        if state.startswith(("raise_", "escape_")):
+    def _move_target(self, area: str, role: str, goal):
+        x, y, z = self.cell.arm.pose
+        if role == "lift":
             return ("move", (x, y, max(z, self._hub(area)[2])))
-        if state.startswith("put_back_"):
+        if role == "put_back":
             pose = self.origin.get(area)
             return ("move", pose) if pose is not None else None
-        if state.startswith("put_"):
+        if role == "put":
             tgt = self._target(area, "place")
             return ("move", self._place_pose(tgt)) if tgt is not None else None
-        pose = self._work_pose(area, goal)  # approach_X and the transits arriving at X
-        if isinstance(pose, tuple) and pose and pose[0] == "track":
-            return pose
-        return ("move", pose)
+        return self._work_pose(area, goal)  # hubs and the transits arriving at ``area``
 
     def stop(self, call):
         self.cell.arm.stop()
@@ -237,17 +300,17 @@ class CellBinding:
             self.cell.gripper.enable()
         else:
             self.cell.gripper.disable()
-        return "switched"
+        return self._answer(call, "SUCCESS")
 
     def grasp(self, call):
-        cell, area = self.cell, call.args["area"]
-        held = cell.gripper.attached_part
-        if held is not None:
-            return "attached"
+        cell, area = self.cell, self.d.area(call.args)
+        running, success, failure = (self._answer(call, s) for s in ("RUNNING", "SUCCESS", "FAILURE"))
+        if cell.gripper.attached_part is not None:
+            return success
         if call.first:
-            tgt = self._target(area, "pick") if _area_of(call.goal) == area else self.targets.get(area)
+            tgt = self._target(area, "pick") if self.d.goal(call.goal)[1] == area else self.targets.get(area)
             if not isinstance(tgt, int) or cell.place_of(tgt).kind not in ("BIN", "BELT"):
-                return "missed"
+                return failure
             self._grasping = tgt
             x, y, z = cell.pose_at(tgt)
             self.origin[area] = (x, y, z)
@@ -255,26 +318,26 @@ class CellBinding:
                 cell.arm.track(tgt, z)
             else:
                 cell.arm.move_to(x, y, z, speed_scale=self.speed)
-            return "searching"
+            return running
         tgt = self._grasping
         if tgt is None or cell.place_of(tgt).kind not in ("BIN", "BELT"):
             cell.arm.stop()
-            return "missed"
+            return failure
         if cell.arm.arrived and not cell.arm.moving:
-            return "missed"  # reached the part's top and the vacuum did not take it
-        return "searching"
+            return failure  # reached the part's top and the vacuum did not take it
+        return running
 
     # ------------------------------------------------------------------ conformance
-    def abstraction_errors(self, vars: dict, arm_state: str) -> list:
+    def abstraction_errors(self, vars: dict, arm_state: str, goal=None) -> list:
         """Model variables that disagree with the cell (empty when they agree)."""
-        cell, out = self.cell, []
+        cell, d, out = self.cell, self.d, []
         full = cell.gripper.attached_part is not None
-        if vars["gripper_full"] != full:
-            out.append(f"gripper_full is {vars['gripper_full']} but the gripper {'holds' if full else 'holds nothing'}")
-        extra = cell.tray_count - vars["tray"]
-        at_tray_end = arm_state in ("detach_place_agv", "escape_agv", "release_agv")
-        if not (extra == 0 or (extra == 1 and at_tray_end)):
-            out.append(f"tray is {vars['tray']} but {cell.tray_count} parts are on the tray")
+        model_full = vars[d.gripper_var] if d.gripper_var_means_full else not vars[d.gripper_var]
+        if model_full != full and not (d.gripper_var_after_skill and goal is not None):
+            out.append(f"{d.gripper_var} is {vars[d.gripper_var]} but the gripper {'holds a part' if full else 'holds nothing'}")
+        extra = cell.tray_count - vars[d.tray_var]
+        if not (extra == 0 or (extra == 1 and arm_state in d.tray_end_states)):
+            out.append(f"{d.tray_var} is {vars[d.tray_var]} but {cell.tray_count} parts are on the tray")
         if vars["queue"] != len(self.delivered):
             out.append(f"queue is {vars['queue']} but {len(self.delivered)} detected parts wait")
         return out

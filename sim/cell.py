@@ -572,14 +572,14 @@ class Cell:
         self._pending = sorted(rest)
         self._next_arrival = 0
 
-    def spawn_conveyor_part(self, part_type: str | None = None) -> int:
-        """Put a new part on the belt at ``belt_y_spawn`` now; return its id."""
+    def spawn_conveyor_part(self, part_type: str | None = None, y: float | None = None) -> int:
+        """Put a new part on the belt at ``y`` (default ``belt_y_spawn``) now; return its id."""
         cfg = self.config
         types = cfg.belt_part_types
         chosen = types[self.rng.randrange(len(types))]
         x = cfg.belt_x + self.rng.uniform(-cfg.spawn_jitter_x, cfg.spawn_jitter_x)
         angle = self.rng.uniform(0.0, 2.0 * math.pi)
-        return self._new_part(part_type or chosen, x, cfg.belt_y_spawn, angle, BELT)
+        return self._new_part(part_type or chosen, x, cfg.belt_y_spawn if y is None else y, angle, BELT)
 
     # ---- stepping
     @property

@@ -33,7 +33,7 @@ def variant_of(model) -> str:
     missing = CellBinding.unsupported(model)
     if missing:
         raise UsageError(f"{model.name}: the kitting cell cannot run this model ({missing})")
-    return model.name.split("-", 1)[1] if model.name.startswith("ariac-") else "preemptive"
+    return "baseline" if model.name.endswith("baseline") or model.name == "original" else "preemptive"
 
 
 def cli_experiment(args) -> int:
@@ -80,14 +80,17 @@ def cli_sim(args) -> int:
     variant = variant_of(model)
     if not 1 <= args.k <= 40:
         raise UsageError("--k must be in 1..40")
-    spec = TrialSpec(variant, args.k, parts=model.var("tray").hi, time_limit=args.time)
+    from .binding import CellBinding
+
+    dialect = CellBinding.dialect_of(model)
+    spec = TrialSpec(variant, args.k, parts=model.var(dialect.tray_var).hi, time_limit=args.time)
     recorder = Recorder(every_steps=1, max_frames=args.max_frames) if args.gif else None
     every = max(1, round(model.tick_rate / args.fps)) if args.gif else 0
     last = {}
 
     def on_tick(rt, cell):
-        st, goal = rt.fsm_state("arm")
-        last["text"] = f"arm: {st}\ngoal: {goal or '-'}"
+        st, goal = rt.fsm_state(dialect.fsm)
+        last["text"] = f"{dialect.fsm}: {st}\ngoal: {goal or '-'}"
         last["cell"] = cell
         if recorder is not None and rt.clock.tick % every == 0:
             recorder.capture(cell, last["text"])
@@ -124,7 +127,9 @@ def cli_conform(args) -> int:
             raise UsageError(f"{model.name}: exploration hit --max-states {args.max_states}; raise it or use --no-path")
         monitor = PathMonitor(ts)
         print(f"{model.name}: checked system has {len(ts.states):,} states; monitoring runtime paths against it")
-    parts = model.var("tray").hi
+    from .binding import CellBinding
+
+    parts = model.var(CellBinding.dialect_of(model).tray_var).hi
     scenarios = random_scenarios(args.scenarios, args.seed, variant, parts=parts,
                                  time_limit=args.time, drops=args.drops)
     failed = 0

@@ -91,7 +91,7 @@ def run_scenario(scenario: Scenario, model=None, monitor: "PathMonitor | None" =
     model = model or build_model(spec)
     config = CellConfig(dt=1.0 / spec.physics_rate, drop_regions=tuple(scenario.drop_regions))
     model, cell, binding, rt = build_trial(spec, model, config, seed=scenario.seed, detections=scenario.detections)
-    q_slot, tray_slot = model.program.scope["queue"].index, model.program.scope["tray"].index
+    q_slot, tray_slot = model.program.scope["queue"].index, model.program.scope[binding.d.tray_var].index
     steps = max(1, round(spec.physics_rate / spec.tick_rate))
     ticks = 0
     while cell.time < scenario.time_limit:
@@ -101,7 +101,7 @@ def run_scenario(scenario: Scenario, model=None, monitor: "PathMonitor | None" =
         except ConformanceError as exc:
             return ScenarioResult(scenario, ticks, False, Mismatch(ticks, cell.time, "conformance", str(exc)))
         binding.after_tick(step.state[q_slot])
-        problems = binding.abstraction_errors(rt.vars, rt.fsm_state("arm")[0])
+        problems = binding.abstraction_errors(rt.vars, *rt.fsm_state(binding.d.fsm))
         if problems:
             return ScenarioResult(scenario, ticks, False, Mismatch(ticks, cell.time, "abstraction", "; ".join(problems)))
         if monitor is not None:

@@ -44,7 +44,7 @@ def run_trial(spec: TrialSpec, model=None, on_tick=None) -> TrialResult:
     """Run one trial to completion (``parts`` on the tray) or to the time limit."""
     model, cell, binding, rt = build_trial(spec, model)
     prog = model.program
-    q_slot, tray_slot = prog.scope["queue"].index, prog.scope["tray"].index
+    q_slot, tray_slot = prog.scope["queue"].index, prog.scope[binding.d.tray_var].index
     skills = {n.name: prog.nodes[n.name].flag for n in model.nodes() if isinstance(n, SkillRequest)}
     steps_per_tick = max(1, round(spec.physics_rate / spec.tick_rate))
     starts = halts = ticks = 0
@@ -60,7 +60,7 @@ def run_trial(spec: TrialSpec, model=None, on_tick=None) -> TrialResult:
             elif ev[0] == "halt" and ev[1] in skills:
                 halts += 1
         if not error:
-            problems = binding.abstraction_errors(rt.vars, rt.fsm_state("arm")[0])
+            problems = binding.abstraction_errors(rt.vars, *rt.fsm_state(binding.d.fsm))
             if problems:
                 error = f"t={cell.time:.2f}s tick {ticks}: " + "; ".join(problems)
         if on_tick is not None:

@@ -1,0 +1,127 @@
+"""Replay a model checker's counterexample in the kitting cell.
+
+A counterexample says which environment events happened in which FSM state (a belt part
+arrives while the arm is at ``release on agv``). The cell cannot follow its scripted
+primitive outcomes (motions take the time physics gives them), so the replay re-creates
+the counterexample's *situation*: it runs the same model in the cell and makes each of the
+counterexample's events happen physically (a part reaches the belt sensor) as soon as the
+arm's FSM is in the state where the counterexample had it. Then it watches what the robot
+does: for the authors' original, it stays frozen while the part rides past and is lost.
+"""
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass, field
+
+__all__ = ["CellReplay", "triggers_of", "replay_in_cell"]
+
+
+def triggers_of(ce: dict, fsm: str) -> list:
+    """[(FSM state before the step, event name)] for every environment event of ``ce``."""
+    state = ce["initial"].get(f"{fsm}.state")
+    out = []
+    for step in ce["steps"]:
+        for ev in step.get("env", ()):
+            out.append((state, ev))
+        state = step.get("state", {}).get(f"{fsm}.state", state)
+    return out
+
+
+@dataclass
+class CellReplay:
+    model: str
+    triggers: list
+    injected: list = field(default_factory=list)  # (time, FSM state, part id)
+    lost: list = field(default_factory=list)  # (time, part id)
+    frozen: "tuple | None" = None  # (FSM state, from time, to time) longest time the arm did not move on
+    timeline: list = field(default_factory=list)  # (time, FSM state, goal) changes
+    end_time: float = 0.0
+    picture: "str | None" = None
+
+    def text(self) -> str:
+        lines = [f"cell replay of a counterexample on {self.model}: {len(self.triggers)} environment event(s)"]
+        for t, st, pid in self.injected:
+            lines.append(f"  t = {t:6.1f} s: belt part {pid} sent to the sensor (arm FSM at '{st}', as in the counterexample)")
+        for t, pid in self.lost:
+            lines.append(f"  t = {t:6.1f} s: belt part {pid} reached the end of the belt: LOST")
+        if self.frozen:
+            st, t0, t1 = self.frozen
+            lines.append(f"  the arm stayed in '{st}' from t = {t0:.1f} s to t = {t1:.1f} s ({t1 - t0:.1f} s without a move)")
+        lines.append(f"  last FSM states: " + "; ".join(f"{t:.1f} s {s} ({g or '-'})" for t, s, g in self.timeline[-4:]))
+        if self.picture:
+            lines.append(f"  picture: {self.picture}")
+        return "\n".join(lines)
+
+    @property
+    def shows_loss_while_frozen(self) -> bool:
+        """A part was lost while the arm sat in one state for the whole pick window."""
+        if not self.frozen:
+            return False
+        _, t0, t1 = self.frozen
+        return any(t0 <= t <= t1 for t, _ in self.lost)
+
+
+def replay_in_cell(model, ce, *, time_limit: float = 120.0, render: "str | None" = None, gif: "str | None" = None,
+                   settle: float = 20.0) -> CellReplay:
+    """Run ``model`` in the cell, raising the counterexample's events in its FSM states.
+
+    Stops ``settle`` seconds after the last injected part was lost or picked, or at
+    ``time_limit``."""
+    from .cell import BELT
+    from .experiment import TrialSpec
+    from .trial import build_trial
+
+    if isinstance(ce, str):
+        with open(ce, encoding="utf-8") as fh:
+            ce = json.load(fh)
+    if "counterexample" in ce:
+        ce = ce["counterexample"]
+    spec = TrialSpec("preemptive", 1, time_limit=time_limit)
+    model, cell, binding, rt = build_trial(spec, model, detections=())
+    d = binding.d
+    pending = [t for t in triggers_of(ce, d.fsm) if t[1] == "arrive"]
+    result = CellReplay(model.name, list(pending))
+    q_slot = model.program.scope["queue"].index
+    steps = max(1, round(spec.physics_rate / spec.tick_rate))
+    recorder = None
+    if gif:
+        from .render import Recorder
+
+        recorder = Recorder(every_steps=1)
+    since, last, done_at = 0.0, None, None
+    y_sensor = cell.config.belt_y_detect + 1e-3
+    while cell.time < time_limit:
+        st, goal = rt.fsm_state(d.fsm)
+        if (st, goal) != last:
+            result.timeline.append((round(cell.time, 2), st, goal))
+            if last is None or st != last[0]:
+                since = cell.time
+            last = (st, goal)
+        if pending and pending[0][0] == st:
+            pid = cell.spawn_conveyor_part(y=y_sensor)
+            result.injected.append((round(cell.time, 2), st, pid))
+            pending.pop(0)
+        step = rt.tick(binding.events(rt.state[q_slot]))
+        binding.after_tick(step.state[q_slot])
+        cell.step(steps)
+        if recorder is not None and rt.clock.tick % 5 == 0:
+            recorder.capture(cell, f"{d.fsm}: {st}\ngoal: {goal or '-'}")
+        stay = (st, since, cell.time)
+        if result.frozen is None or stay[2] - stay[1] > result.frozen[2] - result.frozen[1]:
+            result.frozen = (st, round(since, 2), round(cell.time, 2))
+        injected = [pid for _, _, pid in result.injected]
+        result.lost = [(round(t, 2), pid) for t, pid, src, dst in cell.events if pid in injected and dst.kind == "LOST"]
+        if not pending and injected and done_at is None and all(cell.place_of(p) != BELT for p in injected):
+            done_at = cell.time
+        if done_at is not None and cell.time >= done_at + settle:
+            break
+    result.end_time = round(cell.time, 2)
+    if render:
+        from .render import render_png
+
+        st, goal = rt.fsm_state(d.fsm)
+        result.picture = render_png(cell, render, title=f"{model.name}: counterexample in the cell",
+                                    fsm_state=f"{d.fsm}: {st}\ngoal: {goal or '-'}")
+    if recorder is not None:
+        recorder.write_gif(gif, fps=10)
+    return result
