@@ -579,7 +579,7 @@ def _np(e: Expr, scope, col: str, expected) -> str:
         ref = f"{col}[{int(slot.index)}]"
         return f"({ref} != 0)" if slot.type == BOOL else ref
     if isinstance(e, Unary):
-        return f"(~{_np(e.arg, scope, col, BOOL)})" if e.op == "not" else f"(-{_np(e.arg, scope, col, INT)})"
+        return f"np.logical_not({_np(e.arg, scope, col, BOOL)})" if e.op == "not" else f"(-{_np(e.arg, scope, col, INT)})"
     if isinstance(e, BoolOp):
         return "(" + (" & " if e.op == "and" else " | ").join(_np(a, scope, col, BOOL) for a in e.args) + ")"
     if isinstance(e, Compare):

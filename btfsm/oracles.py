@@ -61,7 +61,7 @@ class ScriptOracle:
         return self._choose(2, ("env", i)) == 1
 
     def choose(self, i: int, enabled: list) -> int:
-        return self._choose(len(enabled), ("choice", i))
+        return 0 if len(enabled) == 1 else self._choose(len(enabled), ("choice", i))
 
     def outcome(self, site) -> int:
         n = len(site.outcomes)
@@ -81,7 +81,7 @@ class RandomOracle(FirstOracle):
         return self.rng.random() < self.p_env
 
     def choose(self, i: int, enabled: list) -> int:
-        return self.rng.randrange(len(enabled))
+        return self.rng.randrange(len(enabled)) if len(enabled) > 1 else 0
 
     def outcome(self, site) -> int:
         return self.rng.randrange(len(site.outcomes))

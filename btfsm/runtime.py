@@ -111,6 +111,8 @@ class _ImplOracle:
     def choose(self, i, enabled):
         name, _, _, options = self.rt.program.env[i]
         seen = [k for k, opt in enumerate(enabled) if options[opt][0] in self.events]
+        if not seen and len(enabled) == 1:
+            return 0  # the only enabled option happens whether a sensor reports it or not
         if len(seen) != 1:
             names = ", ".join(options[opt][0] for opt in enabled)
             raise ConformanceError(f"tick {self.rt.clock.tick}: choice '{name}' needs exactly one observed option of ({names})")
@@ -242,6 +244,9 @@ class Runtime:
             oracle.log = []
         self._live = self.state
         step = self.program.step(self.state, oracle, self.record)
+        if step.state is None:
+            raise ConformanceError(f"tick {self.clock.tick}: environment choice '{step.violations[0][1]}' has no "
+                                   "enabled option: the model cannot take this tick")
         if events:
             unknown = events - oracle.used
             if unknown:

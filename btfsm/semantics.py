@@ -664,7 +664,7 @@ class Program:
                 enabled = [k for k, o in enumerate(options) if o[1] is None or o[1](s)]
                 if not enabled:
                     return Step(None, FAILURE, ctx.rec, [("blocked", name)])
-                name, _, eff, _ = options[enabled[oracle.choose(i, enabled)] if len(enabled) > 1 else enabled[0]]
+                name, _, eff, _ = options[enabled[oracle.choose(i, enabled)]]
             elif not ((guard is None or guard(s)) and oracle.env(i)):
                 continue
             if eff is not None:

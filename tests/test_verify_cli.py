@@ -1,0 +1,125 @@
+"""``btfsm check`` (and the replay of its counterexamples): exit codes, text, JSON."""
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+
+import pytest
+
+from btfsm import Action, Int, Model, success
+from btfsm.cli import main
+
+files = pytest.importorskip("btfsm.files")
+
+
+def _write(tmp_path, model, name="m.yaml"):
+    path = tmp_path / name
+    path.write_text(files.dumps_model(model), encoding="utf-8")
+    return str(path)
+
+
+def _counter(expr="min(n + 1, 3)", **kw):
+    return Model("cnt", [Int("n", 0, 3)], tree=Action("inc", outcomes=[success(n=expr)]), **kw)
+
+
+def _run(capsys, *argv):
+    code = main(list(argv))
+    out, err = capsys.readouterr()
+    assert "Traceback" not in out + err
+    return code, out, err
+
+
+def test_all_hold_exit_0(tmp_path, capsys):
+    code, out, err = _run(capsys, "check", _write(tmp_path, _counter(invariants={"range": "n <= 3"})))
+    assert code == 0
+    assert "model cnt:" in out and "invariants" in out and "VIOLATED" not in out
+
+
+def test_violation_exit_1_prints_counterexample(tmp_path, capsys):
+    code, out, _ = _run(capsys, "check", _write(tmp_path, _counter(invariants={"small": "n < 3"})), "--property", "invariants")
+    assert code == 1
+    assert "VIOLATED" in out and "invariant 'small'" in out and "step 3" in out
+
+
+def test_unknown_property_exit_2_lists_names(tmp_path, capsys):
+    code, _, err = _run(capsys, "check", _write(tmp_path, _counter()), "--property", "liveness")
+    assert code == 2
+    assert "'liveness'" in err and "workable-reachability" in err and "request-latency" in err
+
+
+def test_budget_exit_3(tmp_path, capsys):
+    code, out, _ = _run(capsys, "check", _write(tmp_path, _counter(invariants={"range": "n <= 3"})), "--max-states", "2",
+                        "--property", "invariants")
+    assert code == 3
+    assert "INCOMPLETE" in out and "undecided" in out
+
+
+@pytest.mark.parametrize("text,needle", [
+    ("name: bad\nvariables: {n: {int: [0, 3]}}\ntree: {Condition: c, expr: 'm > 1'}\n", "m"),
+    ("name: bad\nvariables: [\n", "bad.yaml"),
+])
+def test_malformed_model_exit_2(tmp_path, capsys, text, needle):
+    path = tmp_path / "bad.yaml"
+    path.write_text(text, encoding="utf-8")
+    code, out, err = _run(capsys, "check", str(path))
+    assert code == 2 and out == ""
+    assert "bad.yaml" in err and needle in err and len(err.strip().splitlines()) == 1
+
+
+def test_missing_file_and_bad_budget_exit_2(tmp_path, capsys):
+    assert _run(capsys, "check", str(tmp_path / "nope.yaml"))[0] == 2
+    code, _, err = _run(capsys, "check", _write(tmp_path, _counter()), "--max-states", "0")
+    assert code == 2 and "--max-states" in err
+
+
+def test_json_is_one_object(tmp_path, capsys):
+    code, out, _ = _run(capsys, "check", _write(tmp_path, _counter("n + 1")), "--json")
+    assert code == 1
+    d = json.loads(out)
+    assert {"model", "states", "transitions", "seconds", "properties"} <= set(d)
+    assert d["model"] == "cnt" and d["complete"] is True
+    props = {p["name"]: p for p in d["properties"]}
+    assert props["domain"]["holds"] is False and props["domain"]["counterexample"]["property"] == "domain"
+    assert props["workable-reachability"]["holds"] is True and props["workable-reachability"]["counterexample"] is None
+
+
+def test_json_incomplete_has_null_verdicts(tmp_path, capsys):
+    code, out, _ = _run(capsys, "check", _write(tmp_path, _counter()), "--json", "--max-states", "2",
+                        "--property", "workable-reachability")
+    assert code == 3
+    d = json.loads(out)
+    assert d["complete"] is False and d["properties"][0]["holds"] is None
+
+
+def test_counterexample_dir_and_replay(tmp_path, capsys):
+    model = _write(tmp_path, _counter("n + 1", invariants={"small": "n < 3"}))
+    ce_dir = tmp_path / "ces"
+    code, _, _ = _run(capsys, "check", model, "--counterexample-dir", str(ce_dir))
+    assert code == 1
+    written = sorted(os.listdir(ce_dir))
+    assert written == ["cnt.domain.json", "cnt.invariants.json"]
+    for name in written:
+        code, out, _ = _run(capsys, "replay", str(ce_dir / name), model)
+        assert code == 0 and "confirmed" in out
+    # a counterexample that does not reproduce: exit 1
+    ce = json.loads((ce_dir / "cnt.invariants.json").read_text())
+    ce["steps"][0]["state"]["n"] = 2
+    (ce_dir / "wrong.json").write_text(json.dumps(ce))
+    code, out, _ = _run(capsys, "replay", str(ce_dir / "wrong.json"), model)
+    assert code == 1 and "differs" in out
+
+
+def test_export_unknown_fsm_is_a_usage_error(tmp_path, capsys):
+    code, _, err = _run(capsys, "export", _write(tmp_path, _counter()), "--format", "dot", "--fsm", "arm")
+    assert code == 2 and "no FSM named 'arm'" in err
+
+
+def test_entry_point_subprocess(tmp_path):
+    """The installed command: exit code and no traceback, as a user sees it."""
+    model = _write(tmp_path, _counter(invariants={"small": "n < 3"}))
+    proc = subprocess.run([sys.executable, "-m", "btfsm.cli", "check", model, "--property", "invariants", "--json"],
+                          capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 1 and "Traceback" not in proc.stderr
+    assert json.loads(proc.stdout)["properties"][0]["holds"] is False

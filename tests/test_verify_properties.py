@@ -1,0 +1,335 @@
+"""Each property on a small hand-made model: violated (with the expected shortest
+counterexample, which replays) and repaired (holds)."""
+from __future__ import annotations
+
+import json
+
+import pytest
+
+from btfsm import (FSM, Action, Bool, Condition, Edge, EnvChoice, EnvEvent, Int, Marker, Model,
+                   ReactiveFallback, ReactiveSequence, SkillRequest, State, failure, running, success)
+from verify import check, replay_counterexample
+from verify.counterexample import Counterexample
+
+
+def _one(model, name, **kw):
+    r = check(model, [name], **kw)
+    return r.result(name)
+
+
+def _replays(res, model):
+    ok, text = replay_counterexample(res.counterexample.to_json(), model)
+    assert ok, text
+    # and through a JSON file round trip
+    again = Counterexample.from_json(json.loads(json.dumps(res.counterexample.to_json())))
+    assert again.to_json() == res.counterexample.to_json()
+    return text
+
+
+# ---------------------------------------------------------------------- workable-reachability
+
+
+def _worker(repair: bool):
+    """``go`` moves home -> work -> home; a failed work sends the token to ``broken``,
+    which only a repair edge leaves."""
+    edges = [Edge("home", "work", ["go"]), Edge("work", "home", ["go"]), Edge("work", "broken", ["go"], on="failure")]
+    if repair:
+        edges.append(Edge("broken", "home", ["go"]))
+    f = FSM("arm", [State("home"), State("work", outcomes=[success(), failure()]), State("broken")], "home", ["go"],
+            edges, [Marker("work", ["go"])])
+    return Model("worker", fsms=[f], tree=SkillRequest("do", fsm="arm", goal="go"))
+
+
+def test_workable_trap_has_shortest_path_and_trap_region():
+    m = _worker(False)
+    res = _one(m, "workable-reachability")
+    assert res.holds is False
+    ce = res.counterexample
+    assert [s["fsm"]["arm"][0] for s in ce.steps] == ["work", "broken"]  # shortest: 2 ticks
+    assert ce.steps[1]["outcomes"] == [["arm/work", "failure"]]
+    assert ["arm", "work->broken"] in ce.steps[1]["fired"]
+    assert ce.violation["kind"] == "trap" and ce.violation["trap_region"] == 2  # held, then refused
+    assert ce.violation["bottom_sccs"][0][0]["arm.state"] == "broken"
+    assert "bottom SCC" in ce.format_text()
+    assert "confirmed" in _replays(res, m)
+
+
+def test_workable_holds_after_repair():
+    assert _one(_worker(True), "workable-reachability").holds is True
+
+
+def test_workable_custom_predicate():
+    m = Model("n", [Int("n", 0, 3)], tree=Action("inc", outcomes=[success(n="min(n + 1, 3)")]), workable="n <= 1")
+    res = _one(m, "workable-reachability")
+    assert res.holds is False and len(res.counterexample.steps) == 2
+
+
+# ---------------------------------------------------------------------- no-dead-states
+
+
+def _counter_choice(terminal=None):
+    return Model("choice", [Int("n", 0, 2)],
+                 environment=[EnvChoice("c", [EnvEvent("inc", "n < 2", {"n": "n + 1"})])], terminal=terminal)
+
+
+def test_dead_state_found_with_reason():
+    m = _counter_choice()
+    res = _one(m, "no-dead-states")
+    assert res.holds is False
+    ce = res.counterexample
+    assert len(ce.steps) == 2 and ce.steps[-1]["state"]["n"] == 2
+    assert "environment choice 'c' has no enabled option" in ce.violation["text"]
+    assert "confirmed" in _replays(res, m)
+
+
+def test_terminal_states_are_not_dead():
+    assert _one(_counter_choice("n == 2"), "no-dead-states").holds is True
+
+
+def test_fsm_terminal_states_are_not_dead():
+    f = FSM("f", [State("a"), State("b")], "a", ["g"], [Edge("a", "b", ["g"])], terminal=["b"])
+    tree = ReactiveSequence("root", [Condition("ok", "not stop"), SkillRequest("r", fsm="f", goal="g")])
+    env = [EnvChoice("c", [EnvEvent("halt", "f.state == 'a'", {"stop": False})])]
+    assert _one(Model("t", [Bool("stop")], fsms=[f], tree=tree, environment=env), "no-dead-states").holds is True
+
+
+def _retry(with_failure_edge: bool):
+    edges = [Edge("idle", "try", ["go"]), Edge("try", "idle", ["go"])]
+    if with_failure_edge:
+        edges.append(Edge("try", "idle", ["go"], on="failure"))
+    markers = [Marker("try", ["go"])]
+    if with_failure_edge:
+        markers.append(Marker("try", ["go"], on="failure", outcome="failure"))
+    f = FSM("arm", [State("idle"), State("try", outcomes=[success(), failure()])], "idle", ["go"], edges, markers)
+    return Model("retry", fsms=[f], tree=SkillRequest("do", fsm="arm", goal="go"))
+
+
+def test_failing_primitive_retried_forever_is_a_non_progress_lasso():
+    m = _retry(False)
+    res = _one(m, "no-dead-states")
+    assert res.holds is False
+    ce = res.counterexample
+    assert ce.level == "fsm" and ce.loop == 1
+    assert ce.steps[0]["request"]["goal"] == "go" and ce.steps[0]["fsm"]["arm"][0] == "try"
+    assert ce.steps[1]["outcomes"] == [["arm/try", "failure"]] and ce.steps[1]["status"] == "RUNNING"
+    assert "cycle starts here" in ce.format_text()
+    assert "confirmed" in _replays(res, m)
+
+
+def test_running_primitive_is_progress():
+    f = FSM("arm", [State("idle"), State("busy", outcomes=[running(), success()])], "idle", ["go"],
+            [Edge("idle", "busy", ["go"]), Edge("busy", "idle", ["go"])], [Marker("busy", ["go"])])
+    m = Model("poll", fsms=[f], tree=SkillRequest("do", fsm="arm", goal="go"))
+    assert _one(m, "no-dead-states").holds is True
+    assert _one(_retry(True), "no-dead-states").holds is True
+
+
+# ---------------------------------------------------------------------- invariants, contracts, domain
+
+
+def _counter(expr="min(n + 1, 3)", **kw):
+    return Model("cnt", [Int("n", 0, 3)], tree=Action("inc", outcomes=[success(n=expr)]), **kw)
+
+
+def test_invariant_violation_is_shortest():
+    m = _counter(invariants={"small": "n < 3"})
+    res = _one(m, "invariants")
+    assert res.holds is False and len(res.counterexample.steps) == 3
+    assert res.counterexample.steps[-1]["changes"] == {"n": 3}
+    assert "confirmed" in _replays(res, m)
+    assert _one(_counter(invariants={"range": "n <= 3"}), "invariants").holds is True
+
+
+def test_no_invariant_holds_trivially():
+    res = _one(_counter(), "invariants")
+    assert res.holds is True and "no invariant" in res.notes[0]
+
+
+def test_contract_violation():
+    f = FSM("f", [State("s0")], "s0", ["g"], [], [Marker("s0", ["g"])])
+    m = Model("post", [Bool("b")], fsms=[f], tree=SkillRequest("r", fsm="f", goal="g", post="b"))
+    res = _one(m, "contracts")
+    assert res.holds is False
+    assert res.counterexample.steps[-1]["violations"] == [["post", "r"]]
+    assert "confirmed" in _replays(res, m)
+    ok = Model("post", [Bool("b", True)], fsms=[f], tree=SkillRequest("r", fsm="f", goal="g", post="b"))
+    assert _one(ok, "contracts").holds is True
+
+
+def test_domain_error_path_ends_with_the_failing_tick():
+    m = _counter("n + 1")
+    res = _one(m, "domain")
+    assert res.holds is False
+    ce = res.counterexample
+    assert len(ce.steps) == 4 and "outside its domain" in ce.steps[-1]["error"]
+    assert ce.violation["var"] == "n" and ce.violation["value"] == 4
+    assert "confirmed" in _replays(res, m)
+    assert _one(_counter(), "domain").holds is True
+
+
+def test_domain_error_at_fsm_level_without_tree():
+    f = FSM("f", [State("a", outcomes=[success(n="n + 1")])], "a", ["g"], [], [Marker("a", ["g"])])
+    m = Model("fsmonly", [Int("n", 0, 1)], fsms=[f])
+    res = _one(m, "domain")
+    assert res.holds is False and res.counterexample.level == "fsm"
+    assert "confirmed" in _replays(res, m)
+
+
+# ---------------------------------------------------------------------- goal-reachability
+
+
+def _pickplace(fixed: bool):
+    edges = [Edge("home", "reach", ["pick"]), Edge("reach", "grip", ["pick"]), Edge("grip", "home", ["pick"]),
+             Edge("reach", "home", ["place"], direct=True), Edge("home", "drop", ["place"]), Edge("drop", "home", ["place"]),
+             Edge("grip", "home", ["place"], direct=True)]
+    if fixed:
+        edges.append(Edge("drop", "home", ["pick"], direct=True))
+    arm = FSM("arm", [State("home"), State("reach", outcomes=[running(), success()]),
+                      State("grip", outcomes=[success(holding=True)]), State("drop", outcomes=[success(holding=False)])],
+              "home", ["pick", "place"], edges, [Marker("grip", ["pick"]), Marker("drop", ["place"])])
+    tree = ReactiveFallback("root", [
+        ReactiveSequence("do_place", [Condition("has", "holding"), SkillRequest("place", fsm="arm", goal="place")]),
+        ReactiveSequence("do_pick", [Condition("p", "part"), SkillRequest("pick", fsm="arm", goal="pick", post="holding")])])
+    return Model("pp", [Bool("holding"), Bool("part")], fsms=[arm], tree=tree,
+                 environment=[EnvEvent("arrive", "not part", {"part": True})])
+
+
+def test_goal_not_applicable_is_reported():
+    m = _pickplace(False)
+    res = _one(m, "goal-reachability")
+    assert res.holds is False
+    ce = res.counterexample
+    assert ce.violation["goal"] == "pick" and ce.steps[-1]["fsm"]["arm"][0] == "drop"
+    assert "not applicable" in ce.violation["text"]
+    assert "confirmed" in _replays(res, m)
+
+
+def test_goal_reachability_holds_when_every_goal_can_take_over():
+    assert _one(_pickplace(True), "goal-reachability").holds is True
+
+
+def test_goal_stuck_forever():
+    f = FSM("f", [State("a"), State("b", outcomes=[running()])], "a", ["g"], [Edge("a", "b", ["g"])],
+            [Marker("b", ["g"], on="failure", outcome="failure")])  # b never fails: RUNNING forever
+    m = Model("stuck", fsms=[f])
+    res = _one(m, "goal-reachability")
+    assert res.holds is False and "stuck" in res.counterexample.violation["text"]
+
+
+def test_pre_limits_the_requestable_goals():
+    """'place' is only requested while holding (its SkillRequest's pre)."""
+    arm = FSM("arm", [State("home"), State("grip", outcomes=[success(holding=True)]),
+                      State("drop", outcomes=[success(holding=False)])], "home", ["pick", "place"],
+              [Edge("home", "grip", ["pick"]), Edge("grip", "home", ["pick"]), Edge("home", "drop", ["place"]),
+               Edge("drop", "home", ["place"]), Edge("grip", "home", ["place"], direct=True),
+               Edge("drop", "home", ["pick"], direct=True)],
+              [Marker("grip", ["pick"]), Marker("drop", ["place"]), Marker("home", ["place"], direct=True, outcome="failure",
+                                                                           guard="not holding")])
+    tree = ReactiveFallback("root", [SkillRequest("place", fsm="arm", goal="place", pre="holding"),
+                                     SkillRequest("pick", fsm="arm", goal="pick")])
+    assert _one(Model("pre", [Bool("holding")], fsms=[arm], tree=tree), "goal-reachability").holds is True
+    no_pre = ReactiveFallback("root", [SkillRequest("place", fsm="arm", goal="place"), SkillRequest("pick", fsm="arm", goal="pick")])
+    assert _one(Model("nopre", [Bool("holding")], fsms=[arm], tree=no_pre), "goal-reachability").holds is False
+
+
+# ---------------------------------------------------------------------- request-latency
+
+
+def _targeted(retarget: str):
+    f = FSM("arm", [State("home"), State("move", outcomes=[running(), success()])], "home", ["go", "back"],
+            [Edge("home", "move", ["go"]), Edge("move", "home", ["back"], direct=True)],
+            [Marker("move", ["go"]), Marker("home", ["back"], direct=True)],
+            params=[Int("target", 0, 1)], retarget=retarget, withdraw_goal="back" if retarget == "withdraw" else "")
+    tree = ReactiveFallback("root", [SkillRequest("go1", fsm="arm", goal="go", params={"target": "1"}, pre="want"),
+                                     SkillRequest("go0", fsm="arm", goal="go", params={"target": "0"})])
+    return Model("target", [Bool("want")], fsms=[f], tree=tree,
+                 environment=[EnvEvent("flip", None, {"want": "not want"})])
+
+
+def test_withdraw_protocol_violates_request_latency():
+    m = _targeted("withdraw")
+    res = _one(m, "request-latency")
+    assert res.holds is False
+    ce = res.counterexample
+    assert ce.violation["request"]["params"] == {"target": 1} and ce.violation["held"] == {"target": 0}
+    assert "withdraw_goal 'back'" in ce.violation["text"]
+    assert "confirmed" in _replays(res, m)
+
+
+def test_immediate_retarget_holds():
+    assert _one(_targeted("immediate"), "request-latency").holds is True
+
+
+def test_no_params_holds_trivially():
+    res = _one(_worker(True), "request-latency")
+    assert res.holds is True and any("trivially" in n for n in res.notes)
+
+
+# ---------------------------------------------------------------------- budget, report, tampering
+
+
+def test_budget_hit_gives_undecided_not_a_verdict():
+    m = _counter(invariants={"range": "n <= 3"})
+    r = check(m, ["workable-reachability", "invariants"], max_states=2)
+    assert not r.complete and r.exit_code == 3
+    assert [x.holds for x in r.results] == [None, None]
+    # a violation seen in the explored part is still definite
+    r = check(_counter(invariants={"zero": "n == 0"}), ["invariants"], max_states=2)
+    assert r.result("invariants").holds is False and r.exit_code == 1
+
+
+def test_unknown_property_is_refused():
+    with pytest.raises(ValueError, match="known: workable-reachability"):
+        check(_counter(), ["nope"])
+
+
+def test_report_json_has_the_contract_fields():
+    r = check(_counter("n + 1"))
+    d = json.loads(json.dumps(r.to_json()))
+    assert {"model", "states", "transitions", "seconds", "properties"} <= set(d)
+    assert d["model"] == "cnt" and d["states"] >= 4
+    names = [p["name"] for p in d["properties"]]
+    assert names[0] == "workable-reachability" and "domain" in names
+    dom = next(p for p in d["properties"] if p["name"] == "domain")
+    assert dom["holds"] is False and dom["counterexample"]["model"] == "cnt"
+    assert all(isinstance(s["script"], list) for s in dom["counterexample"]["steps"])
+
+
+@pytest.mark.parametrize("field,value", [("outcome", "nothing"), ("state", 0), ("status", "FAILURE")])
+def test_tampered_counterexample_does_not_replay(field, value):
+    m = _counter(invariants={"small": "n < 3"})
+    ce = _one(m, "invariants").counterexample.to_json()
+    step = ce["steps"][1]
+    if field == "outcome":
+        step["outcomes"] = [["inc", value]]
+    elif field == "state":
+        step["state"]["n"] = value
+    else:
+        step["status"] = value
+    ok, text = replay_counterexample(ce, m)
+    assert not ok and text
+
+
+def test_replay_refuses_another_model():
+    ce = _one(_counter(invariants={"small": "n < 3"}), "invariants").counterexample
+    ok, text = replay_counterexample(ce.to_json(), _worker(True))
+    assert not ok and "not 'worker'" in text
+
+
+def test_lints_report_never_firing_elements_and_unrequested_goals():
+    m = _pickplace(False)
+    res = _one(m, "lints")
+    assert res.holds is True
+    text = "\n".join(res.notes)
+    assert "edge 'reach->home' never fires in the model" in text
+    f = FSM("f", [State("a"), State("b")], "a", ["g", "h"], [Edge("a", "b", ["g"]), Edge("b", "a", ["h"])])
+    lone = Model("lone", fsms=[f], tree=SkillRequest("r", fsm="f", goal="g"))
+    text = "\n".join(_one(lone, "lints").notes)
+    assert "goal 'h' is never requested" in text and "edge 'b->a' never fires" in text
+
+
+def test_predicates_with_constant_negation():
+    """``not true`` must be false in vectorised predicates (numpy's ``~True`` is -2)."""
+    m = _counter(invariants={"odd": "n >= 0 and not true"}, workable="not (1 > 2) or n == 3")
+    assert _one(m, "invariants").holds is False
+    assert _one(m, "workable-reachability").holds is True

@@ -1,0 +1,196 @@
+"""``no-dead-states``: nothing gets stuck.
+
+1. Model level: no reachable state without a successor (an environment choice with no
+   enabled option), unless it is terminal: the model's ``terminal`` expression holds, or
+   every FSM declares terminal states and every token is on one. States whose every tick
+   raises a domain error are left to the ``domain`` property.
+2. FSM level, for each FSM: no **non-progress cycle**, a cycle of requests of one goal in
+   which no step makes progress. A step makes progress when the token moves, or the reply
+   is SUCCESS or FAILURE, or a primitive returned RUNNING (still working; assumed to
+   finish). This catches a failing primitive retried forever and a refused withdraw that
+   freezes the robot. The counterexample is a lasso: the shortest path to the nearest
+   state on such a cycle, then the shortest cycle through it.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from btfsm.status import Status
+
+from ..counterexample import path_counterexample
+from ..explore import EnumOracle
+from ..system import shortest_path
+from . import Result, evaluate
+
+__all__ = ["check", "dead_states", "terminal_mask", "non_progress", "progress_mask"]
+
+RUNNING = int(Status.RUNNING)
+_SCC_LIMIT = 500_000
+
+
+def terminal_mask(ts) -> np.ndarray:
+    """Which states of a model-level system are terminal."""
+    model, prog = ts.model, ts.model.program
+    mask = evaluate(ts, model.terminal) if model.terminal is not None else np.zeros(ts.n_states, bool)
+    if model.fsms and all(f.terminal for f in model.fsms):
+        every = np.ones(ts.n_states, bool)
+        for f, ids, tok, _, _ in prog.fsm_info:
+            every &= np.isin(ts.column(tok), [ids.index(t) for t in f.terminal])
+        mask |= every
+    return mask
+
+
+def dead_states(ts) -> np.ndarray:
+    """Expanded, non-terminal states without successor (and not only domain errors)."""
+    dead = ts.dead
+    if dead.size == 0:
+        return dead
+    keep = ~terminal_mask(ts)[dead]
+    if ts.errors:
+        keep &= ~np.isin(dead, [e.state for e in ts.errors])
+    return dead[keep]
+
+
+def progress_mask(ts) -> np.ndarray:
+    """Per transition of an FSM-level system: does it make progress?"""
+    prog = ts.model.program
+    tok = ts.slots.index(prog.fsm_info[ts.open.index][2])
+    runs = np.array([any(it[0] == "outcome" and it[3] == "RUNNING" for it in lab) for lab in ts.labels] or [False], bool)
+    moved = ts.states[ts.src, tok] != ts.states[ts.dst, tok]
+    return moved | (ts.status != RUNNING) | runs[ts.label]
+
+
+def non_progress(ts) -> "tuple | None":
+    """(prefix transitions, cycle transitions) of the nearest non-progress lasso, or None."""
+    still = ~progress_mask(ts)
+    best = None
+    for g in ts.open.goals:
+        sub = still & (ts.goal == g)
+        if not sub.any():
+            continue
+        on_cycle = _cycle_states(ts, sub)
+        if on_cycle.size == 0:
+            continue
+        c = int(on_cycle[0])
+        if best is None or c < best[0]:
+            best = (c, sub)
+    if best is None:
+        return None
+    c, sub = best
+    cycle = _shortest_cycle(ts, c, sub)
+    return ts.path_to(c), cycle
+
+
+def _cycle_states(ts, sub) -> np.ndarray:
+    """States lying on a cycle of the transitions selected by ``sub``, in BFS order."""
+    import networkx as nx
+
+    t = np.flatnonzero(sub)
+    s, d = ts.src[t], ts.dst[t]
+    self_loops = np.unique(s[s == d])
+    # peel states with no way forward (they cannot be on a cycle)
+    n = ts.n_states
+    out = np.bincount(s, minlength=n)
+    order = np.argsort(d, kind="stable")
+    d_sorted, s_by_d = d[order], s[order]
+    offs = np.searchsorted(d_sorted, np.arange(n + 1))
+    stack = [i for i in np.unique(np.concatenate((s, d))).tolist() if out[i] == 0]
+    alive = np.zeros(n, bool)
+    alive[s] = True
+    alive[d] = True
+    while stack:
+        j = stack.pop()
+        if not alive[j]:
+            continue
+        alive[j] = False
+        for k in range(int(offs[j]), int(offs[j + 1])):
+            i = int(s_by_d[k])
+            out[i] -= 1
+            if out[i] == 0 and alive[i]:
+                stack.append(i)
+    keep = alive[s] & alive[d]
+    if not keep.any():
+        return self_loops
+    if int(alive.sum()) > _SCC_LIMIT:  # too big for networkx: every survivor leads to a cycle
+        return np.flatnonzero(alive)
+    g = nx.DiGraph()
+    g.add_edges_from(zip(s[keep].tolist(), d[keep].tolist()))
+    members = [x for comp in nx.strongly_connected_components(g) if len(comp) > 1 for x in comp]
+    return np.unique(np.concatenate((np.asarray(members, np.int64), self_loops)))
+
+
+def _shortest_cycle(ts, c, sub) -> list:
+    """Transitions of a shortest cycle from ``c`` back to ``c`` inside ``sub``."""
+    best = None
+    for t in ts.out_transitions(c).tolist():
+        if not sub[t]:
+            continue
+        j = int(ts.dst[t])
+        rest = shortest_path(ts, j, c, sub)
+        if rest is not None and (best is None or 1 + len(rest) < len(best)):
+            best = [t] + rest
+    if best is None:  # c only leads to a cycle: walk to it
+        path, seen, i = [], {c: 0}, c
+        while True:
+            t = next(t for t in ts.out_transitions(i).tolist() if sub[t])
+            path.append(t)
+            i = int(ts.dst[t])
+            if i in seen:
+                return path[seen[i]:]
+            seen[i] = len(path)
+    return best
+
+
+def check(ctx) -> Result:
+    model = ctx.model
+    notes, info = [], {}
+    ts = ctx.model_ts()
+    dead = dead_states(ts)
+    info["dead_states"] = int(dead.size)
+    undecided = not ts.complete
+    if undecided:
+        notes.append(f"model: state budget hit ({ts.n_states} states); only the {ts.expanded} expanded states were checked")
+    ce = None
+    if dead.size:
+        i = int(dead[0])
+        why = _why_dead(ts, i)
+        viol = {"kind": "dead", "count": int(dead.size), "text": f"no tick can happen here: {why}"
+                f"\n{dead.size} dead state(s) in all (declare 'terminal' if stopping here is intended)"}
+        ce = path_counterexample(ts, ts.path_to(i), "no-dead-states",
+                                 f"{dead.size} reachable state(s) have no successor and are not terminal", viol)
+        notes.append(f"model: {dead.size} dead state(s)")
+    lassos = {}
+    for f in model.fsms:
+        fts = ctx.fsm_ts(f.name)
+        if not fts.complete:
+            undecided = True
+            notes.append(f"FSM {f.name}: state budget hit; non-progress cycles not decided")
+            continue
+        found = non_progress(fts)
+        if found is not None:
+            lassos[f.name] = (fts, *found)
+            notes.append(f"FSM {f.name}: non-progress cycle requesting "
+                         f"'{f.goals[int(fts.goal[found[1][0]])]}' (prefix {len(found[0])}, cycle {len(found[1])})")
+    info["non_progress"] = sorted(lassos)
+    if ce is None and lassos:
+        name = min(lassos, key=lambda k: len(lassos[k][1]) + len(lassos[k][2]))
+        fts, prefix, cycle = lassos[name]
+        f = model.fsm(name)
+        gname = f.goals[int(fts.goal[cycle[0]])]
+        viol = {"kind": "non-progress", "goal": gname,
+                "text": (f"requesting '{gname}' again and again comes back to the same state with no progress: "
+                         "the token does not move, the reply stays RUNNING and no primitive reports RUNNING "
+                         "(e.g. a failing primitive retried forever, or a refused request)")}
+        ce = path_counterexample(fts, prefix + cycle, "no-dead-states",
+                                 f"FSM {name}: a non-progress cycle requesting '{gname}'", viol, loop=len(prefix))
+    if ce is not None:
+        return Result("no-dead-states", False, ce, notes, info)
+    return Result("no-dead-states", None if undecided else True, None, notes, info)
+
+
+def _why_dead(ts, i) -> str:
+    st = ts.model.program.step(ts.full_state(i), EnumOracle(()))
+    blocked = [v[1] for v in (st.violations or []) if v[0] == "blocked"]
+    if st.state is None and blocked:
+        return f"environment choice '{blocked[0]}' has no enabled option"
+    return "every tick from here is blocked"

@@ -1,0 +1,105 @@
+"""``goal-reachability``: every goal that can be requested can still succeed.
+
+FSM level, for each FSM as an open system (``verify.explore.explore_fsm``). For every
+reachable state s and every goal g that can be requested in s (g is requested by some
+SkillRequest whose ``pre`` can hold there, or by any request for a model without tree),
+a SUCCESS reply to g must be reachable from s while g stays held: along a sequence of
+g-requests replying RUNNING, then one replying SUCCESS, with everything else (environment,
+free inputs, parameters, outcomes) chosen some way. Decided per goal by backward
+reachability inside the sub-system of g-requests.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from btfsm.status import Status
+
+from ..counterexample import path_counterexample
+from ..explore import successor_scripts
+from ..system import forward_reach, reverse_reach
+from . import Result
+
+__all__ = ["check", "goal_failures"]
+
+RUNNING, SUCCESS, FAILURE = int(Status.RUNNING), int(Status.SUCCESS), int(Status.FAILURE)
+
+
+def goal_failures(ts) -> dict:
+    """goal index -> indices of states where it can be requested but can never succeed."""
+    out = {}
+    for g in ts.open.goals:
+        is_g = ts.goal == g
+        requestable = np.zeros(ts.n_states, bool)
+        requestable[ts.src[is_g]] = True
+        target = np.zeros(ts.n_states, bool)
+        target[ts.src[is_g & (ts.status == SUCCESS)]] = True
+        good = reverse_reach(ts, target, is_g & (ts.status == RUNNING))
+        bad = np.flatnonzero(requestable & ~good)
+        if bad.size:
+            out[g] = bad
+    return out
+
+
+def check(ctx) -> Result:
+    model = ctx.model
+    notes, info, undecided = [], {}, False
+    worst = None  # (depth, fsm, goal, state)
+    for f in model.fsms:
+        ts = ctx.fsm_ts(f.name)
+        fails = goal_failures(ts)
+        info[f.name] = {"states": ts.n_states, "goals": [f.goals[g] for g in ts.open.goals],
+                        "failing": {f.goals[g]: int(v.size) for g, v in fails.items()}}
+        if not ts.complete:
+            undecided = True
+            notes.append(f"FSM {f.name}: state budget hit ({ts.n_states} states); not decided")
+            continue
+        for g, bad in fails.items():
+            i = int(bad[0])
+            d = len(ts.path_to(i))
+            notes.append(f"FSM {f.name}: goal '{f.goals[g]}' can never succeed from {bad.size} state(s)")
+            if worst is None or d < worst[0]:
+                worst = (d, ts, g, i)
+    if worst is None:
+        return Result("goal-reachability", None if undecided else True, None, notes, info)
+    _, ts, g, i = worst
+    f = model.fsm(ts.fsm)
+    text = _explain(ts, g, i)
+    viol = {"kind": "goal", "goal": f.goals[g], "text": text}
+    ce = path_counterexample(ts, ts.path_to(i), "goal-reachability",
+                             f"FSM {f.name}: goal '{f.goals[g]}' can be requested here but can never succeed",
+                             viol)
+    return Result("goal-reachability", False, ce, notes, info)
+
+
+def _explain(ts, g, i) -> str:
+    """What happens instead when goal g is requested from state i."""
+    f = ts.model.fsm(ts.fsm)
+    gname = f.goals[g]
+    is_g = ts.goal == g
+    outs = [t for t in ts.out_transitions(i).tolist() if is_g[t]]
+    replies = {int(ts.status[t]) for t in outs}
+    lines = [f"requesting '{gname}' from here never gets SUCCESS:"]
+    if replies == {FAILURE}:
+        causes = set()
+        markers = {m.id for m in f.markers if m.outcome == Status.FAILURE}
+        for _script, st, o in successor_scripts(ts, ts.full_state(i)):
+            if st is None or ("choice", ("goal",), g) not in o.picks:
+                continue
+            for ev in st.events or ():
+                if ev[0] == "not-applicable":
+                    causes.add(f"not applicable: state '{ev[2]}' has no edge and no marker for '{gname}'")
+                elif ev[0] == "fire" and ev[2] in markers:
+                    causes.add(f"marker '{ev[2]}' replies FAILURE")
+        lines.append("  it replies FAILURE at once" + (f" ({'; '.join(sorted(causes))})" if causes else ""))
+        return "\n".join(lines)
+    held = is_g & (ts.status == RUNNING)
+    region = np.flatnonzero(forward_reach(ts, i, held))
+    tok = ts.slots.index(ts.model.program.fsm_info[ts.open.index][2])
+    ids = ts.model.program.fsm_info[ts.open.index][1]
+    where = sorted({ids[int(x)] for x in ts.states[region, tok]})
+    fails = any(int(ts.status[t]) == FAILURE for s in region.tolist() for t in ts.out_transitions(s).tolist() if is_g[t])
+    lines.append(f"  while it is held (RUNNING) the token only visits {', '.join(where)} "
+                 f"({region.size} state(s)); from there it " + ("can only reply FAILURE or keep RUNNING" if fails
+                                                                 else "keeps RUNNING forever (stuck)"))
+    return "\n".join(lines)
+

@@ -1,0 +1,94 @@
+"""``request-latency``: a request whose goal or parameters differ from the held ones is
+served in that same tick.
+
+FSM level, for each FSM with parameters. By construction of the semantics a change of goal
+alone is always served at once (the FSM steps toward the requested goal), so the property
+examines parameter changes: for every reachable state and every request (goal, parameter
+values, free inputs, environment), the possible results (next state, reply) must equal
+those of the same request from the same state with the parameters already adopted, i.e.
+of a tick that steps toward the requested goal. ``retarget: immediate`` satisfies this by
+construction; ``retarget: withdraw`` (the authors' protocol) spends the tick on
+``withdraw_goal`` and violates it whenever a withdraw is needed. FSMs without parameters
+hold trivially.
+"""
+from __future__ import annotations
+
+from ..counterexample import path_counterexample
+from ..explore import EnumOracle, _readable
+from btfsm.errors import DomainError
+from . import Result
+
+__all__ = ["check", "late_requests"]
+
+
+def _results(op, state, adopt) -> dict:
+    """request (readable, without outcomes) -> set of (next state, reply)."""
+    prog = op.program
+    out: dict = {}
+    stack = [()]
+    while stack:
+        script = stack.pop()
+        o = EnumOracle(script)
+        try:
+            st = op.run(state, o, False, adopt)
+            res = None if st is None else (st.state, st.status)
+        except DomainError as exc:
+            res = ("domain", exc.var)
+        for k in range(len(script), len(o.arities)):
+            for c in range(1, o.arities[k]):
+                stack.append(tuple(o.taken[:k]) + (c,))
+        if res is None:
+            continue
+        request = tuple(it for it in _readable(prog, tuple(o.picks), op)[0] if it[0] != "outcome")
+        out.setdefault(request, set()).add(res)
+    return out
+
+
+def late_requests(model, op, state) -> list:
+    """Requests from ``state`` whose results differ from the adopted-parameters reference."""
+    actual = _results(op, state, False)
+    ref = _results(op, state, True)
+    return [req for req in actual if actual[req] != ref.get(req)]
+
+
+def check(ctx) -> Result:
+    model = ctx.model
+    notes, info, undecided, worst = [], {}, False, None
+    for f in model.fsms:
+        if not f.params:
+            continue
+        ts = ctx.fsm_ts(f.name)
+        if not ts.complete:
+            undecided = True
+            notes.append(f"FSM {f.name}: state budget hit; not decided")
+        for i in range(ts.n_states):
+            late = late_requests(model, ts.open, ts.full_state(i))
+            if late:
+                d = len(ts.path_to(i))
+                if worst is None or d < worst[0]:
+                    worst = (d, ts, i, late[0])
+                notes.append(f"FSM {f.name} (retarget: {f.retarget}): a request with new parameters is not served "
+                             f"in the same tick")
+                break
+    checked = [f.name for f in model.fsms if f.params]
+    info["fsms"] = checked
+    if not checked:
+        notes.append("no FSM has parameters: holds trivially")
+    if worst is None:
+        return Result("request-latency", None if undecided else True, None, notes, info)
+    _, ts, i, req = worst
+    f = model.fsm(ts.fsm)
+    goal = next(it[1] for it in req if it[0] == "goal")
+    params = {it[1].split(".", 1)[1]: it[2] for it in req if it[0] == "param"}
+    held = {p.name: v for p, v in zip(f.params, (ts.decode(i)[f"{f.name}.{p.name}"] for p in f.params))}
+    how = (f"the tick goes to withdraw_goal '{f.withdraw_goal}' (retarget: withdraw); '{goal}' starts on a later tick"
+           if f.retarget == "withdraw" else "the tick does not step toward the requested goal")
+    viol = {"kind": "latency", "request": {"goal": goal, "params": params}, "held": held,
+            "text": f"request '{goal}' with {_kv(params)} while {_kv(held)} is held: {how}"}
+    ce = path_counterexample(ts, ts.path_to(i), "request-latency",
+                             f"FSM {f.name}: a request with new parameters is not served in the same tick", viol)
+    return Result("request-latency", False, ce, notes, info)
+
+
+def _kv(d) -> str:
+    return ", ".join(f"{k}={str(v).lower() if isinstance(v, bool) else v}" for k, v in d.items())

@@ -1,0 +1,83 @@
+"""Safety properties found on the explored states and transitions.
+
+* ``invariants``: each user invariant holds in every reachable state (model level).
+* ``contracts``: no reachable tick has a SkillRequest reply SUCCESS while its ``post`` is
+  false (``Step.violations``; model level).
+* ``domain``: no effect writes outside its variable's domain. Model level; for a model
+  without a tree (whose FSMs never step at model level) also each FSM as an open system.
+
+A violation found in a partial exploration (state budget hit) is still a real one: its
+path exists. Only "holds" needs the whole state space.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from ..counterexample import path_counterexample
+from . import Result, evaluate
+
+__all__ = ["check_invariants", "check_contracts", "check_domain"]
+
+
+def _undecided(ts) -> "bool | None":
+    return True if ts.complete else None
+
+
+def check_invariants(ctx) -> Result:
+    model = ctx.model
+    if not model.invariants:
+        return Result("invariants", True, None, ["the model declares no invariant"])
+    ts = ctx.model_ts()
+    first, notes, counts = None, [], {}
+    for name, expr in model.invariants:
+        bad = np.flatnonzero(~evaluate(ts, expr))
+        counts[name] = int(bad.size)
+        if bad.size:
+            notes.append(f"invariant '{name}' is false in {bad.size} reachable state(s)")
+            if first is None or bad[0] < first[0]:
+                first = (int(bad[0]), name, expr)
+    if first is None:
+        return Result("invariants", _undecided(ts), None,
+                      notes + ([] if ts.complete else ["state budget hit: not decided"]), {"violations": counts})
+    i, name, expr = first
+    viol = {"kind": "invariant", "name": name, "text": f"invariant '{name}' ({expr}) is false here"}
+    ce = path_counterexample(ts, ts.path_to(i), "invariants", f"invariant '{name}' can be broken", viol)
+    return Result("invariants", False, ce, notes, {"violations": counts})
+
+
+def check_contracts(ctx) -> Result:
+    ts = ctx.model_ts()
+    posts = [(t, v) for t, vs in ts.violations for v in vs if v[0] == "post"]
+    if not posts:
+        return Result("contracts", _undecided(ts), None, [] if ts.complete else ["state budget hit: not decided"])
+    t, v = min(posts, key=lambda p: (int(ts.src[p[0]]), p[0]))
+    nodes = sorted({v[1] for _, v in posts})
+    viol = {"kind": "contract", "node": v[1],
+            "text": f"'{v[1]}' replied SUCCESS in the last tick while its post-condition is false"}
+    ce = path_counterexample(ts, ts.path_to(int(ts.src[t])) + [t], "contracts",
+                             f"SkillRequest '{v[1]}' can reply SUCCESS with its post-condition false", viol)
+    return Result("contracts", False, ce, [f"{len(posts)} violating transition(s) at {', '.join(nodes)}"])
+
+
+def check_domain(ctx) -> Result:
+    model = ctx.model
+    systems = [ctx.model_ts()]
+    if model.tree is None:
+        systems += [ctx.fsm_ts(f.name) for f in model.fsms]
+    notes, worst, undecided = [], None, False
+    for ts in systems:
+        undecided |= not ts.complete
+        if ts.errors:
+            e = min(ts.errors, key=lambda e: e.state)
+            where = "model" if ts.kind == "model" else f"FSM {ts.fsm}"
+            notes.append(f"{where}: {len(ts.errors)} tick(s) write outside a domain")
+            d = len(ts.path_to(e.state))
+            if worst is None or d < worst[0]:
+                worst = (d, ts, e)
+    if worst is None:
+        return Result("domain", None if undecided else True, None, ["state budget hit: not decided"] if undecided else [])
+    _, ts, e = worst
+    viol = {"kind": "domain", "var": e.var, "value": e.value, "where": e.where, "text": f"the last tick fails: {e.message}"}
+    ce = path_counterexample(ts, ts.path_to(e.state), "domain", f"{e.where} writes {e.var} = {e.value}, outside its domain",
+                             viol, final_script=e.script)
+    return Result("domain", False, ce, notes)

@@ -1,0 +1,106 @@
+"""``workable-reachability``: AG EF workable.
+
+From every reachable state some workable state can still be reached. ``workable`` is the
+model's ``workable`` expression, by default "every FSM token on its initial state"
+(``Program.workable``). Decided by backward reachability from the workable states over a
+CSR of reversed transitions (numpy, linear in the transitions). A *trap* is a reachable
+state from which no workable state is reachable; the counterexample is the shortest path
+to the nearest trap, with the trap region reachable from it and its bottom SCC(s).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from ..counterexample import path_counterexample
+from ..system import forward_reach, reverse_reach
+from . import Result, evaluate
+
+__all__ = ["check", "workable_mask", "traps"]
+
+_SCC_LIMIT = 20_000
+_SHOW = 8
+
+
+def workable_mask(ts) -> np.ndarray:
+    """Boolean array: which states of a model-level system are workable."""
+    model, prog = ts.model, ts.model.program
+    if model.workable is not None:
+        return evaluate(ts, model.workable)
+    mask = np.ones(ts.n_states, bool)
+    for f, ids, tok, _, _ in prog.fsm_info:
+        mask &= ts.column(tok) == ids.index(f.initial)
+    return mask
+
+
+def traps(ts) -> np.ndarray:
+    """Indices of trap states (no workable state reachable), in BFS order."""
+    return np.flatnonzero(~reverse_reach(ts, workable_mask(ts)))
+
+
+def check(ctx) -> Result:
+    ts = ctx.model_ts()
+    bad = traps(ts)
+    what = "workable states: " + ("every FSM token on its initial state (default)" if ctx.model.workable is None
+                                  else f"'{ctx.model.workable}'")
+    info = {"states": ts.n_states, "traps": int(bad.size)}
+    if bad.size == 0:
+        if not ts.complete:
+            return Result("workable-reachability", None, None,
+                          [what, "state budget hit: every explored state reaches a workable one, "
+                                 "but unexplored states are not decided"], info)
+        return Result("workable-reachability", True, None, [what], info)
+    if not ts.complete:
+        # a trap in a partial system may reach a workable state through unexplored states
+        return Result("workable-reachability", None, None,
+                      [what, f"state budget hit: {bad.size} explored state(s) reach no workable state within "
+                             "the explored part; undecided"], info)
+    i = int(bad[0])
+    region = np.flatnonzero(forward_reach(ts, i))
+    bottoms = _bottom_sccs(ts, region)
+    prog = ctx.model.program
+    lines = [f"after these ticks no workable state can be reached any more ({what})",
+             f"trap region reachable from here: {region.size} state(s); {bad.size} trap state(s) in all"]
+    for k, scc in enumerate(bottoms[:3]):
+        lines.append(f"bottom SCC {k + 1} ({len(scc)} state(s)), e.g.:")
+        for j in scc[:_SHOW]:
+            lines.append("  " + _brief(prog, ts.full_state(j)))
+    viol = {"kind": "trap", "state": _decoded(prog, ts.full_state(i)), "trap_region": int(region.size),
+            "traps": int(bad.size), "bottom_sccs": [[_decoded(prog, ts.full_state(j)) for j in scc[:_SHOW]] for scc in bottoms[:3]],
+            "text": "\n".join(lines)}
+    ce = path_counterexample(ts, ts.path_to(i), "workable-reachability",
+                             f"{bad.size} reachable state(s) can never get back to a workable state", viol)
+    return Result("workable-reachability", False, ce, [what], info)
+
+
+def _bottom_sccs(ts, region) -> list:
+    """Bottom SCCs of the sub-graph on ``region`` (lists of state indices), nearest first.
+    For big regions only the states without a way out of their own SCC are not computed:
+    the region itself is returned."""
+    if region.size > _SCC_LIMIT:
+        return [region.tolist()]
+    import networkx as nx
+
+    inside = np.zeros(ts.n_states, bool)
+    inside[region] = True
+    g = nx.DiGraph()
+    g.add_nodes_from(region.tolist())
+    for i in region.tolist():
+        for j in ts.successors(i).tolist():
+            if inside[j]:
+                g.add_edge(i, j)
+    cond = nx.condensation(g)
+    out = [sorted(cond.nodes[c]["members"]) for c in cond.nodes if cond.out_degree(c) == 0]
+    return sorted(out, key=lambda scc: scc[0])
+
+
+def _decoded(prog, state) -> dict:
+    return {prog.slots[k].name: _plain(prog.decode_slot(k, v)) for k, v in enumerate(state) if prog.slots[k].kind not in ("flag", "memory")}
+
+
+def _plain(x):
+    return x.item() if hasattr(x, "item") else x
+
+
+def _brief(prog, state) -> str:
+    d = _decoded(prog, state)
+    return ", ".join(f"{k}={str(v).lower() if isinstance(v, bool) else v}" for k, v in d.items())

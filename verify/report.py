@@ -1,0 +1,120 @@
+"""``check(model)``: decide the named properties and gather them in a ``Report``.
+
+The report prints as text for people (``format_text``) and as one JSON object for tools
+(``to_json``: ``model``, ``states``, ``transitions``, ``seconds``, ``complete``,
+``systems`` and ``properties``, each ``{name, holds, counterexample, notes, info}``;
+``holds`` is null when the property could not be decided within the state budget).
+
+>>> from btfsm import Model, Int, Action, success
+>>> m = Model("c", variables=[Int("n", 0, 2)], tree=Action("inc", outcomes=[success(n="n + 1")]))
+>>> r = check(m, ["domain"])
+>>> r.results[0].holds, r.exit_code
+(False, 1)
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+from .explore import DEFAULT_MAX_STATES
+from .properties import PROPERTIES, Context, run_property
+
+__all__ = ["Report", "check", "exit_code_of"]
+
+_LIST = 12  # items of a list printed in text (all are in the JSON)
+
+
+@dataclass
+class Report:
+    model: str
+    results: list
+    systems: list = field(default_factory=list)
+    seconds: float = 0.0
+
+    @property
+    def complete(self) -> bool:
+        return all(s["complete"] for s in self.systems)
+
+    @property
+    def states(self) -> int:
+        return sum(s["states"] for s in self.systems)
+
+    @property
+    def transitions(self) -> int:
+        return sum(s["transitions"] for s in self.systems)
+
+    @property
+    def exit_code(self) -> int:
+        return exit_code_of(self.results)
+
+    def result(self, name: str):
+        for r in self.results:
+            if r.name == name:
+                return r
+        raise KeyError(name)
+
+    def to_json(self) -> dict:
+        return {"model": self.model, "states": self.states, "transitions": self.transitions,
+                "seconds": round(self.seconds, 6), "complete": self.complete, "systems": self.systems,
+                "properties": [r.to_json() for r in self.results]}
+
+    def format_text(self) -> str:
+        explored = "; ".join(_system_text(s) for s in self.systems) or "nothing to explore"
+        lines = [f"model {self.model}: {explored} ({self.seconds:.2f} s)"]
+        if not self.complete:
+            lines.append("INCOMPLETE: the state budget (--max-states) was hit; undecided properties say so")
+        width = max((len(r.name) for r in self.results), default=0)
+        for r in self.results:
+            verdict = {True: "holds", False: "VIOLATED", None: "undecided"}[r.holds]
+            if r.name == "lints":
+                verdict = f"{len(r.notes)} warning(s)"
+            lines.append(f"  {r.name.ljust(width)}  {verdict}")
+        for r in self.results:
+            if r.counterexample is not None:
+                lines += ["", r.counterexample.format_text()]
+        for r in self.results:
+            notes = [n for n in r.notes if r.name not in ("lints", "determinism")]
+            if notes and r.holds is not True:
+                lines += ["", f"{r.name}:"] + [f"  {n}" for n in notes]
+        gaps = [n for r in self.results if r.name == "determinism" for n in r.notes]
+        if gaps:
+            lines += ["", "determinism (information, not failures):"] + [f"  {n}" for n in gaps[:_LIST]]
+            if len(gaps) > _LIST:
+                lines.append(f"  ... {len(gaps) - _LIST} more (see --json)")
+        warns = [n for r in self.results if r.name == "lints" for n in r.notes]
+        if warns:
+            lines += ["", "warnings:"] + [f"  {n}" for n in warns[:2 * _LIST]]
+            if len(warns) > 2 * _LIST:
+                lines.append(f"  ... {len(warns) - 2 * _LIST} more (see --json)")
+        return "\n".join(lines)
+
+
+def _system_text(s: dict) -> str:
+    what = "model" if s["kind"] == "model" else f"FSM {s['fsm']}"
+    inc = "" if s["complete"] else ", incomplete"
+    return f"{what} {s['states']} states, {s['transitions']} transitions{inc}"
+
+
+def exit_code_of(results) -> int:
+    """0 all hold, 1 some property violated, 3 some property undecided (budget hit)."""
+    if any(r.holds is False for r in results):
+        return 1
+    if any(r.holds is None for r in results):
+        return 3
+    return 0
+
+
+def check(model, properties=None, *, max_states: "int | None" = DEFAULT_MAX_STATES, progress=None) -> Report:
+    """Decide ``properties`` (names; default: all of ``verify.properties.PROPERTIES``).
+    ``progress(what, states, transitions, seconds)`` is called during long explorations."""
+    names = list(PROPERTIES) if not properties else list(dict.fromkeys(properties))
+    unknown = [n for n in names if n not in PROPERTIES]
+    if unknown:
+        raise ValueError(f"unknown propert{'y' if len(unknown) == 1 else 'ies'} {', '.join(unknown)} "
+                         f"(known: {', '.join(PROPERTIES)})")
+    t0 = time.perf_counter()
+    ctx = Context(model, max_states=max_states, progress=progress)
+    results = [run_property(ctx, n) for n in names]
+    systems = [{"kind": ts.kind, "fsm": ts.fsm, "states": ts.n_states, "transitions": ts.n_transitions,
+                "complete": ts.complete, "seconds": round(ts.seconds, 6)} for ts in ctx.systems]
+    return Report(model.name, results, systems, time.perf_counter() - t0)

@@ -1,0 +1,278 @@
+"""Explicit transition systems: the result of exploring a model (``verify.explore``).
+
+A ``TransitionSystem`` stores states as rows of small ints (one column per kept slot of
+``model.program.slots``) and transitions as flat int64 arrays (``src``, ``dst``,
+``label``), sorted by source. State 0 is the initial state and states are numbered in
+breadth-first order, so following ``parent`` back from any state gives a shortest path.
+
+Two kinds exist: ``"model"`` (one transition = one BT tick of the whole model) and
+``"fsm"`` (one FSM as an open system: one transition = one request of one goal, with the
+environment, the goal, its parameters and free inputs chosen every possible way).
+
+>>> from btfsm import Model, Int, Action, success
+>>> from verify.explore import explore
+>>> m = Model("c", variables=[Int("n", 0, 2)], tree=Action("inc", outcomes=[success(n="min(n + 1, 2)")]))
+>>> ts = explore(m)
+>>> ts.n_states, ts.n_transitions, ts.successors(2).tolist()
+(3, 3, [2])
+>>> ts.path_to(2)
+[0, 1]
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from functools import cached_property
+
+import numpy as np
+
+__all__ = ["TransitionSystem", "DomainViolation", "shortest_path", "reverse_reach", "forward_reach"]
+
+
+@dataclass(frozen=True)
+class DomainViolation:
+    """An effect wrote outside its domain during the tick taken from ``state`` with ``script``."""
+
+    state: int
+    script: tuple
+    label: tuple
+    var: str
+    value: int
+    where: str
+    message: str
+
+
+@dataclass(frozen=True, eq=False)
+class TransitionSystem:
+    """An explored model or FSM. Fields beyond the contract: ``status`` (root status or FSM
+    reply per transition), ``goal`` (requested goal index per transition, FSM level),
+    ``expanded`` (states ``0..expanded-1`` have all their successors), ``errors``
+    (``DomainViolation``s), ``violations`` (``(transition, violations)`` contract breaches),
+    ``open`` (FSM level: the open system's description, see ``verify.explore.OpenFSM``)."""
+
+    model: object
+    kind: str  # "model" | "fsm"
+    fsm: "str | None"
+    slots: tuple
+    states: np.ndarray
+    src: np.ndarray
+    dst: np.ndarray
+    label: np.ndarray
+    labels: tuple
+    parent: np.ndarray
+    complete: bool
+    seconds: float
+    status: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int8))
+    goal: "np.ndarray | None" = None
+    expanded: int = 0
+    errors: tuple = ()
+    violations: tuple = ()
+    open: object = None
+
+    # ------------------------------------------------------------------ sizes
+    @property
+    def n_states(self) -> int:
+        return int(self.states.shape[0])
+
+    @property
+    def n_transitions(self) -> int:
+        return int(self.src.shape[0])
+
+    def __repr__(self) -> str:
+        what = self.kind if self.fsm is None else f"fsm {self.fsm}"
+        done = "" if self.complete else ", incomplete"
+        return f"TransitionSystem({self.model.name}, {what}: {self.n_states} states, {self.n_transitions} transitions{done})"
+
+    # ------------------------------------------------------------------ adjacency
+    @cached_property
+    def offsets(self) -> np.ndarray:
+        """CSR offsets: the transitions of state i are ``offsets[i]:offsets[i+1]``."""
+        return np.searchsorted(self.src, np.arange(self.n_states + 1, dtype=np.int64)).astype(np.int64)
+
+    @cached_property
+    def reverse(self) -> tuple:
+        """``(offsets, transitions)``: a CSR of incoming transitions, by destination."""
+        order = np.argsort(self.dst, kind="stable").astype(np.int64)
+        offs = np.searchsorted(self.dst[order], np.arange(self.n_states + 1, dtype=np.int64)).astype(np.int64)
+        return offs, order
+
+    def out_transitions(self, i: int) -> np.ndarray:
+        """Indices of the transitions leaving state ``i``."""
+        o = self.offsets
+        return np.arange(o[i], o[i + 1], dtype=np.int64)
+
+    def successors(self, i: int) -> np.ndarray:
+        """Destination states of the transitions leaving ``i`` (with repeats for
+        transitions that differ only by label)."""
+        o = self.offsets
+        return self.dst[o[i]:o[i + 1]]
+
+    @cached_property
+    def dead(self) -> np.ndarray:
+        """Expanded states without any successor."""
+        counts = np.diff(self.offsets)[: self.expanded]
+        return np.flatnonzero(counts == 0)
+
+    # ------------------------------------------------------------------ states
+    def full_state(self, i: int) -> tuple:
+        """The program state tuple of state ``i`` (slots sliced away hold their initial value)."""
+        row = self.states[i]
+        if self.kind == "model":
+            return tuple(int(x) for x in row)
+        base = list(self.model.program.initial)
+        for k, slot in enumerate(self.slots):
+            base[slot] = int(row[k])
+        return tuple(base)
+
+    def decode(self, i: int) -> dict:
+        """Readable values of the kept slots of state ``i``."""
+        prog = self.model.program
+        row = self.states[i]
+        return {prog.slots[s].name: prog.decode_slot(s, int(row[k])) for k, s in enumerate(self.slots)}
+
+    def column(self, slot: int) -> np.ndarray:
+        """The values of program slot ``slot`` in every state (its initial value if sliced away)."""
+        try:
+            return self.states[:, self.slots.index(slot)]
+        except ValueError:
+            return np.full(self.n_states, self.model.program.initial[slot], dtype=self.states.dtype)
+
+    def columns(self) -> list:
+        """One array per program slot (for vectorised predicates)."""
+        return [self.column(k) for k in range(len(self.model.program.slots))]
+
+    def path_to(self, i: int) -> list:
+        """Transition indices of the shortest path from the initial state to ``i``."""
+        path = []
+        t = int(self.parent[i])
+        while t >= 0:
+            path.append(t)
+            t = int(self.parent[int(self.src[t])])
+        path.reverse()
+        return path
+
+    def depth(self) -> np.ndarray:
+        """BFS depth of every state."""
+        d = np.zeros(self.n_states, np.int64)
+        par = self.parent
+        for i in range(1, self.n_states):  # parents have smaller indices (BFS order)
+            d[i] = d[int(self.src[par[i]])] + 1
+        return d
+
+    def to_networkx(self, max_states: int = 100_000):
+        """A ``networkx.MultiDiGraph`` (for small systems only: reporting, SCC views)."""
+        if self.n_states > max_states:
+            raise ValueError(f"{self.n_states} states: too many for networkx (max_states={max_states})")
+        import networkx as nx
+
+        g = nx.MultiDiGraph(model=self.model.name, kind=self.kind, fsm=self.fsm)
+        for i in range(self.n_states):
+            g.add_node(i, **self.decode(i))
+        for t in range(self.n_transitions):
+            g.add_edge(int(self.src[t]), int(self.dst[t]), key=t, label=self.labels[int(self.label[t])],
+                       status=int(self.status[t]) if len(self.status) else None)
+        return g
+
+
+# ---------------------------------------------------------------------- graph helpers
+
+
+def _expand(frontier: np.ndarray, offs: np.ndarray, targets: np.ndarray) -> np.ndarray:
+    """All ``targets[offs[i]:offs[i+1]]`` for i in frontier, concatenated (vectorised)."""
+    starts, ends = offs[frontier], offs[frontier + 1]
+    lens = ends - starts
+    total = int(lens.sum())
+    if total == 0:
+        return np.zeros(0, np.int64)
+    # positions = starts repeated, plus 0..len-1 within each run
+    run_starts = np.repeat(starts - np.concatenate(([0], np.cumsum(lens)[:-1])), lens)
+    return targets[run_starts + np.arange(total, dtype=np.int64)]
+
+
+def _closure(seen: np.ndarray, offs: np.ndarray, targets: np.ndarray) -> np.ndarray:
+    """Grow the mask ``seen`` along the CSR ``(offs, targets)`` to a fixed point, level by
+    level. Duplicates in a level are dropped in linear time with a stamp array (the last
+    position that wrote a node keeps it)."""
+    stamp = np.empty(seen.shape[0], np.int64)
+    frontier = np.flatnonzero(seen)
+    while frontier.size:
+        cand = _expand(frontier, offs, targets)
+        cand = cand[~seen[cand]]
+        if not cand.size:
+            break
+        pos = np.arange(cand.size, dtype=np.int64)
+        stamp[cand] = pos
+        cand = cand[stamp[cand] == pos]
+        seen[cand] = True
+        frontier = cand
+    return seen
+
+
+def reverse_reach(ts: TransitionSystem, targets: np.ndarray, mask: "np.ndarray | None" = None) -> np.ndarray:
+    """Boolean mask of states that can reach a ``targets`` state (a mask) using only the
+    transitions selected by ``mask`` (all when None). Linear in the transitions."""
+    n = ts.n_states
+    if mask is None:
+        offs, order = ts.reverse
+        srcs = ts.src[order]
+    else:
+        sel = np.flatnonzero(mask)
+        d = ts.dst[sel]
+        order = np.argsort(d, kind="stable")
+        srcs = ts.src[sel][order]
+        offs = np.searchsorted(d[order], np.arange(n + 1, dtype=np.int64)).astype(np.int64)
+    return _closure(targets.astype(bool).copy(), offs, srcs)
+
+
+def forward_reach(ts: TransitionSystem, start, mask: "np.ndarray | None" = None) -> np.ndarray:
+    """Boolean mask of states reachable from ``start`` (an index or a mask) along the
+    transitions selected by ``mask`` (all when None)."""
+    n = ts.n_states
+    seen = np.zeros(n, bool)
+    if isinstance(start, np.ndarray) and start.dtype == bool:
+        seen |= start
+    else:
+        seen[np.asarray(start, dtype=np.int64)] = True
+    if mask is None:
+        offs, dsts = ts.offsets, ts.dst
+    else:
+        sel = np.flatnonzero(mask)
+        s = ts.src[sel]
+        dsts = ts.dst[sel]
+        offs = np.searchsorted(s, np.arange(n + 1, dtype=np.int64)).astype(np.int64)
+    return _closure(seen, offs, dsts)
+
+
+def shortest_path(ts: TransitionSystem, start: int, goal, mask: "np.ndarray | None" = None) -> "list | None":
+    """Transition indices of a shortest path from ``start`` to a state in ``goal`` (a set,
+    mask or index) along transitions selected by ``mask``; ``[]`` when start is a goal,
+    None when there is none. Plain BFS (for short paths inside small regions)."""
+    if isinstance(goal, np.ndarray):
+        is_goal = (lambda i: bool(goal[i])) if goal.dtype == bool else (lambda i: i in set(goal.tolist()))
+    elif isinstance(goal, (set, frozenset)):
+        is_goal = goal.__contains__
+    else:
+        is_goal = (lambda i, g=int(goal): i == g)
+    if is_goal(start):
+        return []
+    offs = ts.offsets
+    via = {start: -1}
+    frontier = [start]
+    while frontier:
+        nxt = []
+        for i in frontier:
+            for t in range(int(offs[i]), int(offs[i + 1])):
+                if mask is not None and not mask[t]:
+                    continue
+                j = int(ts.dst[t])
+                if j in via:
+                    continue
+                via[j] = t
+                if is_goal(j):
+                    path = []
+                    while t >= 0:
+                        path.append(t)
+                        t = via[int(ts.src[t])]
+                    return path[::-1]
+                nxt.append(j)
+        frontier = nxt
+    return None
