@@ -531,6 +531,8 @@ _SAFE_BUILTINS = {"__builtins__": {}, "min": min, "max": max, "abs": abs}
 def compile_fn(e: Expr, scope: Mapping[str, Slot], element: str, expected: "Type | None" = None):
     """Check ``e`` and return ``f(state_list) -> value``. Bool results are Python bools."""
     t = check(e, scope, element, expected)
+    if expected is not None and t != expected:
+        raise ModelError(element, f"'{to_text(e)}' is {t}, expected {expected}")
     src = _src(e, scope, "s", t)
     return eval(f"lambda s: {src}", dict(_SAFE_BUILTINS))  # noqa: S307 - generated from a checked AST
 

@@ -191,7 +191,7 @@ class Model:
                     env_names.append(opt.name)
         _no_dup_names(env_names, "environment")
         _no_dup_names([k for k, _ in self.invariants], "invariants")
-        if not isinstance(self.tick_rate, (int, float)) or not self.tick_rate > 0:
+        if not isinstance(self.tick_rate, (int, float)) or not 0 < self.tick_rate < float("inf"):
             raise ModelError("tick_rate", "must be a positive number of ticks per second")
         prims = self.all_primitives()
         warnings = []

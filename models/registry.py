@@ -25,6 +25,8 @@ BUILTIN: dict = {
     "original-preemptive": "models.original:original_preemptive",
     # teaching examples (models/examples/)
     "two-area": "models.examples.two_area:two_area",
+    "two-area-file": "models.examples.files:two_area_file",
+    "templated": "models.examples.files:templated",
     "spectrum-continue": "models.examples.spectrum:continue_",
     "spectrum-hold": "models.examples.spectrum:hold",
     "spectrum-reverse": "models.examples.spectrum:reverse",
