@@ -93,7 +93,8 @@ def _args_check(sp):
 def _args_export(sp):
     _args_model(sp)
     sp.add_argument("--format", choices=("promela", "smv", "dot"), required=True)
-    sp.add_argument("--fsm", help="FSM to export (default: the first)")
+    sp.add_argument("--fsm", help="FSM to export at FSM level (default: the whole model when its tree is one "
+                                  "SkillRequest, the first FSM when there is no tree)")
     sp.add_argument("--output", "-o")
 
 

@@ -567,10 +567,11 @@ def compile_effects(effects, scope: Mapping[str, Slot], element: str, names: "Ma
     return fn
 
 
-def to_numpy_source(e: Expr, scope: Mapping[str, Slot], col: str = "c") -> str:
+def to_numpy_source(e: Expr, scope: Mapping[str, Slot], col: str = "c", expected: "Type | None" = None) -> str:
     """numpy source over columns ``c[i]`` (int arrays); bools are bool arrays.
+    ``expected``: the type an enum literal resolves to (e.g. an effect on an enum).
     Evaluate with ``{"np": numpy, "c": columns}``."""
-    return _np(e, scope, col, check(e, scope, "numpy"))
+    return _np(e, scope, col, check(e, scope, "numpy", expected))
 
 
 def _np(e: Expr, scope, col: str, expected) -> str:

@@ -30,6 +30,10 @@ BUILTIN: dict = {
     "spectrum-continue": "models.examples.spectrum:continue_",
     "spectrum-hold": "models.examples.spectrum:hold",
     "spectrum-reverse": "models.examples.spectrum:reverse",
+    # the SPIN pick/place benchmark model at Q=D=B=3 (models/pickplace.py)
+    "pickplace3": "models.pickplace:pickplace",
+    "pickplace3-dead": "models.pickplace:pickplace_dead",
+    "pickplace3-bug": "models.pickplace:pickplace_bug",
     # the seeded-defect catalogue: one model per property (models/examples/defects.py)
     "defect-trap": "models.examples.defects:trap",
     "defect-unreachable-goal": "models.examples.defects:unreachable_goal",
