@@ -11,4 +11,5 @@ B=.venv/bin/btfsm
 set -x
 $B check ariac-preemptive
 $B check ariac-baseline
-$B experiment --k 1 --k 40 --workers 2
+$B sim ariac-preemptive --k 1 --render out/cell.png
+$B experiment --k 1 --k 20 --k 40 --workers 2 --out out/experiment
