@@ -163,6 +163,10 @@ def main(argv=None) -> int:
         raise
     except BrokenPipeError:
         return 0
+    except OSError as exc:  # a file that cannot be read or written
+        where = f" {exc.filename}:" if getattr(exc, "filename", None) else ""
+        print(f"btfsm {args.command}: error:{where} {exc.strerror or exc}", file=sys.stderr)
+        return 2
 
 
 def cli_run(args) -> int:

@@ -107,7 +107,8 @@ def cli_sim(args) -> int:
     if args.render:
         print(f"picture: {render_png(last['cell'], args.render, title=model.name, fsm_state=last.get('text'))}")
     if recorder is not None:
-        print(f"animation: {recorder.write_gif(args.gif, fps=args.fps)}")
+        frames = recorder.write_gif(args.gif, fps=args.fps)
+        print(f"animation: {args.gif} ({frames} frames)")
     return 1 if r.conformance_error else 0
 
 

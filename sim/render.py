@@ -9,6 +9,8 @@ on its own ``FigureCanvasAgg``. GIFs are assembled with Pillow (a matplotlib dep
 """
 from __future__ import annotations
 
+import os
+
 import math
 from typing import Iterable
 
@@ -140,13 +142,15 @@ def draw_snapshot(ax, snap: dict, title: str | None = None, fsm_state: str | Non
         ax.set_title(title, fontsize=9)
 
 
-def render_png(cell, path, title: str | None = None, fsm_state: str | None = None) -> None:
-    """Draw a Cell (or a snapshot dict) to a PNG file."""
+def render_png(cell, path, title: str | None = None, fsm_state: str | None = None) -> str:
+    """Draw a Cell (or a snapshot dict) to a PNG file; return its path."""
     fig = _new_figure()
     ax = fig.add_subplot(1, 1, 1)
     draw_snapshot(ax, _as_snapshot(cell), title, fsm_state)
     fig.tight_layout()
+    os.makedirs(os.path.dirname(os.path.abspath(path)), exist_ok=True)
     fig.savefig(path)
+    return str(path)
 
 
 def _pillow():
@@ -175,6 +179,7 @@ def render_gif(snapshots: Iterable[dict], path, fps: float = 10.0, title: str | 
         frames.append(rgb.quantize(colors=64, method=image.Quantize.FASTOCTREE))
     if not frames:
         raise ValueError("render_gif got no snapshots")
+    os.makedirs(os.path.dirname(os.path.abspath(path)), exist_ok=True)
     frames[0].save(path, save_all=True, append_images=frames[1:], loop=0,
                    duration=max(1, round(1000.0 / fps)))
     return len(frames)
