@@ -111,7 +111,9 @@ class E:
     """Builds AST nodes with Python operators: ``(v.queue > 0) & ~v.holding``.
 
     ``&``, ``|`` and ``~`` are and, or and not (Python's ``and``/``or``/``not`` cannot be
-    overloaded, so using them raises TypeError). ``.node`` is the AST.
+    overloaded, so using them raises TypeError). Beside a comparison a plain ``str`` is an
+    enum value (``v.mode == "busy"``); elsewhere strings are the string syntax. ``.node`` is
+    the AST.
     """
 
     __slots__ = ("node",)
@@ -123,7 +125,9 @@ class E:
         raise TypeError("use &, | and ~ (not and/or/not) to combine btfsm expressions")
 
     def _bin(self, cls, op, other, swap=False):
-        a, b = self.node, as_expr(other)
+        # a plain str beside a comparison is an enum value (v.mode == "busy"), not syntax
+        b = Const(other) if cls is Compare and isinstance(other, str) else as_expr(other)
+        a = self.node
         return E(cls(op, b, a) if swap else cls(op, a, b))
 
     def __eq__(self, o): return self._bin(Compare, "==", o)  # type: ignore[override]
@@ -149,8 +153,9 @@ class E:
     __hash__ = None  # type: ignore[assignment]
 
     def isin(self, *values) -> "E":
-        """``x in (a, b)`` as ``x == a or x == b``."""
-        return E(_flat("or", *(Compare("==", self.node, as_expr(x)) for x in values)))
+        """``x in (a, b)`` as ``x == a or x == b`` (strings are enum values)."""
+        return E(_flat("or", *(Compare("==", self.node, Const(x) if isinstance(x, str) else as_expr(x))
+                               for x in values)))
 
     def __repr__(self) -> str:
         return f"E({to_text(self.node)!r})"
@@ -449,6 +454,9 @@ def _check(e: Expr, scope, expected: "Type | None") -> Type:
 
 
 def _is_literal(e: Expr) -> bool:
+    """An enum literal, or a choice between enum literals: its type comes from context."""
+    if isinstance(e, IfElse):
+        return _is_literal(e.then) and _is_literal(e.other)
     return isinstance(e, Const) and isinstance(e.value, str)
 
 
@@ -529,7 +537,8 @@ _SAFE_BUILTINS = {"__builtins__": {}, "min": min, "max": max, "abs": abs}
 
 
 def compile_fn(e: Expr, scope: Mapping[str, Slot], element: str, expected: "Type | None" = None):
-    """Check ``e`` and return ``f(state_list) -> value``. Bool results are Python bools."""
+    """Check ``e`` and return ``f(state_list) -> value``. A bool result is truthy or falsy
+    (a Python bool, or a stored 0/1 when ``e`` is a bare bool variable)."""
     t = check(e, scope, element, expected)
     if expected is not None and t != expected:
         raise ModelError(element, f"'{to_text(e)}' is {t}, expected {expected}")

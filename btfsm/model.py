@@ -201,8 +201,25 @@ class Model:
                     raise ModelError(f"fsms.{f.name}.states.{st.id}.primitive", f"unknown primitive '{st.primitive}'")
             statuses = {name: p.statuses() for name, p in prims.items()}
             warnings += f.validate(statuses)
+        self._check_reentrant_requests()
         self.program  # compiles and type-checks every expression
         return warnings
+
+    def _check_reentrant_requests(self):
+        """An FSM state's subtree may request other FSMs, but never (through others) its own."""
+        calls = {f.name: {(n.fsm, st.id) for st in f.states if st.subtree is not None
+                          for n in walk(st.subtree) if isinstance(n, SkillRequest)} for f in self.fsms}
+        for start in calls:
+            path, todo, seen = {start: None}, [start], set()
+            while todo:
+                f = todo.pop()
+                for g, via in calls.get(f, ()):
+                    if g == start:
+                        raise ModelError(f"fsms.{f}.states.{via}.subtree",
+                                         f"requests FSM '{g}' while '{start}' is being ticked (a re-entrant request)")
+                    if g not in seen:
+                        seen.add(g)
+                        todo.append(g)
 
     def _check_nodes(self, declared):
         seen, inline = {}, {}

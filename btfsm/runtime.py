@@ -68,7 +68,8 @@ class _VarView(Mapping):
 
 class Call:
     """What an implementation sees: the site, whether this is a fresh start, the time, and
-    for an FSM state the goal the FSM is driven toward (``goal``, else None)."""
+    for an FSM state the goal the FSM is driven toward (``goal``, else None). ``vars``
+    reads the world as it was at the start of the tick (before this tick's effects)."""
 
     __slots__ = ("site", "first", "vars", "time", "tick", "args", "goal")
 

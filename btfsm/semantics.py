@@ -194,8 +194,8 @@ class Program:
             if n.times < 1:
                 raise ModelError(f"tree.{n.name}.times", "must be at least 1")
             return n.times > 1 or info.kids[0].can_run
-        if isinstance(n, Parallel):
-            return len(n.children) > 1 or any(k.can_run for k in info.kids)
+        # a Parallel of instant children decides every tick (S successes, or too many
+        # failures for S): like every other composite it runs only through a child
         return any(k.can_run for k in info.kids)
 
     # ------------------------------------------------------------------ helpers
@@ -698,6 +698,24 @@ class Program:
         if slot is not None and slot.type.kind == "enum":
             return slot.type.values[value]
         return bool(value) if slot is not None and slot.type == BOOL else value
+
+    def encode(self, values: dict) -> tuple:
+        """The state tuple of readable values (as ``decode`` gives them); slots missing
+        from ``values`` keep their initial value."""
+        out = list(self.initial)
+        for i, info in enumerate(self.slots):
+            if info.name not in values:
+                continue
+            val = values[info.name]
+            if info.kind == "var":
+                out[i] = self.model.var(info.name).encode(val)
+                continue
+            slot = self.scope.get(info.name)
+            if slot is not None and slot.type.kind == "enum":
+                out[i] = slot.type.values.index(val)
+            else:
+                out[i] = int(val)
+        return tuple(out)
 
     def fsm_state(self, state, fsm: str) -> tuple:
         """(state id, held goal or None) of an FSM."""

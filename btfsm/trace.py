@@ -163,8 +163,8 @@ class AnswerOracle:
         return self.program.env[i][0] in self.events
 
     def choose(self, i, enabled):
-        options = self.program.env[i][3]
-        return next(k for k, o in enumerate(enabled) if options[o][0] in self.events)
+        options = self.program.env[i][3]  # a lone option may go unreported: it is forced
+        return next((k for k, o in enumerate(enabled) if options[o][0] in self.events), 0)
 
     def outcome(self, site):
         return next(self.it)
@@ -196,7 +196,12 @@ def replay(source, model, state=None) -> "tuple[int, str] | None":
     program = model.program
     if header.get("model") != model.name:
         return (0, f"trace is of model '{header.get('model')}', not '{model.name}'")
-    s = tuple(state) if state is not None else program.initial
+    if state is None:
+        try:
+            state = program.encode(header.get("initial") or {})
+        except (KeyError, ValueError, IndexError) as exc:
+            return (0, f"the trace's initial state does not fit this model ({exc})")
+    s = tuple(state)
     clock, last = Clock(model.tick_rate), {}
     for rec in records:
         oracle = ReplayOracle(program, rec)
