@@ -92,7 +92,7 @@ def run_scenario(scenario: Scenario, model=None, monitor: "PathMonitor | None" =
     config = CellConfig(dt=1.0 / spec.physics_rate, drop_regions=tuple(scenario.drop_regions))
     model, cell, binding, rt = build_trial(spec, model, config, seed=scenario.seed, detections=scenario.detections)
     q_slot, tray_slot = model.program.scope["queue"].index, model.program.scope[binding.d.tray_var].index
-    steps = max(1, round(spec.physics_rate / spec.tick_rate))
+    steps = max(1, round(spec.physics_rate / model.tick_rate))
     ticks = 0
     while cell.time < scenario.time_limit:
         before = rt.state

@@ -44,8 +44,7 @@ class TrialSpec:
     parts: int = 18
     pick_window: float = 16.0
     time_limit: float = 1500.0
-    tick_rate: float = 10.0
-    physics_rate: float = 240.0
+    physics_rate: float = 240.0  # the BT ticks at the model's tick_rate (10 Hz for ARIAC)
 
     @property
     def seed(self) -> int:

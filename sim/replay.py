@@ -82,7 +82,7 @@ def replay_in_cell(model, ce, *, time_limit: float = 120.0, render: "str | None"
     pending = [t for t in triggers_of(ce, d.fsm) if t[1] == "arrive"]
     result = CellReplay(model.name, list(pending))
     q_slot = model.program.scope["queue"].index
-    steps = max(1, round(spec.physics_rate / spec.tick_rate))
+    steps = max(1, round(spec.physics_rate / model.tick_rate))
     recorder = None
     if gif:
         from .render import Recorder

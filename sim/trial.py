@@ -1,6 +1,6 @@
 """One trial of the experiment: the checked ARIAC model driving the pymunk cell.
 
-The BT ticks at ``spec.tick_rate`` (10 Hz) through ``btfsm.runtime.Runtime``; between two
+The BT ticks at the model's ``tick_rate`` (10 Hz) through ``btfsm.runtime.Runtime``; between two
 ticks the cell takes ``physics_rate / tick_rate`` fixed steps (240 Hz physics). After
 every tick the binding's abstraction check compares the model's variables with the cell.
 """
@@ -46,7 +46,7 @@ def run_trial(spec: TrialSpec, model=None, on_tick=None) -> TrialResult:
     prog = model.program
     q_slot, tray_slot = prog.scope["queue"].index, prog.scope[binding.d.tray_var].index
     skills = {n.name: prog.nodes[n.name].flag for n in model.nodes() if isinstance(n, SkillRequest)}
-    steps_per_tick = max(1, round(spec.physics_rate / spec.tick_rate))
+    steps_per_tick = max(1, round(spec.physics_rate / model.tick_rate))  # the BT's rate is the model's
     starts = halts = ticks = 0
     error = ""
     while cell.time < spec.time_limit:

@@ -100,15 +100,16 @@ def test_random_scenarios_conform(seed, variant):
         assert res.mismatch is None, str(res.mismatch)
 
 
-def test_path_monitor_accepts_runtime_paths():
+@pytest.mark.parametrize("variant", ["preemptive", "baseline"])
+def test_path_monitor_accepts_runtime_paths(variant):
     explore = pytest.importorskip("verify.explore").explore
     from models import ariac
     from sim.conformance import PathMonitor
 
-    model = ariac.preemptive(n_tray=3)
+    model = getattr(ariac, variant)(n_tray=3)
     ts = explore(model)
     monitor = PathMonitor(ts)
-    for sc in random_scenarios(2, 5, "preemptive", parts=3, time_limit=150.0):
+    for sc in random_scenarios(2, 5, variant, parts=3, time_limit=150.0):
         res = run_scenario(sc, model, monitor)
         assert res.mismatch is None, str(res.mismatch)
 
