@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import random
 
-__all__ = ["FirstOracle", "ScriptOracle", "RandomOracle"]
+__all__ = ["FirstOracle", "SucceedOracle", "ScriptOracle", "RandomOracle"]
 
 
 class FirstOracle:
@@ -31,6 +31,17 @@ class FirstOracle:
 
     def halt(self, site) -> None:
         pass
+
+
+class SucceedOracle(FirstOracle):
+    """No event happens and every primitive has its first SUCCESS outcome (the first
+    outcome when it declares none): the authors' stub primitives, which succeed at once."""
+
+    def outcome(self, site) -> int:
+        for k, o in enumerate(site.outcomes):
+            if o[0] == 1:  # Status.SUCCESS
+                return k
+        return 0
 
 
 class ScriptOracle:

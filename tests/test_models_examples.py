@@ -1,6 +1,7 @@
 """Teaching models: two-area, the preemption spectrum, and the seeded-defect catalogue."""
 import pytest
 
+from btfsm.oracles import SucceedOracle
 from btfsm.oracles import RandomOracle
 from btfsm.runtime import Runtime
 from btfsm.status import Status
@@ -8,19 +9,6 @@ from models.examples import defects, spectrum
 from models.examples.two_area import two_area
 from models.registry import BUILTIN, DEFECTS, load_builtin, names
 
-
-class Fast:
-    def env(self, i):
-        return False
-
-    def choose(self, i, enabled):
-        return 0
-
-    def outcome(self, site):
-        return [o[0] for o in site.outcomes].index(int(Status.SUCCESS))
-
-    def halt(self, site):
-        pass
 
 
 def _verify():
@@ -100,7 +88,7 @@ def _fsm_run(model, state, goal, ticks):
     prog = model.program
     tokens = []
     for _ in range(ticks):
-        state = prog.fsm_step(state, "arm", goal, (), Fast()).state
+        state = prog.fsm_step(state, "arm", goal, (), SucceedOracle()).state
         tokens.append(prog.fsm_state(state, "arm")[0])
     return tokens, state
 

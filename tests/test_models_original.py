@@ -4,27 +4,13 @@ Counts and the transit table come from original-design.md sections 3.1-3.7; the 
 traces are the stub runs of section 3.8 (every primitive succeeding at once)."""
 import pytest
 
+from btfsm.oracles import SucceedOracle
 from btfsm.status import Status
 from models.original import (ROTATIONS, TARGETS, TRACKS, movement_manager, original,
                              original_preemptive, transit_table)
 
 MM = "movement_manager"
 
-
-class AllSucceed:
-    """The authors' stubs: every primitive succeeds at once, no environment event."""
-
-    def env(self, i):
-        return False
-
-    def choose(self, i, enabled):
-        return 0
-
-    def outcome(self, site):
-        return [o[0] for o in site.outcomes].index(int(Status.SUCCESS))
-
-    def halt(self, site):
-        pass
 
 
 @pytest.fixture(scope="module")
@@ -140,7 +126,7 @@ def _run(model, state, goal, target, ticks):
     prog = model.program
     out = []
     for _ in range(ticks):
-        step = prog.fsm_step(state, MM, goal, (target,), AllSucceed())
+        step = prog.fsm_step(state, MM, goal, (target,), SucceedOracle())
         state = step.state
         out.append((prog.fsm_state(state, MM)[0], Status(step.status).name))
     return out, state
@@ -205,7 +191,7 @@ def test_same_target_wrong_state_is_not_applicable(model):
 def test_failing_primitive_is_retried_silently(model):
     prog = model.program
 
-    class FailGrasp(AllSucceed):
+    class FailGrasp(SucceedOracle):
         def outcome(self, site):
             if site.state == "grasp on bins":
                 return [o[0] for o in site.outcomes].index(int(Status.FAILURE))

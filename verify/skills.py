@@ -43,6 +43,7 @@ import time
 from collections import deque
 from dataclasses import dataclass, field
 
+from btfsm.oracles import SucceedOracle
 from btfsm.bt import SkillRequest, walk
 from btfsm.errors import DomainError, ModelError
 from btfsm.expr import Type, compile_fn
@@ -324,24 +325,6 @@ def counts(d: Derivation) -> dict:
 
 
 # --------------------------------------------------------------------------- FSM support
-class _PreferSuccess:
-    """Oracle for explanations: every primitive has its first SUCCESS outcome."""
-
-    def env(self, i):
-        return False
-
-    def choose(self, i, enabled):
-        return 0
-
-    def outcome(self, site):
-        for k, o in enumerate(site.outcomes):
-            if o[0] == SUCCESS:
-                return k
-        return 0
-
-    def halt(self, site):
-        pass
-
 
 def _tree_slots(prog) -> set:
     if prog.model.tree is None:
@@ -405,7 +388,7 @@ def _explain(prog, skill, params, source, limit=60) -> dict:
     steps, seen, state = [], set(), source
     for _ in range(limit):
         seen.add(state)
-        res = prog.fsm_step(state, skill.fsm, skill.goal, params, _PreferSuccess(), record=True)
+        res = prog.fsm_step(state, skill.fsm, skill.goal, params, SucceedOracle(), record=True)
         fired = [ev[2] for ev in res.events or () if ev[0] == "fire"]
         na = any(ev[0] == "not-applicable" for ev in res.events or ())
         token, _ = prog.fsm_state(res.state, skill.fsm)

@@ -22,6 +22,7 @@ primitive succeeds at once.
 """
 from __future__ import annotations
 
+from btfsm.oracles import SucceedOracle
 from btfsm import (FSM, Bool, Condition, Edge, Effects, EnvEvent, Int, Marker, Model, Primitive,
                    ReactiveFallback, ReactiveSequence, SkillRequest, State, running, success)
 
@@ -99,21 +100,6 @@ def reverse() -> Model:
     return _model("reverse")
 
 
-class _Fast:
-    """Every primitive succeeds at once; nothing happens in the environment."""
-
-    def env(self, i):
-        return False
-
-    def choose(self, i, enabled):
-        return 0
-
-    def outcome(self, site):
-        return [o[0] for o in site.outcomes].index(1)  # the SUCCESS outcome
-
-    def halt(self, site):
-        pass
-
 
 def reaction(model) -> dict:
     """Ticks from a call to the serve chain (the token reaches ``go``), per work step the arm was in
@@ -127,7 +113,7 @@ def reaction(model) -> dict:
         state[tok] = ids.index(w)
         state = tuple(state)
         for k in range(1, 4 * len(ids)):
-            state = prog.fsm_step(state, "arm", "serve", (), _Fast()).state
+            state = prog.fsm_step(state, "arm", "serve", (), SucceedOracle()).state
             if ids[state[tok]] == "go":
                 out[w] = k
                 break
