@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import random
 
-__all__ = ["FirstOracle", "SucceedOracle", "ScriptOracle", "RandomOracle"]
+__all__ = ["FirstOracle", "SucceedOracle", "ScriptOracle", "RandomOracle", "all_choices"]
 
 
 class FirstOracle:
@@ -96,3 +96,30 @@ class RandomOracle(FirstOracle):
 
     def outcome(self, site) -> int:
         return self.rng.randrange(len(site.outcomes))
+
+
+def all_choices(run, state, oracle_class=ScriptOracle, errors=()):
+    """Every way one tick can go from ``state``: yields ``(script, result, oracle)`` for
+    each complete choice script (DFS over the choice tree; ``run(state, oracle)`` is
+    ``Program.step`` or another step function). An exception of a type in ``errors`` is
+    yielded as the result instead of a Step.
+
+    >>> from btfsm import Model, Bool, EnvEvent
+    >>> m = Model("m", [Bool("a"), Bool("b")], environment=[EnvEvent("x", None, {"a": True}),
+    ...                                                     EnvEvent("y", None, {"b": True})])
+    >>> sorted(r.state for _, r, _ in all_choices(m.program.step, m.program.initial))
+    [(0, 0), (0, 1), (1, 0), (1, 1)]
+    """
+    stack = [()]
+    while stack:
+        prefix = stack.pop()
+        oracle = oracle_class(prefix)
+        try:
+            result = run(state, oracle)
+        except errors as exc:
+            result = exc
+        taken = tuple(oracle.taken)
+        for k in range(len(prefix), len(oracle.arities)):
+            for alt in range(oracle.arities[k] - 1, 0, -1):
+                stack.append(taken[:k] + (alt,))
+        yield taken, result, oracle

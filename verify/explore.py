@@ -32,7 +32,7 @@ import numpy as np
 from btfsm.bt import Action, Condition, Effects, Guard, SkillRequest, walk
 from btfsm.errors import DomainError
 from btfsm.expr import names_in
-from btfsm.oracles import ScriptOracle
+from btfsm.oracles import ScriptOracle, all_choices
 
 from .system import DomainViolation, TransitionSystem
 
@@ -728,22 +728,14 @@ def run_script(ts, state, script, record: bool = True):
 def successor_scripts(ts, state) -> list:
     """Every ``(script, step, oracle)`` from ``state`` (steps recorded), in search order.
     Blocked ticks are left out; DomainErrors appear with ``step`` None."""
-    out, stack = [], [()]
     run = _runner(ts)
-    while stack:
-        script = stack.pop()
-        o = EnumOracle(script)
-        try:
-            st = run(tuple(state), o, True)
-        except DomainError:
+    out = []
+    for taken, st, o in all_choices(lambda s, o: run(s, o, True), tuple(state), EnumOracle, (DomainError,)):
+        if isinstance(st, DomainError):
             st = None
-        ar, taken = o.arities, o.taken
-        for k in range(len(script), len(ar)):
-            for c in range(1, ar[k]):
-                stack.append(tuple(taken[:k]) + (c,))
-        if st is not None and st.state is None:
-            continue
-        out.append((tuple(taken), st, o))
+        elif st is not None and st.state is None:
+            continue  # a blocked tick
+        out.append((taken, st, o))
     return out
 
 

@@ -43,11 +43,10 @@ import time
 from collections import deque
 from dataclasses import dataclass, field
 
-from btfsm.oracles import SucceedOracle
+from btfsm.oracles import SucceedOracle, all_choices
 from btfsm.bt import SkillRequest, walk
 from btfsm.errors import DomainError, ModelError
 from btfsm.expr import Type, compile_fn
-from btfsm.oracles import ScriptOracle
 from btfsm.status import Status
 
 __all__ = ["Skill", "Pair", "Derivation", "Support", "skills_of", "derive", "check_support",
@@ -141,18 +140,7 @@ def skills_of(model) -> list:
 # --------------------------------------------------------------------------- exploration
 def _successors(step, state):
     """Every ``(script, Step | DomainError)`` of one tick from ``state`` (DFS over choices)."""
-    stack = [()]
-    while stack:
-        prefix = stack.pop()
-        oracle = ScriptOracle(prefix)
-        try:
-            result = step(state, oracle)
-        except DomainError as exc:
-            result = exc
-        taken = tuple(oracle.taken)
-        for k in range(len(prefix), len(oracle.arities)):
-            for alt in range(oracle.arities[k] - 1, 0, -1):
-                stack.append(taken[:k] + (alt,))
+    for taken, result, _ in all_choices(step, state, errors=(DomainError,)):
         yield taken, result
 
 
