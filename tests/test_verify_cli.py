@@ -123,3 +123,20 @@ def test_entry_point_subprocess(tmp_path):
                           capture_output=True, text=True, timeout=120)
     assert proc.returncode == 1 and "Traceback" not in proc.stderr
     assert json.loads(proc.stdout)["properties"][0]["holds"] is False
+
+
+def test_progress_line_on_stderr_for_long_explorations(tmp_path):
+    """An exploration longer than a second shows a progress line on stderr (stdout stays clean)."""
+    import subprocess
+    import sys
+
+    from btfsm.files import dump_model
+    from models.pickplace import pickplace
+
+    path = tmp_path / "pp6.json"
+    dump_model(pickplace(6), str(path))
+    out = subprocess.run([sys.executable, "-m", "btfsm.cli", "check", str(path), "--property", "invariants"],
+                         capture_output=True, text=True, timeout=300)
+    assert out.returncode == 0, out.stderr
+    assert "states/s" in out.stderr  # the \r-updated line (text mode turns \r into \n)
+    assert "104860 states" in out.stdout.replace(",", "")
