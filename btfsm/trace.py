@@ -111,26 +111,37 @@ def read_trace(source) -> tuple[dict, list]:
     return objs[0], objs[1:]
 
 
-class ReplayOracle:
+class _NamedEvents:
+    """Environment answers by event name, for oracles that replay what was recorded.
+    Replay drives no implementation, so there is nothing to halt."""
+
+    def env(self, i):
+        return self.program.env[i][0] in self.events
+
+    def _named(self, i, enabled):
+        options = self.program.env[i][3]
+        return next((k for k, opt in enumerate(enabled) if options[opt][0] in self.events), None)
+
+    def halt(self, site):
+        return None
+
+
+class ReplayOracle(_NamedEvents):
     """Answers from one tick record: events by name, outcomes in recorded order."""
 
     def __init__(self, program, record: dict):
         self.program = program
-        self.env_names = set(record.get("env", ()))
+        self.events = set(record.get("env", ()))
         self.outcomes = list(record.get("outcomes", ()))
         self.pos = 0
         self.error = None
 
-    def env(self, i):
-        return self.program.env[i][0] in self.env_names
-
     def choose(self, i, enabled):
-        options = self.program.env[i][3]
-        for k, opt in enumerate(enabled):
-            if options[opt][0] in self.env_names:
-                return k
-        self.error = f"choice '{self.program.env[i][0]}': the trace names none of its enabled options"
-        return 0
+        k = self._named(i, enabled)
+        if k is None:
+            self.error = f"choice '{self.program.env[i][0]}': the trace names none of its enabled options"
+            return 0
+        return k
 
     def outcome(self, site):
         if self.pos >= len(self.outcomes):
@@ -146,11 +157,8 @@ class ReplayOracle:
         self.error = f"{site.label}: outcome '{name}' is not declared"
         return 0
 
-    def halt(self, site):
-        pass
 
-
-class AnswerOracle:
+class AnswerOracle(_NamedEvents):
     """Answers from an answer log entry: the observed event names and, in order, the
     outcome indices the primitives had (what ``Runtime`` keeps in deferred trace mode)."""
 
@@ -159,18 +167,12 @@ class AnswerOracle:
     def __init__(self, program, events, outcome_indices):
         self.program, self.events, self.it = program, events, iter(outcome_indices)
 
-    def env(self, i):
-        return self.program.env[i][0] in self.events
-
     def choose(self, i, enabled):
-        options = self.program.env[i][3]  # a lone option may go unreported: it is forced
-        return next((k for k, o in enumerate(enabled) if options[o][0] in self.events), 0)
+        k = self._named(i, enabled)
+        return 0 if k is None else k  # a lone option may go unreported: it is forced
 
     def outcome(self, site):
         return next(self.it)
-
-    def halt(self, site):
-        pass
 
 
 def render_answers(program, initial, answers, writer: "TraceWriter", first_tick: int = 0, last_status=None):

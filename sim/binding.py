@@ -130,8 +130,9 @@ class CellBinding:
     def implementations(self) -> dict:
         d = self.d
         impls = {d.move: _Impl(self.move, self.stop), d.gripper: self.gripper, d.grasp: _Impl(self.grasp, self.stop)}
+        prims = self.model.all_primitives()
         for name in d.instant:
-            prim = self.model.all_primitives().get(name)
+            prim = prims.get(name)
             if prim is not None:
                 answer = next(o.name for o in prim.outcomes if o.status.name == "SUCCESS")
                 impls[name] = (lambda call, a=answer: a)
