@@ -5,10 +5,12 @@ Usage: ``python3 benchmarks/check_speed.py [--big] [--repeats N] [--json]``
 Measures, with both wall time and CPU time of this process (the CPU figure is the one to
 compare on a shared machine):
 
-* ``explore`` on the SPIN pick/place replica ``models.pickplace`` (state counts identical
-  to SPIN's ``-o2`` run), Q=D=B=3 and 6 (12 with ``--big``: 1.3 M states);
-* ``explore`` on a synthetic mid-size tree model (two FSMs, counters, an environment:
-  about 10^5 states) and on the paper's ARIAC kitting models;
+* ``explore`` (the generic path, ``verify.explore.explore``: its default engine is
+  ``verify.traced``; each row is followed by the same exploration with the scalar
+  engine, one step per transition) on the SPIN pick/place replica ``models.pickplace``
+  (state counts identical to SPIN's ``-o2`` run), Q=D=B=3 and 6 (12 with ``--big``:
+  1.3 M states), on a synthetic mid-size tree model (two FSMs, counters, an
+  environment: about 10^5 states) and on the paper's ARIAC kitting models;
 * AG EF workable (backward reachability over the CSR) on the explored pick/place systems;
 * determinism of a synthetic 200-state x 4-goal x 10-edge skill (36 k guard pairs);
 * the full ``btfsm check`` (all properties) of the paper-sized models.
@@ -32,6 +34,9 @@ from verify.determinism import analyse  # noqa: E402
 from verify.explore import explore  # noqa: E402
 from verify.properties.workable import traps  # noqa: E402
 from verify.report import check  # noqa: E402
+
+
+ENGINE = {"auto": "(generic path: traced)", "scalar": "(scalar engine)"}
 
 
 def timed(fn, repeats=1):
@@ -116,11 +121,13 @@ def main(argv=None) -> int:
     for n in sizes:
         m = pickplace(n)
         m.program
-        ts, w, c = timed(lambda: explore(m), args.repeats)
-        assert ts.n_states == SPIN_STATES[n], (ts.n_states, SPIN_STATES[n])
-        row(f"explore pickplace Q=D=B={n}", states=ts.n_states, transitions=ts.n_transitions, wall_s=round(w, 2),
-            cpu_s=round(c, 2), states_per_s_cpu=int(ts.n_states / c), transitions_per_s_cpu=int(ts.n_transitions / c),
-            maxrss_mb=resource.getrusage(resource.RUSAGE_SELF).ru_maxrss // 1024)
+        for engine in ("auto", "scalar"):
+            ts, w, c = timed(lambda: explore(m, engine=engine), args.repeats)
+            assert ts.n_states == SPIN_STATES[n], (ts.n_states, SPIN_STATES[n])
+            row(f"explore pickplace Q=D=B={n} {ENGINE[engine]}", states=ts.n_states, transitions=ts.n_transitions,
+                wall_s=round(w, 2), cpu_s=round(c, 2), states_per_s_cpu=int(ts.n_states / c),
+                transitions_per_s_cpu=int(ts.n_transitions / c),
+                maxrss_mb=resource.getrusage(resource.RUSAGE_SELF).ru_maxrss // 1024)
         bad, w, c = timed(lambda: traps(ts), args.repeats)
         row(f"AG EF workable pickplace {n}", traps=int(bad.size), wall_s=round(w, 3), cpu_s=round(c, 3))
     dead = pickplace(3, dead=True)
@@ -128,9 +135,10 @@ def main(argv=None) -> int:
     row("explore pickplace 3 DEAD", states=ts.n_states, dead=len(ts.dead), traps=int(traps(ts).size), cpu_s=round(c, 2))
     for name, m in (("cell (synthetic)", cell()), ("ariac preemptive q=8", preemptive(n_tray=40, queue_max=8))):
         m.program
-        ts, w, c = timed(lambda: explore(m), args.repeats)
-        row(f"explore {name}", states=ts.n_states, transitions=ts.n_transitions, wall_s=round(w, 2), cpu_s=round(c, 2),
-            states_per_s_cpu=int(ts.n_states / c), transitions_per_s_cpu=int(ts.n_transitions / c))
+        for engine in ("auto", "scalar"):
+            ts, w, c = timed(lambda: explore(m, engine=engine), args.repeats)
+            row(f"explore {name} {ENGINE[engine]}", states=ts.n_states, transitions=ts.n_transitions, wall_s=round(w, 2),
+                cpu_s=round(c, 2), states_per_s_cpu=int(ts.n_states / c), transitions_per_s_cpu=int(ts.n_transitions / c))
     big = skill()
     big.program
     (ov, gaps), w, c = timed(lambda: analyse(big, gaps=False), args.repeats)

@@ -5,7 +5,10 @@ For each size it
 
 * builds ``models.pickplace.pickplace(n)`` and explores it with the vectorised engine
   (``verify.vector.reach``: states and BFS parents) and, at the sizes given by
-  ``--generic``, with the generic engine (``verify.explore.explore``: every transition);
+  ``--generic``, on the generic path (``verify.explore.explore``, the path every model
+  takes: every transition, labels, statuses; its default engine is ``verify.traced``)
+  and at the sizes given by ``--scalar`` with its scalar engine (one step per
+  transition, the reference the traced engine is tested against);
 * generates SPIN's verifier from the hand-written reference model
   (``--pml``, default /work/shared/bench/spin/pickplace.pml) with
   ``spin -o2 -DQMAX=n -DDMAX=n -DBMAX=n -a``, ``gcc -O2 -DSAFETY -DNOCLAIM -DMEMLIM=16000``
@@ -21,7 +24,7 @@ Every btfsm run happens in its own subprocess (``--worker``), so its peak RSS
 exploring. SPIN's memory is pan's own "total actual memory usage" line and its RSS.
 Runs are sequential, never concurrent. Exit code 1 when a count is wrong.
 
-Usage: ``python3 benchmarks/pickplace.py [--sizes 6 12 18 24] [--generic 6] [--json]``
+Usage: ``python3 benchmarks/pickplace.py [--sizes 6 12 18 24] [--generic 6] [--scalar 6] [--json]``
 """
 from __future__ import annotations
 
@@ -66,7 +69,7 @@ def worker(engine: str, n: int) -> dict:
     else:
         from verify.explore import explore
 
-        ts = explore(m)
+        ts = explore(m, engine="scalar" if engine == "scalar" else "auto")
         states, trans, dead, complete = ts.n_states, ts.n_transitions, len(ts.dead), ts.complete
     wall, cpu = time.perf_counter() - t0, time.process_time() - c0
     return {"engine": engine, "n": n, "states": states, "transitions": trans, "dead": dead, "complete": complete,
@@ -118,7 +121,10 @@ def _fmt_rate(states, seconds):
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--sizes", type=int, nargs="+", default=[6, 12, 18, 24], help="Q = D = B sizes (default 6 12 18 24)")
-    p.add_argument("--generic", type=int, nargs="*", default=[6], help="sizes also run with the generic engine (default 6)")
+    p.add_argument("--generic", type=int, nargs="*", default=[6], help="sizes also run on the generic path, "
+                   "verify.explore.explore (default 6)")
+    p.add_argument("--scalar", type=int, nargs="*", default=[], help="sizes also run with the generic path's scalar "
+                   "engine (one step per transition; default none)")
     p.add_argument("--pml", default=DEFAULT_PML, help="SPIN's reference pickplace.pml")
     p.add_argument("--no-spin", action="store_true", help="skip SPIN")
     p.add_argument("--export-spin", action="store_true", help="also run SPIN on btfsm's own Promela export")
@@ -137,6 +143,8 @@ def main(argv=None) -> int:
         runs = [("btfsm vector", run_worker("vector", n))]
         if n in (args.generic or []):
             runs.append(("btfsm generic", run_worker("generic", n)))
+        if n in (args.scalar or []):
+            runs.append(("btfsm generic, scalar", run_worker("scalar", n)))
         spin = run_spin_reference(args.pml, n) if spin_ok else None
         if spin_ok and args.export_spin:
             runs.append(("SPIN on btfsm export", run_spin_export(n)))
@@ -166,7 +174,14 @@ def main(argv=None) -> int:
             line += (f"; SPIN {spin['seconds']:.2f} s, {spin['mem_total_mb']:.0f} MB (pan RSS {spin['rss_mb']:.0f} MB)"
                      f" -> SPIN/vector time {spin['seconds'] / vec['seconds']:.2f}x, memory {spin['mem_total_mb'] / vec['rss_mb']:.2f}x")
         if gen:
-            line += f"; generic {gen['states'] / gen['seconds']:,.0f} states/s"
+            line += f"; generic {gen['states'] / gen['seconds']:,.0f} states/s (cpu {gen['states'] / gen['cpu_seconds']:,.0f})"
+            if spin:
+                line += f", SPIN/generic time {spin['seconds'] / gen['seconds']:.2f}x"
+        sca = next((r for r in rows if r["n"] == n and r["run"] == "btfsm generic, scalar"), None)
+        if sca:
+            line += f"; scalar {sca['states'] / sca['seconds']:,.0f} states/s"
+            if gen:
+                line += f" (generic/scalar speed {sca['seconds'] / gen['seconds']:.1f}x)"
         print(line)
     print("counts:", "all equal to SPIN's" if ok else "MISMATCH")
     return 0 if ok else 1

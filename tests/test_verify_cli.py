@@ -133,10 +133,10 @@ def test_progress_line_on_stderr_for_long_explorations(tmp_path):
     from btfsm.files import dump_model
     from models.pickplace import pickplace
 
-    path = tmp_path / "pp6.json"
-    dump_model(pickplace(6), str(path))
+    path = tmp_path / "pp12.json"
+    dump_model(pickplace(12), str(path))  # about 3 s of exploration
     out = subprocess.run([sys.executable, "-m", "btfsm.cli", "check", str(path), "--property", "invariants"],
                          capture_output=True, text=True, timeout=300)
     assert out.returncode == 0, out.stderr
     assert "states/s" in out.stderr  # the \r-updated line (text mode turns \r into \n)
-    assert "104860 states" in out.stdout.replace(",", "")
+    assert "1305694 states" in out.stdout.replace(",", "")

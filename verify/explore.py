@@ -348,14 +348,31 @@ def _env_footprint(ev, scope) -> tuple:
 # ---------------------------------------------------------------------- the search
 
 
-def explore(model, *, max_states=None, progress=None, start=None) -> TransitionSystem:
+def explore(model, *, max_states=None, progress=None, start=None, engine: str = "auto") -> TransitionSystem:
     """Explore the whole model: one transition per BT tick. ``start``: a state tuple to
     start from instead of ``model.program.initial``. ``progress(states, transitions,
     seconds)`` is called every few thousand expanded states.
 
-    When the model has an environment, the tree's results are memoised by the state after
-    the environment (see ``_TreeCache``): a tick is the environment then the tree, and the
-    tree's results depend on nothing else."""
+    ``engine``: ``"traced"`` runs ``verify.traced`` (the step function traced once per
+    path, then applied to whole batches with numpy); ``"scalar"`` runs the step once per
+    transition here; ``"auto"`` (the default) is traced unless the tracer cannot follow
+    the model (``verify.traced.Untraceable``), then scalar. Both give the same system,
+    numbering included (tests compare them).
+
+    When the model has an environment, the scalar engine memoises the tree's results by
+    the state after the environment (see ``_TreeCache``): a tick is the environment then
+    the tree, and the tree's results depend on nothing else."""
+    if engine not in ("auto", "traced", "scalar"):
+        raise ValueError(f"engine must be auto, traced or scalar, not {engine!r}")
+    if engine != "scalar":
+        from .traced import Untraceable
+        from .traced import explore as traced
+
+        try:
+            return traced(model, max_states=max_states, progress=progress, start=start)
+        except Untraceable:
+            if engine == "traced":
+                raise
     prog = model.program
     kept = tuple(range(len(prog.slots)))
     split = _TreeCache(model) if model.environment and model.tree is not None else None

@@ -1,0 +1,104 @@
+"""The path-compiled engine (verify.traced) gives the generic engine's system exactly:
+same states in the same order, same transitions, labels, statuses, parents, contract
+violations, domain errors and budget cut, on every built-in model and on random ones."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+import verify.traced as traced
+from models.registry import BUILTIN, load_builtin
+from strategies import random_models
+from test_spin_crosscheck import seeded_models
+from verify.explore import explore
+
+ARRAYS = ("states", "src", "dst", "label", "parent", "status")
+FIELDS = ("labels", "complete", "expanded", "violations", "kind", "slots")
+
+
+def assert_same(a, b):
+    for f in ARRAYS:
+        x, y = getattr(a, f), getattr(b, f)
+        assert x.shape == y.shape and np.array_equal(x, y), f
+    for f in FIELDS:
+        assert getattr(a, f) == getattr(b, f), f
+    key = [(e.state, e.script, e.label, e.var, e.value, e.where, e.message) for e in a.errors]
+    assert key == [(e.state, e.script, e.label, e.var, e.value, e.where, e.message) for e in b.errors]
+
+
+def both(model, **kw):
+    return explore(model, engine="scalar", **kw), explore(model, engine="traced", **kw)
+
+
+@pytest.mark.parametrize("name", sorted(BUILTIN))
+def test_builtin_models_explore_identically(name):
+    assert_same(*both(load_builtin(name)))
+
+
+@pytest.mark.parametrize("budget", [1, 2, 50, 777, 5000])
+def test_budget_cut_is_the_generic_engines(budget):
+    for name in ("pickplace3", "defect-domain", "ariac-preemptive"):
+        a, b = both(load_builtin(name), max_states=budget)
+        assert_same(a, b)
+
+
+def test_small_batches_and_sorted_visited_set(monkeypatch):
+    monkeypatch.setattr(traced, "CHUNK", 7)
+    monkeypatch.setattr(traced, "DENSE_LIMIT", 0)
+    for name in ("pickplace3-dead", "defect-domain", "two-area", "original"):
+        assert_same(*both(load_builtin(name)))
+
+
+def test_start_state_and_progress():
+    m = load_builtin("pickplace3")
+    start = m.program.encode({"area": 1, "grip": True})
+    calls = []
+    a = explore(m, start=start, engine="scalar")
+    b = explore(m, start=start, engine="traced", progress=lambda *x: calls.append(x))
+    assert_same(a, b)
+    assert calls and calls[-1][:2] == (b.n_states, b.n_transitions)
+
+
+def test_domain_errors_are_reported_like_the_generic_engine():
+    a, b = both(load_builtin("defect-domain"))
+    assert b.errors and len(a.errors) == len(b.errors)
+
+
+def test_untraceable_falls_back_to_the_scalar_engine(monkeypatch):
+    def refuse(self, *args):
+        raise TypeError("not here")
+    monkeypatch.setattr(traced._Tracer, "apply", refuse)
+    m = load_builtin("pickplace3")
+    with pytest.raises(traced.Untraceable):
+        explore(m, engine="traced")
+    assert_same(explore(m), explore(m, engine="scalar"))
+
+
+def test_unknown_engine_is_refused():
+    with pytest.raises(ValueError):
+        explore(load_builtin("two-area"), engine="fast")
+
+
+def test_a_decision_is_recorded_once_per_value():
+    g = traced._Graph(2, [1])
+    t = traced._Tracer(g)
+    x, tok = traced.Sym(t, g.cols[0], 3), traced.Sym(t, g.cols[1], 2)
+    y = x + 1
+    assert isinstance(y, traced.Sym) and y.v == 4
+    assert bool(y > 3) and bool(y > 3)  # the second is known
+    assert [1, 2, 3][tok] == 3 and tok == 2  # a control slot is switched once, then constant
+    assert t.path == [("b", g.ids[(">", y.n, g.const(3))], True), ("s", g.cols[1], 2)]
+
+
+@settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(random_models())
+def test_random_models_explore_identically(model):
+    assert_same(*both(model, max_states=3000))
+
+
+@settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(seeded_models(tree=True, wild=True), st.integers(1, 400))
+def test_random_whole_models_explore_identically(model, budget):
+    assert_same(*both(model, max_states=budget))

@@ -1,0 +1,581 @@
+"""Path-compiled exploration: the real step function, traced once per path, then run on
+whole batches of states with numpy.
+
+``Program.step`` is run on *symbolic* states: every slot holds a ``Sym`` (its expression
+over the tick's input state and its value in one representative state). Arithmetic and
+comparisons build expressions; whenever the step's Python code needs a concrete answer
+(``if``, ``and``/``or``/``not``, indexing, ``int()``) the ``Sym`` answers with the
+representative's value and the tracer records that *decision*. The oracle's choice
+points are recorded the same way. One run yields a path: its decisions, in order, and
+the tick's result as expressions (next state), constants (status, labels, contract
+violations) or a domain error. FSM tokens, held goals, running flags, node memories
+and parameters are decided as soon as they are read (a switch on the slot's value);
+world variables stay symbolic, so one path covers every value of a counter it only
+compares or increments.
+
+Paths share prefixes and form a decision trie. To expand a batch of states the trie is
+walked once with numpy: a decision splits the batch's rows by the expression's value (each
+expression is evaluated once per batch), a choice point sends the rows down every answer,
+a leaf turns its rows into transitions (next-state codes from one expression). A row
+that reaches a part of the trie not traced yet is traced there (its own state is the
+representative) and the walk goes on. Transitions are then ordered by (source, choice
+script in the order ``verify.explore``'s depth-first search takes them), so states,
+labels and transitions are numbered exactly as the generic engine numbers them (tests
+compare the two systems field by field). Domain errors are re-run with the real step on
+concrete states to report them exactly.
+
+Nothing here re-states the semantics: every decision, expression and constant comes from
+a run of ``Program.step``.
+
+>>> from models.pickplace import pickplace
+>>> ts = explore(pickplace(3))
+>>> ts.n_states, ts.n_transitions
+(10288, 70336)
+"""
+from __future__ import annotations
+
+import time
+from array import array
+
+import numpy as np
+
+from btfsm.errors import DomainError
+
+from .system import DomainViolation, TransitionSystem
+
+__all__ = ["explore", "Untraceable", "CHUNK", "DENSE_LIMIT"]
+
+CHUNK = 1 << 15  # states expanded per batch
+DENSE_LIMIT = 1 << 24  # code space up to which the visited set is a flat id table (64 MB)
+_CONTROL = ("token", "goal", "flag", "memory", "param")  # decided when first read
+_LAST = 1 << 20  # choice answer c > 0 sorts as _LAST - c: answers 0, n-1, ..., 1 (DFS order)
+
+
+class Untraceable(Exception):
+    """The step did something the tracer does not follow; use the generic engine."""
+
+
+# ---------------------------------------------------------------------- expressions
+
+_OPS = {
+    "+": (lambda a, b: a + b), "-": (lambda a, b: a - b), "*": (lambda a, b: a * b),
+    "//": (lambda a, b: a // b), "%": (lambda a, b: a % b),
+    "<": (lambda a, b: a < b), "<=": (lambda a, b: a <= b), "==": (lambda a, b: a == b),
+    "!=": (lambda a, b: a != b), ">": (lambda a, b: a > b), ">=": (lambda a, b: a >= b),
+}
+
+
+class Sym:
+    """A value of the traced tick: expression ``n`` (a node id) and the representative's
+    value ``v``. Needing a concrete answer records a decision with the tracer ``t``."""
+
+    __slots__ = ("t", "n", "v")
+
+    def __init__(self, t, n, v):
+        self.t, self.n, self.v = t, n, v
+
+    def _op(self, op, other, swap=False):
+        return self.t.apply(op, other, self) if swap else self.t.apply(op, self, other)
+
+    def __add__(self, o): return self._op("+", o)
+    def __radd__(self, o): return self._op("+", o, True)
+    def __sub__(self, o): return self._op("-", o)
+    def __rsub__(self, o): return self._op("-", o, True)
+    def __mul__(self, o): return self._op("*", o)
+    def __rmul__(self, o): return self._op("*", o, True)
+    def __floordiv__(self, o): return self._op("//", o)
+    def __rfloordiv__(self, o): return self._op("//", o, True)
+    def __mod__(self, o): return self._op("%", o)
+    def __rmod__(self, o): return self._op("%", o, True)
+    def __lt__(self, o): return self._op("<", o)
+    def __le__(self, o): return self._op("<=", o)
+    def __gt__(self, o): return self._op(">", o)
+    def __ge__(self, o): return self._op(">=", o)
+    def __eq__(self, o): return self._op("==", o) if isinstance(o, (int, Sym)) else NotImplemented
+    def __ne__(self, o): return self._op("!=", o) if isinstance(o, (int, Sym)) else NotImplemented
+    def __neg__(self): return self.t.apply("-", 0, self)
+    def __pos__(self): return self
+    def __abs__(self): return self.t.unary_abs(self)
+    def __bool__(self): return bool(self.t.decide(self, "b"))
+    def __index__(self): return int(self.t.decide(self, "s"))
+    def __int__(self): return int(self.t.decide(self, "s"))
+    def __hash__(self): return hash(self.t.decide(self, "s"))
+    def __repr__(self): return f"Sym({self.v})"
+
+
+class _Tracer:
+    """One traced run: the decisions taken (``path``) and the values they fixed (``known``)."""
+
+    __slots__ = ("g", "path", "known")
+
+    def __init__(self, graph):
+        self.g, self.path, self.known = graph, [], {}
+
+    def resolve(self, x):
+        """(True, value) for a constant or an already decided Sym, else (False, node)."""
+        if not isinstance(x, Sym):
+            return True, x
+        n = x.n
+        if n in self.known:
+            return True, self.known[n]
+        if n in self.g.control:
+            self.path.append(("s", n, x.v))
+            self.known[n] = x.v
+            return True, x.v
+        return False, n
+
+    def apply(self, op, a, b):
+        ka, xa = self.resolve(a)
+        kb, xb = self.resolve(b)
+        fn = _OPS[op]
+        if ka and kb:
+            return fn(xa, xb)
+        va = xa if ka else a.v
+        vb = xb if kb else b.v
+        g = self.g
+        return Sym(self, g.node((op, xa if not ka else g.const(xa), xb if not kb else g.const(xb))), fn(va, vb))
+
+    def unary_abs(self, a):
+        k, x = self.resolve(a)
+        return abs(x) if k else Sym(self, self.g.node(("abs", x)), abs(a.v))
+
+    def decide(self, x, kind):
+        k, n = self.resolve(x)
+        if k:
+            return n
+        v = bool(x.v) if kind == "b" else int(x.v)
+        self.path.append((kind, n, v))
+        self.known[n] = v
+        return v
+
+
+class _Graph:
+    """Hash-consed expression nodes over the input state: ``("col", k)``, ``("code",)``,
+    ``("k", value)``, ``(op, a, b)``, ``("abs", a)``."""
+
+    def __init__(self, width, control):
+        self.ids: dict = {}
+        self.nodes: list = []
+        self.cols = [self.node(("col", k)) for k in range(width)]
+        self.code = self.node(("code",))
+        self.control = frozenset(self.cols[k] for k in control)
+
+    def node(self, key) -> int:
+        i = self.ids.get(key)
+        if i is None:
+            i = self.ids[key] = len(self.nodes)
+            self.nodes.append(key)
+        return i
+
+    def const(self, v) -> int:
+        return self.node(("k", int(v)))
+
+
+class _Leaf:
+    """The end of a path: ``kind`` ok | blocked | error, the next state's code node,
+    status, picks (readable label), violations, the full choice script ``taken``."""
+
+    __slots__ = ("id", "kind", "code", "status", "label", "violations", "taken", "key", "label_id")
+
+    def __init__(self, id, kind, code, status, label, violations, taken):
+        self.id, self.kind, self.code, self.status = id, kind, code, status
+        self.label, self.violations, self.taken = label, violations, tuple(taken)
+        self.key = tuple(c and _LAST - c for c in taken)
+        self.label_id = -1
+
+
+# ---------------------------------------------------------------------- visited states
+
+
+class _Dense:
+    """Visited codes as a flat id table over the whole code space."""
+
+    def __init__(self, total, c0):
+        self.table = np.full(total, -1, np.int64 if total >= 1 << 31 else np.int32)
+        self.table[c0] = 0
+
+    def ids(self, codes):
+        return self.table[codes].astype(np.int64)
+
+    def add(self, codes, ids):
+        self.table[codes] = ids
+
+
+class _Sorted:
+    """Visited codes as a large sorted array and a small one merged into it when it
+    grows past an eighth of it (amortised O(log) per state); ids alongside."""
+
+    def __init__(self, total, c0):
+        self.keys = [np.array([c0], np.int64), np.zeros(0, np.int64)]
+        self.vals = [np.zeros(1, np.int64), np.zeros(0, np.int64)]
+
+    def ids(self, codes):
+        out = np.full(len(codes), -1, np.int64)
+        for keys, vals in zip(self.keys, self.vals):
+            if len(keys):
+                pos = np.minimum(np.searchsorted(keys, codes), len(keys) - 1)
+                hit = keys[pos] == codes
+                out[hit] = vals[pos[hit]]
+        return out
+
+    def add(self, codes, ids):
+        small_k = np.concatenate([self.keys[1], codes])
+        small_v = np.concatenate([self.vals[1], ids])
+        if len(small_k) * 8 > len(self.keys[0]):
+            small_k = np.concatenate([self.keys[0], small_k])
+            small_v = np.concatenate([self.vals[0], small_v])
+            order = np.argsort(small_k, kind="stable")
+            self.keys, self.vals = [small_k[order], np.zeros(0, np.int64)], [small_v[order], np.zeros(0, np.int64)]
+        else:
+            order = np.argsort(small_k, kind="stable")
+            self.keys[1], self.vals[1] = small_k[order], small_v[order]
+
+
+# ---------------------------------------------------------------------- the engine
+
+
+class _Engine:
+    def __init__(self, model, readable):
+        from .explore import EnumOracle, _codec
+
+        prog = model.program
+        self.prog, self.readable = prog, readable
+        self.width = len(prog.slots)
+        self.mults, self.offset, self.total = _codec(prog, tuple(range(self.width)))
+        if self.total >= 1 << 62:
+            raise Untraceable("the state space does not fit one int64 code")
+        self.sizes = [max(s.size, 1) for s in prog.slots]
+        self.los = [s.lo for s in prog.slots]
+        self.g = _Graph(self.width, [k for k, s in enumerate(prog.slots) if s.kind in _CONTROL])
+        self.root: dict = {None: None}  # the trie: [kind, key, children] nodes and _Leaf ends
+        self.leaves: list = []
+        self.enum_oracle = EnumOracle
+        self.order_dirty = False
+        self.leaf_ord = np.zeros(0, np.int64)
+
+    # ---- tracing
+    def state_of(self, code: int) -> tuple:
+        c = code
+        return tuple((c // m) % z + lo for m, z, lo in zip(self.mults, self.sizes, self.los))
+
+    def trace(self, state, script):
+        """Run the step from ``state`` (as Syms) answering ``script``; insert the path."""
+        t = _Tracer(self.g)
+        path = t.path
+        Enum = self.enum_oracle
+
+        class Oracle(Enum):
+            __slots__ = ()
+
+            def env(self, i):
+                k = len(self.arities)
+                r = Enum.env(self, i)
+                path.append(("c", self.arities[k], self.taken[k]))
+                return r
+
+            def choose(self, i, enabled):
+                k = len(self.arities)
+                r = Enum.choose(self, i, enabled)
+                if len(self.arities) > k:
+                    path.append(("c", self.arities[k], self.taken[k]))
+                return r
+
+            def outcome(self, site):
+                k = len(self.arities)
+                r = Enum.outcome(self, site)
+                if len(self.arities) > k:
+                    path.append(("c", self.arities[k], self.taken[k]))
+                return r
+
+        o = Oracle(script)
+        sym = [Sym(t, n, v) for n, v in zip(self.g.cols, state)]
+        try:
+            st = self.prog.step(sym, o)
+        except DomainError:
+            return self.insert(path, "error", None, None, o, ())
+        except (TypeError, AttributeError) as exc:  # something a Sym cannot stand for
+            raise Untraceable(f"{type(exc).__name__}: {exc}") from exc
+        if st.state is None:
+            return self.insert(path, "blocked", None, None, o, ())
+        status = int(st.status) if not isinstance(st.status, Sym) else int(st.status)
+        viol = tuple(st.violations) if st.violations else None
+        if viol is not None and any(isinstance(x, Sym) for v in viol for x in v):
+            raise Untraceable("a contract violation carries a traced value")
+        return self.insert(path, "ok", self.code_change(t, st.state), status, o, viol)
+
+    def code_change(self, t, entries) -> tuple:
+        """The next state's code as ``(shift, terms)``: input code + ``shift`` (changes of
+        slots whose old and new values the path fixed) + the sum of the ``terms``, one
+        expression ``mult * (new - old)`` per other changed slot."""
+        g, mults = self.g, self.mults
+        shift, terms = 0, []
+        for k, e in enumerate(entries):
+            col = g.cols[k]
+            if isinstance(e, Sym) and e.n == col:
+                continue
+            new_known, new = t.resolve(e)
+            old_known, old = (True, t.known[col]) if col in t.known else (False, col)
+            if new_known and old_known:
+                shift += mults[k] * (new - old)
+                continue
+            diff = g.node(("-", g.const(new) if new_known else new, g.const(old) if old_known else old))
+            terms.append(g.node(("*", diff, g.const(mults[k]))))
+        return shift, tuple(terms)
+
+    def insert(self, path, kind, code, status, o, viol):
+        holder, key = self.root, None
+        for d in path:
+            node = holder.get(key)
+            if node is None:
+                node = holder[key] = [d[0], d[1], {}]
+            elif node[0] != d[0] or node[1] != d[1]:
+                raise Untraceable(f"step is not a function of its decisions at {d[:2]}")
+            holder, key = node[2], d[2]
+        if holder.get(key) is not None:
+            raise Untraceable("a traced path ends where another goes on")
+        leaf = _Leaf(len(self.leaves), kind, code, status,
+                     self.readable(tuple(o.picks)), viol, o.taken)
+        holder[key] = leaf
+        self.leaves.append(leaf)
+        self.order_dirty = True
+        return leaf
+
+    def ordinals(self) -> np.ndarray:
+        if self.order_dirty:
+            order = sorted(range(len(self.leaves)), key=lambda i: self.leaves[i].key)
+            self.leaf_ord = np.empty(len(self.leaves), np.int64)
+            self.leaf_ord[order] = np.arange(len(order))
+            self.order_dirty = False
+        return self.leaf_ord
+
+    # ---- one batch
+    def expand(self, codes: np.ndarray):
+        """Walk the trie with the batch ``codes``: ``[(leaf, rows)]``."""
+        memo: dict = {}
+        nodes, mults, sizes, los = self.g.nodes, self.mults, self.sizes, self.los
+
+        def ev(n):
+            v = memo.get(n)
+            if v is not None:
+                return v
+            key = nodes[n]
+            op = key[0]
+            if op == "col":
+                k = key[1]
+                v = (codes // mults[k]) % sizes[k] + los[k] if sizes[k] > 1 else np.full(len(codes), los[k], np.int64)
+            elif op == "code":
+                v = codes
+            elif op == "k":
+                v = key[1]
+            elif op == "abs":
+                v = np.abs(ev(key[1]))
+            else:
+                v = _OPS[op](ev(key[1]), ev(key[2]))
+            memo[n] = v
+            return v
+
+        out = []
+        stack = [(self.root, None, np.arange(len(codes)), ())]
+        while stack:
+            holder, key, rows, script = stack.pop()
+            node = holder[key]
+            if node is None:
+                self.trace(self.state_of(int(codes[rows[0]])), script)
+                node = holder[key]
+            if isinstance(node, _Leaf):
+                out.append((node, rows))
+                continue
+            kind, what, kids = node
+            if kind == "c":
+                for c in range(what):
+                    if c not in kids:
+                        kids[c] = None
+                    stack.append((kids, c, rows, script + (c,)))
+                continue
+            vals = ev(what)
+            vals = vals[rows] if isinstance(vals, np.ndarray) else np.full(len(rows), vals)
+            if kind == "b":
+                if vals.dtype != np.bool_:
+                    vals = vals != 0
+                hits = int(np.count_nonzero(vals))
+                if hits == len(rows) or hits == 0:
+                    groups = ((hits > 0, rows),)
+                else:
+                    groups = ((True, rows[vals]), (False, rows[~vals]))
+            else:
+                first = int(vals[0])
+                if np.count_nonzero(vals != first) == 0:
+                    groups = ((first, rows),)
+                else:
+                    order = np.argsort(vals, kind="stable")
+                    sv = vals[order]
+                    cuts = [0, *(np.flatnonzero(sv[1:] != sv[:-1]) + 1).tolist(), len(sv)]
+                    ro = rows[order]
+                    groups = [(int(sv[a]), ro[a:b]) for a, b in zip(cuts, cuts[1:])]
+            for val, sub in groups:
+                if val not in kids:
+                    kids[val] = None
+                stack.append((kids, val, sub, script))
+        return out, ev
+
+
+def explore(model, *, max_states=None, progress=None, start=None) -> TransitionSystem:
+    """Explore the whole model (one transition per BT tick) with path-compiled batches;
+    the result equals ``verify.explore.explore``'s, numbering included. Raises
+    ``Untraceable`` for a model whose step the tracer cannot follow."""
+    from .explore import DEFAULT_MAX_STATES, _decode, _readable
+
+    t0 = time.perf_counter()
+    prog = model.program
+    eng = _Engine(model, lambda picks: _readable(prog, picks, None)[0])
+    mults, offset, total = eng.mults, eng.offset, eng.total
+    budget = DEFAULT_MAX_STATES * 1000 if max_states is None else max(int(max_states), 1)
+    s0 = tuple(start) if start is not None else prog.initial
+    c0 = sum(v * m for v, m in zip(s0, mults)) - offset
+
+    visited = (_Dense if total <= DENSE_LIMIT else _Sorted)(total, c0)
+    codes = np.zeros(1024, np.int64)
+    codes[0] = c0
+    n, head, nt, complete, expanded = 1, 0, 0, True, None
+    parent = [np.array([-1], np.int64)]
+    # transitions in growing buffers (no second copy at the end)
+    src_a, dst_a, lab_a, stat_a = array("q"), array("q"), array("q"), array("b")
+    labels: list = []
+    label_ids: dict = {}
+    errors, violations = [], []
+    leaf_label = np.zeros(0, np.int64)
+    leaf_status = np.zeros(0, np.int8)
+    leaf_viol = np.zeros(0, bool)
+    while head < n:
+        k = min(n - head, CHUNK)
+        batch = codes[head:head + k]
+        out, ev = eng.expand(batch)
+        ords = eng.ordinals()
+        # transitions of the batch, ordered as the generic engine makes them
+        ok = [(leaf, rows) for leaf, rows in out if leaf.kind == "ok"]
+        rows, lid, dst = _transitions(ok, batch, ev)
+        # each leaf's rows are ascending: a stable sort merges the runs
+        order = np.argsort(rows * len(ords) + ords[lid], kind="stable")
+        rows, lid, dst = rows[order], lid[order], dst[order]
+        # ids of the targets; new states numbered in order of first discovery
+        ids = visited.ids(dst)
+        fresh = np.flatnonzero(ids < 0)
+        cut = len(dst)
+        if len(fresh):
+            _, first = np.unique(dst[fresh], return_index=True)
+            firstpos = np.sort(fresh[first])
+            newcodes = dst[firstpos]
+            room = budget - n
+            if len(newcodes) > room:
+                complete = False
+                cut = int(firstpos[room])
+                firstpos, newcodes = firstpos[:room], newcodes[:room]
+            newids = np.arange(n, n + len(newcodes), dtype=np.int64)
+            visited.add(newcodes, newids)
+            ids = visited.ids(dst[:cut])
+            parent.append(firstpos + nt)
+            if n + len(newcodes) > len(codes):
+                codes = np.concatenate([codes, np.zeros(max(len(codes), len(newcodes)), np.int64)])
+            codes[n:n + len(newcodes)] = newcodes
+            n += len(newcodes)
+        stop = None if complete else (int(rows[cut]), int(ords[lid[cut]]))
+        named = lid[:cut + 1]  # the generic engine names the cut transition's label too
+        rows, lid = rows[:cut], lid[:cut]
+        # labels numbered in order of first use, as the generic engine does
+        if len(leaf_label) < len(eng.leaves):
+            grow = len(eng.leaves) - len(leaf_label)
+            leaf_label = np.concatenate([leaf_label, np.full(grow, -1, np.int64)])
+            leaf_status = np.array([leaf.status or 0 for leaf in eng.leaves], np.int8)
+            leaf_viol = np.array([leaf.violations is not None for leaf in eng.leaves], bool)
+        if len(named) and (leaf_label[named] < 0).any():
+            u, first = np.unique(named, return_index=True)
+            for li in u[np.argsort(first)]:
+                if leaf_label[li] < 0:
+                    name = eng.leaves[li].label
+                    lab = label_ids.get(name)
+                    if lab is None:
+                        lab = label_ids[name] = len(labels)
+                        labels.append(name)
+                    leaf_label[li] = lab
+        src_a.frombytes((rows + head).astype(np.int64, copy=False).tobytes())
+        dst_a.frombytes(ids.astype(np.int64, copy=False).tobytes())
+        lab_a.frombytes(leaf_label[lid].tobytes())
+        stat_a.frombytes(leaf_status[lid].tobytes())
+        for t in np.flatnonzero(leaf_viol[lid]).tolist():
+            violations.append((nt + t, eng.leaves[int(lid[t])].violations))
+        # domain errors, re-run on concrete states (reported exactly as the generic engine does)
+        bad = [(leaf, r) for leaf, r in out if leaf.kind == "error"]
+        if bad:
+            errors.extend(_errors(eng, prog, bad, batch, head, ords, stop))
+        nt += len(ids)
+        if not complete:
+            expanded = head + stop[0]
+            break
+        head += k
+        if progress is not None:
+            progress(n, nt, time.perf_counter() - t0)
+    if expanded is None:
+        expanded = head
+    states = _decode(prog, tuple(range(len(prog.slots))), codes[:n] + offset, offset, mults)
+    seconds = time.perf_counter() - t0
+    if progress is not None:
+        progress(n, nt, seconds)
+    return TransitionSystem(model=model, kind="model", fsm=None, slots=tuple(range(len(prog.slots))), states=states,
+                            src=_view(src_a, np.int64), dst=_view(dst_a, np.int64),
+                            label=_view(lab_a, np.int64), labels=tuple(labels),
+                            parent=np.concatenate(parent), complete=complete, seconds=seconds,
+                            status=_view(stat_a, np.int8), goal=None,
+                            expanded=expanded, errors=tuple(errors), violations=tuple(violations), open=None)
+
+
+def _view(buf, dtype) -> np.ndarray:
+    return np.frombuffer(buf, dtype=dtype) if len(buf) else np.zeros(0, dtype)
+
+
+def _transitions(ok, codes, ev):
+    """(source rows, leaf ids, target codes) of the leaves ``ok`` reached by a batch: all
+    at once, each leaf's changes read from one matrix of its terms' values."""
+    if not ok:
+        return np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0, np.int64)
+    rows = np.concatenate([r for _, r in ok])
+    sizes = [len(r) for _, r in ok]
+    lid = np.repeat(np.array([leaf.id for leaf, _ in ok], np.int64), sizes)
+    dst = codes[rows] + np.repeat(np.array([leaf.code[0] for leaf, _ in ok], np.int64), sizes)
+    width = max(len(leaf.code[1]) for leaf, _ in ok)
+    if width:
+        local: dict = {}
+        for leaf, _ in ok:
+            for term in leaf.code[1]:
+                local.setdefault(term, len(local) + 1)
+        mat = np.zeros((len(local) + 1, len(codes)), np.int64)  # row 0: no term
+        for term, i in local.items():
+            mat[i] = ev(term)
+        idx = np.zeros((len(ok), width), np.int64)
+        for j, (leaf, _) in enumerate(ok):
+            idx[j, :len(leaf.code[1])] = [local[term] for term in leaf.code[1]]
+        per = np.repeat(idx, sizes, axis=0)
+        for j in range(width):
+            dst += mat[per[:, j], rows]
+    return rows, lid, dst
+
+
+def _errors(eng, prog, bad, codes, head, ords, cut_at):
+    """DomainViolations of the error leaves' rows, in the generic engine's order."""
+    from .explore import _readable
+
+    items = []
+    for leaf, rows in bad:
+        for r in rows.tolist():
+            if cut_at is None or (r, int(ords[leaf.id])) < cut_at:
+                items.append((r, int(ords[leaf.id]), leaf))
+    out = []
+    for r, _, leaf in sorted(items, key=lambda x: x[:2]):
+        o = eng.enum_oracle(leaf.taken)
+        try:
+            prog.step(eng.state_of(int(codes[r])), o)
+        except DomainError as exc:
+            out.append(DomainViolation(head + r, tuple(o.taken), _readable(prog, tuple(o.picks), None)[0],
+                                       exc.var, exc.value, exc.where, str(exc)))
+        else:
+            raise Untraceable("a traced domain error did not happen again")
+    return out
