@@ -88,6 +88,9 @@ def _args_check(sp):
     sp.add_argument("--json", action="store_true")
     sp.add_argument("--max-states", type=int, default=None)
     sp.add_argument("--counterexample-dir", help="write each counterexample as JSON into this folder")
+    sp.add_argument("--engine", choices=("auto", "traced", "scalar"), default="auto",
+                    help="model-level exploration engine (default auto: traced, scalar where it cannot trace); "
+                         "both give the same system")
 
 
 def _args_export(sp):

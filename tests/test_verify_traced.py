@@ -3,6 +3,8 @@ same states in the same order, same transitions, labels, statuses, parents, cont
 violations, domain errors and budget cut, on every built-in model and on random ones."""
 from __future__ import annotations
 
+import json
+
 import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings
@@ -102,3 +104,33 @@ def test_random_models_explore_identically(model):
 @given(seeded_models(tree=True, wild=True), st.integers(1, 400))
 def test_random_whole_models_explore_identically(model, budget):
     assert_same(*both(model, max_states=budget))
+
+
+def _without_times(obj):
+    if isinstance(obj, dict):
+        return {k: _without_times(v) for k, v in obj.items() if k != "seconds"}
+    if isinstance(obj, list):
+        return [_without_times(v) for v in obj]
+    return obj
+
+
+@pytest.mark.parametrize("name", ["original-preemptive", "defect-domain", "pickplace3-bug"])
+def test_check_reports_are_the_same_with_either_engine(name):
+    """Verdicts and counterexamples (shortest paths follow the same BFS numbering)."""
+    from verify.report import check
+
+    m = load_builtin(name)
+    a, b = check(m, engine="scalar").to_json(), check(m, engine="traced").to_json()
+    assert _without_times(a) == _without_times(b)
+    assert any(p["holds"] is False for p in b["properties"])
+
+
+def test_cli_engine_option(capsys):
+    from btfsm.cli import main
+
+    codes = [main(["check", "defect-trap", "--json", "--engine", e]) for e in ("scalar", "traced")]
+    first, second = (json.loads(x) for x in capsys.readouterr().out.strip().splitlines())
+    assert codes == [1, 1] and _without_times(first) == _without_times(second)
+    with pytest.raises(SystemExit) as exc:  # argparse: usage error, exit 2
+        main(["check", "defect-trap", "--engine", "fast"])
+    assert exc.value.code == 2

@@ -55,7 +55,7 @@ def cli_check(args) -> int:
     model = _load(args.model)
     progress = _Progress()
     try:
-        report = check(model, props or None, max_states=max_states, progress=progress)
+        report = check(model, props or None, max_states=max_states, progress=progress, engine=args.engine)
     except MemoryError:
         progress.done()
         print(f"btfsm check: out of memory while exploring {model.name}; lower --max-states", file=sys.stderr)

@@ -41,6 +41,7 @@ import numpy as np
 
 from btfsm.errors import DomainError
 
+from .explore import DEFAULT_MAX_STATES, EnumOracle, _codec, _decode, _readable
 from .system import DomainViolation, TransitionSystem
 
 __all__ = ["explore", "Untraceable", "CHUNK", "DENSE_LIMIT"]
@@ -231,13 +232,43 @@ class _Sorted:
             self.keys[1], self.vals[1] = small_k[order], small_v[order]
 
 
+class _TracingOracle(EnumOracle):
+    """An ``EnumOracle`` that also appends every choice point to the traced ``path``."""
+
+    __slots__ = ("path",)
+
+    def __init__(self, script, path):
+        super().__init__(script)
+        self.path = path
+
+    def _note(self, k):
+        if len(self.arities) > k:
+            self.path.append(("c", self.arities[k], self.taken[k]))
+
+    def env(self, i):
+        k = len(self.arities)
+        r = EnumOracle.env(self, i)
+        self._note(k)
+        return r
+
+    def choose(self, i, enabled):
+        k = len(self.arities)
+        r = EnumOracle.choose(self, i, enabled)
+        self._note(k)
+        return r
+
+    def outcome(self, site):
+        k = len(self.arities)
+        r = EnumOracle.outcome(self, site)
+        self._note(k)
+        return r
+
+
 # ---------------------------------------------------------------------- the engine
 
 
 class _Engine:
     def __init__(self, model, readable):
-        from .explore import EnumOracle, _codec
-
         prog = model.program
         self.prog, self.readable = prog, readable
         self.width = len(prog.slots)
@@ -249,7 +280,6 @@ class _Engine:
         self.g = _Graph(self.width, [k for k, s in enumerate(prog.slots) if s.kind in _CONTROL])
         self.root: dict = {None: None}  # the trie: [kind, key, children] nodes and _Leaf ends
         self.leaves: list = []
-        self.enum_oracle = EnumOracle
         self.order_dirty = False
         self.leaf_ord = np.zeros(0, np.int64)
 
@@ -262,32 +292,7 @@ class _Engine:
         """Run the step from ``state`` (as Syms) answering ``script``; insert the path."""
         t = _Tracer(self.g)
         path = t.path
-        Enum = self.enum_oracle
-
-        class Oracle(Enum):
-            __slots__ = ()
-
-            def env(self, i):
-                k = len(self.arities)
-                r = Enum.env(self, i)
-                path.append(("c", self.arities[k], self.taken[k]))
-                return r
-
-            def choose(self, i, enabled):
-                k = len(self.arities)
-                r = Enum.choose(self, i, enabled)
-                if len(self.arities) > k:
-                    path.append(("c", self.arities[k], self.taken[k]))
-                return r
-
-            def outcome(self, site):
-                k = len(self.arities)
-                r = Enum.outcome(self, site)
-                if len(self.arities) > k:
-                    path.append(("c", self.arities[k], self.taken[k]))
-                return r
-
-        o = Oracle(script)
+        o = _TracingOracle(script, path)
         sym = [Sym(t, n, v) for n, v in zip(self.g.cols, state)]
         try:
             st = self.prog.step(sym, o)
@@ -297,7 +302,7 @@ class _Engine:
             raise Untraceable(f"{type(exc).__name__}: {exc}") from exc
         if st.state is None:
             return self.insert(path, "blocked", None, None, o, ())
-        status = int(st.status) if not isinstance(st.status, Sym) else int(st.status)
+        status = int(st.status)
         viol = tuple(st.violations) if st.violations else None
         if viol is not None and any(isinstance(x, Sym) for v in viol for x in v):
             raise Untraceable("a contract violation carries a traced value")
@@ -423,8 +428,6 @@ def explore(model, *, max_states=None, progress=None, start=None) -> TransitionS
     """Explore the whole model (one transition per BT tick) with path-compiled batches;
     the result equals ``verify.explore.explore``'s, numbering included. Raises
     ``Untraceable`` for a model whose step the tracer cannot follow."""
-    from .explore import DEFAULT_MAX_STATES, _decode, _readable
-
     t0 = time.perf_counter()
     prog = model.program
     eng = _Engine(model, lambda picks: _readable(prog, picks, None)[0])
@@ -561,8 +564,6 @@ def _transitions(ok, codes, ev):
 
 def _errors(eng, prog, bad, codes, head, ords, cut_at):
     """DomainViolations of the error leaves' rows, in the generic engine's order."""
-    from .explore import _readable
-
     items = []
     for leaf, rows in bad:
         for r in rows.tolist():
@@ -570,7 +571,7 @@ def _errors(eng, prog, bad, codes, head, ords, cut_at):
                 items.append((r, int(ords[leaf.id]), leaf))
     out = []
     for r, _, leaf in sorted(items, key=lambda x: x[:2]):
-        o = eng.enum_oracle(leaf.taken)
+        o = EnumOracle(leaf.taken)
         try:
             prog.step(eng.state_of(int(codes[r])), o)
         except DomainError as exc:

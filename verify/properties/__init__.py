@@ -51,9 +51,10 @@ class Result:
 class Context:
     """The model under check and its explorations (each done once, on demand)."""
 
-    def __init__(self, model, *, max_states: "int | None" = DEFAULT_MAX_STATES, progress=None):
+    def __init__(self, model, *, max_states: "int | None" = DEFAULT_MAX_STATES, progress=None, engine: str = "auto"):
         self.model = model
         self.max_states = max_states
+        self.engine = engine
         self.progress = progress
         self._model_ts = None
         self._fsm_ts: dict = {}
@@ -63,7 +64,7 @@ class Context:
         """The whole model's transition system."""
         if self._model_ts is None:
             self._model_ts = explore(self.model, max_states=self.max_states,
-                                     progress=self._progress("model"))
+                                     progress=self._progress("model"), engine=self.engine)
             self.systems.append(self._model_ts)
         return self._model_ts
 
