@@ -120,8 +120,14 @@ def test_check_reports_are_the_same_with_either_engine(name):
     from verify.report import check
 
     m = load_builtin(name)
-    a, b = check(m, engine="scalar").to_json(), check(m, engine="traced").to_json()
-    assert _without_times(a) == _without_times(b)
+    a, b = (_without_times(check(m, engine=e).to_json()) for e in ("scalar", "traced"))
+    # determinism is static (no exploration): same verdict, but z3 may pick other witness
+    # values on a second call in one process
+    static = [[p["holds"] for p in r["properties"] if p["name"] == "determinism"] for r in (a, b)]
+    assert static[0] == static[1]
+    for r in (a, b):
+        r["properties"] = [p for p in r["properties"] if p["name"] != "determinism"]
+    assert a == b
     assert any(p["holds"] is False for p in b["properties"])
 
 
