@@ -608,41 +608,43 @@ def _np(e: Expr, scope, col: str, expected) -> str:
 
 
 def to_z3(e: Expr, scope: Mapping[str, Slot], z3vars: Mapping[str, object]):
-    """A z3 term for ``e``; ``z3vars`` maps each name to a z3 Int (bools are ints 0/1)."""
+    """A z3 term for ``e``; ``z3vars`` maps each name to a z3 Int (bools are ints 0/1).
+    Constants are made in the z3 context of the variables (the main one without any)."""
     import z3
 
-    return _z3(e, scope, z3vars, check(e, scope, "z3"), z3)
+    ctx = next((v.ctx for v in z3vars.values()), None)
+    return _z3(e, scope, z3vars, check(e, scope, "z3"), z3, ctx)
 
 
-def _z3(e: Expr, scope, zv, expected, z3):
+def _z3(e: Expr, scope, zv, expected, z3, ctx):
     if isinstance(e, Const):
         if isinstance(e.value, bool):
-            return z3.BoolVal(e.value)
+            return z3.BoolVal(e.value, ctx)
         if isinstance(e.value, int):
-            return z3.IntVal(e.value)
-        return z3.IntVal(expected.values.index(e.value))
+            return z3.IntVal(e.value, ctx)
+        return z3.IntVal(expected.values.index(e.value), ctx)
     if isinstance(e, Name):
         return zv[e.id] == 1 if scope[e.id].type == BOOL else zv[e.id]
     if isinstance(e, Unary):
-        return z3.Not(_z3(e.arg, scope, zv, BOOL, z3)) if e.op == "not" else -_z3(e.arg, scope, zv, INT, z3)
+        return z3.Not(_z3(e.arg, scope, zv, BOOL, z3, ctx)) if e.op == "not" else -_z3(e.arg, scope, zv, INT, z3, ctx)
     if isinstance(e, BoolOp):
-        args = [_z3(a, scope, zv, BOOL, z3) for a in e.args]
+        args = [_z3(a, scope, zv, BOOL, z3, ctx) for a in e.args]
         return z3.And(*args) if e.op == "and" else z3.Or(*args)
     if isinstance(e, Compare):
         lt, rt = _types(e.left, e.right, scope)
-        a, b = _z3(e.left, scope, zv, lt, z3), _z3(e.right, scope, zv, rt, z3)
+        a, b = _z3(e.left, scope, zv, lt, z3, ctx), _z3(e.right, scope, zv, rt, z3, ctx)
         return {"==": lambda: a == b, "!=": lambda: a != b, "<": lambda: a < b,
                 "<=": lambda: a <= b, ">": lambda: a > b, ">=": lambda: a >= b}[e.op]()
     if isinstance(e, BinOp):
-        a, b = _z3(e.left, scope, zv, INT, z3), _z3(e.right, scope, zv, INT, z3)
+        a, b = _z3(e.left, scope, zv, INT, z3, ctx), _z3(e.right, scope, zv, INT, z3, ctx)
         return {"+": lambda: a + b, "-": lambda: a - b, "*": lambda: a * b,
                 "//": lambda: a / b, "%": lambda: a % b}[e.op]()
     if isinstance(e, Call):
-        args = [_z3(a, scope, zv, INT, z3) for a in e.args]
+        args = [_z3(a, scope, zv, INT, z3, ctx) for a in e.args]
         if e.fn == "abs":
             return z3.If(args[0] >= 0, args[0], -args[0])
         a, b = args
         return z3.If(a <= b, a, b) if e.fn == "min" else z3.If(a >= b, a, b)
     if isinstance(e, IfElse):
-        return z3.If(_z3(e.cond, scope, zv, BOOL, z3), _z3(e.then, scope, zv, expected, z3), _z3(e.other, scope, zv, expected, z3))
+        return z3.If(_z3(e.cond, scope, zv, BOOL, z3, ctx), _z3(e.then, scope, zv, expected, z3, ctx), _z3(e.other, scope, zv, expected, z3, ctx))
     raise TypeError(e)

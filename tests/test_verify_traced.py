@@ -121,13 +121,7 @@ def test_check_reports_are_the_same_with_either_engine(name):
 
     m = load_builtin(name)
     a, b = (_without_times(check(m, engine=e).to_json()) for e in ("scalar", "traced"))
-    # determinism is static (no exploration): same verdict, but z3 may pick other witness
-    # values on a second call in one process
-    static = [[p["holds"] for p in r["properties"] if p["name"] == "determinism"] for r in (a, b)]
-    assert static[0] == static[1]
-    for r in (a, b):
-        r["properties"] = [p for p in r["properties"] if p["name"] != "determinism"]
-    assert a == b
+    assert a == b  # determinism's z3 witnesses included: each analysis has its own z3 context
     assert any(p["holds"] is False for p in b["properties"])
 
 

@@ -48,11 +48,12 @@ class _Solver:
         self.z3, self.prog, self.f = z3, prog, f
         self.scope = prog.fsm_scope(f)
         self.vars = {}
-        self.solver = z3.Solver()
+        self.ctx = z3.Context()  # its own context: the same questions get the same witnesses
+        self.solver = z3.Solver(ctx=self.ctx)
         for i, info in enumerate(prog.slots):
             if info.kind in ("flag", "memory"):
                 continue
-            v = z3.Int(info.name)
+            v = z3.Int(info.name, self.ctx)
             self.vars[i] = v
             self.solver.add(v >= info.lo, v <= info.lo + info.size - 1)
         self.names = {name: self.vars[slot.index] for name, slot in self.scope.items() if slot.index in self.vars}
@@ -64,7 +65,7 @@ class _Solver:
         an expression tree costs as much as a lookup should)."""
         t = self.cache.get(id(expr))
         if t is None:
-            t = self.z3.BoolVal(True) if expr is None else to_z3(expr, self.scope, self.names)
+            t = self.z3.BoolVal(True, self.ctx) if expr is None else to_z3(expr, self.scope, self.names)
             self.cache[id(expr)] = t
         return t
 
