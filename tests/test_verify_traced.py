@@ -1,6 +1,7 @@
-"""The path-compiled engine (verify.traced) gives the generic engine's system exactly:
-same states in the same order, same transitions, labels, statuses, parents, contract
-violations, domain errors and budget cut, on every built-in model and on random ones."""
+"""The path-compiled engine (verify.traced) gives the scalar engine's system exactly:
+same states in the same order, same transitions, labels, statuses, parents, requested
+goals, contract violations, domain errors and budget cut, for whole models and FSMs as
+open systems, on every built-in model and on random ones."""
 from __future__ import annotations
 
 import json
@@ -14,7 +15,7 @@ import verify.traced as traced
 from models.registry import BUILTIN, load_builtin
 from strategies import random_models
 from test_spin_crosscheck import seeded_models
-from verify.explore import explore
+from verify.explore import explore, explore_fsm
 
 ARRAYS = ("states", "src", "dst", "label", "parent", "status")
 FIELDS = ("labels", "complete", "expanded", "violations", "kind", "slots")
@@ -26,6 +27,7 @@ def assert_same(a, b):
         assert x.shape == y.shape and np.array_equal(x, y), f
     for f in FIELDS:
         assert getattr(a, f) == getattr(b, f), f
+    assert (a.goal is None) == (b.goal is None) and (a.goal is None or np.array_equal(a.goal, b.goal))
     key = [(e.state, e.script, e.label, e.var, e.value, e.where, e.message) for e in a.errors]
     assert key == [(e.state, e.script, e.label, e.var, e.value, e.where, e.message) for e in b.errors]
 
@@ -39,6 +41,13 @@ def test_builtin_models_explore_identically(name):
     assert_same(*both(load_builtin(name)))
 
 
+@pytest.mark.parametrize("name", sorted(BUILTIN))
+def test_builtin_fsms_explore_identically(name):
+    m = load_builtin(name)
+    for f in m.fsms:
+        assert_same(explore_fsm(m, f.name, engine="scalar"), explore_fsm(m, f.name, engine="traced"))
+
+
 @pytest.mark.parametrize("budget", [1, 2, 50, 777, 5000])
 def test_budget_cut_is_the_generic_engines(budget):
     for name in ("pickplace3", "defect-domain", "ariac-preemptive"):
@@ -50,7 +59,10 @@ def test_small_batches_and_sorted_visited_set(monkeypatch):
     monkeypatch.setattr(traced, "CHUNK", 7)
     monkeypatch.setattr(traced, "DENSE_LIMIT", 0)
     for name in ("pickplace3-dead", "defect-domain", "two-area", "original"):
-        assert_same(*both(load_builtin(name)))
+        m = load_builtin(name)
+        assert_same(*both(m))
+        f = m.fsms[0].name
+        assert_same(explore_fsm(m, f, engine="scalar", max_states=900), explore_fsm(m, f, engine="traced", max_states=900))
 
 
 def test_start_state_and_progress():
@@ -98,6 +110,14 @@ def test_a_decision_is_recorded_once_per_value():
 @given(random_models())
 def test_random_models_explore_identically(model):
     assert_same(*both(model, max_states=3000))
+
+
+@settings(max_examples=100, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(random_models(), st.integers(1, 3000))
+def test_random_fsms_explore_identically(model, budget):
+    for f in model.fsms:
+        assert_same(explore_fsm(model, f.name, engine="scalar", max_states=budget),
+                    explore_fsm(model, f.name, engine="traced", max_states=budget))
 
 
 @settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.too_slow])

@@ -362,9 +362,7 @@ def explore(model, *, max_states=None, progress=None, start=None, engine: str = 
     When the model has an environment, the scalar engine memoises the tree's results by
     the state after the environment (see ``_TreeCache``): a tick is the environment then
     the tree, and the tree's results depend on nothing else."""
-    if engine not in ("auto", "traced", "scalar"):
-        raise ValueError(f"engine must be auto, traced or scalar, not {engine!r}")
-    if engine != "scalar":
+    if _traced_first(engine):
         from .traced import Untraceable
         from .traced import explore as traced
 
@@ -380,13 +378,30 @@ def explore(model, *, max_states=None, progress=None, start=None, engine: str = 
                    max_states, progress, None, split)
 
 
-def explore_fsm(model, fsm, *, goals=None, max_states=None, progress=None, start=None) -> TransitionSystem:
-    """Explore one FSM as an open system (``open_fsm``): one transition per request."""
+def explore_fsm(model, fsm, *, goals=None, max_states=None, progress=None, start=None,
+                engine: str = "auto") -> TransitionSystem:
+    """Explore one FSM as an open system (``open_fsm``): one transition per request.
+    ``engine`` as for ``explore``."""
+    if _traced_first(engine):
+        from .traced import Untraceable
+        from .traced import explore_fsm as traced
+
+        try:
+            return traced(model, fsm, goals=goals, max_states=max_states, progress=progress, start=start)
+        except Untraceable:
+            if engine == "traced":
+                raise
     op = open_fsm(model, fsm, goals)
     prog = model.program
     init = tuple(start) if start is not None else prog.initial
     init = tuple(prog.initial[k] if k in dict(op.inputs) else v for k, v in enumerate(init))
     return _search(model, "fsm", op.fsm, op.kept, op.run, init, max_states, progress, op)
+
+
+def _traced_first(engine: str) -> bool:
+    if engine not in ("auto", "traced", "scalar"):
+        raise ValueError(f"engine must be auto, traced or scalar, not {engine!r}")
+    return engine != "scalar"
 
 
 def _codec(prog, kept):

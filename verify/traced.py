@@ -44,7 +44,7 @@ from btfsm.errors import DomainError
 from .explore import DEFAULT_MAX_STATES, EnumOracle, _codec, _decode, _readable
 from .system import DomainViolation, TransitionSystem
 
-__all__ = ["explore", "Untraceable", "CHUNK", "DENSE_LIMIT"]
+__all__ = ["explore", "explore_fsm", "Untraceable", "CHUNK", "DENSE_LIMIT"]
 
 CHUNK = 1 << 15  # states expanded per batch
 DENSE_LIMIT = 1 << 24  # code space up to which the visited set is a flat id table (64 MB)
@@ -173,14 +173,15 @@ class _Graph:
 
 
 class _Leaf:
-    """The end of a path: ``kind`` ok | blocked | error, the next state's code node,
-    status, picks (readable label), violations, the full choice script ``taken``."""
+    """The end of a path: ``kind`` ok | blocked | error, the next state's code change,
+    status, readable label, requested goal (FSM level), violations, the full choice
+    script ``taken``."""
 
-    __slots__ = ("id", "kind", "code", "status", "label", "violations", "taken", "key", "label_id")
+    __slots__ = ("id", "kind", "code", "status", "label", "goal", "violations", "taken", "key", "label_id")
 
-    def __init__(self, id, kind, code, status, label, violations, taken):
+    def __init__(self, id, kind, code, status, label, goal, violations, taken):
         self.id, self.kind, self.code, self.status = id, kind, code, status
-        self.label, self.violations, self.taken = label, violations, tuple(taken)
+        self.label, self.goal, self.violations, self.taken = label, goal, violations, tuple(taken)
         self.key = tuple(c and _LAST - c for c in taken)
         self.label_id = -1
 
@@ -268,16 +269,22 @@ class _TracingOracle(EnumOracle):
 
 
 class _Engine:
-    def __init__(self, model, readable):
+    """The trie of one system: ``run(state, oracle)`` is one transition (``Program.step``,
+    or ``OpenFSM.run`` at FSM level); states are codes over the ``kept`` slots, the
+    others hold their values in ``base``."""
+
+    def __init__(self, model, run, kept, base, op):
         prog = model.program
-        self.prog, self.readable = prog, readable
+        self.prog, self.run, self.op = prog, run, op
         self.width = len(prog.slots)
-        self.mults, self.offset, self.total = _codec(prog, tuple(range(self.width)))
+        self.kept, self.base = frozenset(kept), tuple(base)
+        self.mults, self.offset, self.total = _codec(prog, tuple(kept))
         if self.total >= 1 << 62:
             raise Untraceable("the state space does not fit one int64 code")
         self.sizes = [max(s.size, 1) for s in prog.slots]
         self.los = [s.lo for s in prog.slots]
         self.g = _Graph(self.width, [k for k, s in enumerate(prog.slots) if s.kind in _CONTROL])
+        self.names: dict = {}
         self.root: dict = {None: None}  # the trie: [kind, key, children] nodes and _Leaf ends
         self.leaves: list = []
         self.order_dirty = False
@@ -286,21 +293,29 @@ class _Engine:
     # ---- tracing
     def state_of(self, code: int) -> tuple:
         c = code
-        return tuple((c // m) % z + lo for m, z, lo in zip(self.mults, self.sizes, self.los))
+        return tuple((c // m) % z + lo if m else b for m, z, lo, b in zip(self.mults, self.sizes, self.los, self.base))
+
+    def readable(self, picks) -> tuple:
+        """(label, requested goal index or -1) of a transition's picks."""
+        got = self.names.get(picks)
+        if got is None:
+            got = self.names[picks] = _readable(self.prog, picks, self.op)
+        return got
 
     def trace(self, state, script):
         """Run the step from ``state`` (as Syms) answering ``script``; insert the path."""
         t = _Tracer(self.g)
         path = t.path
         o = _TracingOracle(script, path)
-        sym = [Sym(t, n, v) for n, v in zip(self.g.cols, state)]
+        kept = self.kept
+        sym = [Sym(t, n, v) if k in kept else v for k, (n, v) in enumerate(zip(self.g.cols, state))]
         try:
-            st = self.prog.step(sym, o)
+            st = self.run(sym, o)
         except DomainError:
             return self.insert(path, "error", None, None, o, ())
         except (TypeError, AttributeError) as exc:  # something a Sym cannot stand for
             raise Untraceable(f"{type(exc).__name__}: {exc}") from exc
-        if st.state is None:
+        if st is None or st.state is None:  # no option enabled (OpenFSM.run: None)
             return self.insert(path, "blocked", None, None, o, ())
         status = int(st.status)
         viol = tuple(st.violations) if st.violations else None
@@ -316,7 +331,7 @@ class _Engine:
         shift, terms = 0, []
         for k, e in enumerate(entries):
             col = g.cols[k]
-            if isinstance(e, Sym) and e.n == col:
+            if not mults[k] or isinstance(e, Sym) and e.n == col:
                 continue
             new_known, new = t.resolve(e)
             old_known, old = (True, t.known[col]) if col in t.known else (False, col)
@@ -338,8 +353,8 @@ class _Engine:
             holder, key = node[2], d[2]
         if holder.get(key) is not None:
             raise Untraceable("a traced path ends where another goes on")
-        leaf = _Leaf(len(self.leaves), kind, code, status,
-                     self.readable(tuple(o.picks)), viol, o.taken)
+        label, goal = self.readable(tuple(o.picks))
+        leaf = _Leaf(len(self.leaves), kind, code, status, label, goal, viol, o.taken)
         holder[key] = leaf
         self.leaves.append(leaf)
         self.order_dirty = True
@@ -428,12 +443,29 @@ def explore(model, *, max_states=None, progress=None, start=None) -> TransitionS
     """Explore the whole model (one transition per BT tick) with path-compiled batches;
     the result equals ``verify.explore.explore``'s, numbering included. Raises
     ``Untraceable`` for a model whose step the tracer cannot follow."""
+    prog = model.program
+    s0 = tuple(start) if start is not None else prog.initial
+    return _explore(model, "model", None, tuple(range(len(prog.slots))), prog.step, s0, max_states, progress, None)
+
+
+def explore_fsm(model, fsm, *, goals=None, max_states=None, progress=None, start=None) -> TransitionSystem:
+    """Explore FSM ``fsm`` as an open system (``verify.explore.open_fsm``) with
+    path-compiled batches; equals ``verify.explore.explore_fsm``'s result."""
+    from .explore import open_fsm
+
+    op = open_fsm(model, fsm, goals)
+    prog = model.program
+    s0 = tuple(start) if start is not None else prog.initial
+    s0 = tuple(prog.initial[k] if k in dict(op.inputs) else v for k, v in enumerate(s0))
+    return _explore(model, "fsm", op.fsm, op.kept, op.run, s0, max_states, progress, op)
+
+
+def _explore(model, kind, fsm, kept, run, s0, max_states, progress, op) -> TransitionSystem:
     t0 = time.perf_counter()
     prog = model.program
-    eng = _Engine(model, lambda picks: _readable(prog, picks, None)[0])
+    eng = _Engine(model, run, kept, s0, op)
     mults, offset, total = eng.mults, eng.offset, eng.total
     budget = DEFAULT_MAX_STATES * 1000 if max_states is None else max(int(max_states), 1)
-    s0 = tuple(start) if start is not None else prog.initial
     c0 = sum(v * m for v, m in zip(s0, mults)) - offset
 
     visited = (_Dense if total <= DENSE_LIMIT else _Sorted)(total, c0)
@@ -444,6 +476,7 @@ def explore(model, *, max_states=None, progress=None, start=None) -> TransitionS
     # transitions in growing buffers (no second copy at the end)
     src_a, dst_a, lab_a, stat_a = array("q"), array("q"), array("q"), array("b")
     labels: list = []
+    label_goal: list = []
     label_ids: dict = {}
     errors, violations = [], []
     leaf_label = np.zeros(0, np.int64)
@@ -499,6 +532,7 @@ def explore(model, *, max_states=None, progress=None, start=None) -> TransitionS
                     if lab is None:
                         lab = label_ids[name] = len(labels)
                         labels.append(name)
+                        label_goal.append(eng.leaves[li].goal)
                     leaf_label[li] = lab
         src_a.frombytes((rows + head).astype(np.int64, copy=False).tobytes())
         dst_a.frombytes(ids.astype(np.int64, copy=False).tobytes())
@@ -519,16 +553,18 @@ def explore(model, *, max_states=None, progress=None, start=None) -> TransitionS
             progress(n, nt, time.perf_counter() - t0)
     if expanded is None:
         expanded = head
-    states = _decode(prog, tuple(range(len(prog.slots))), codes[:n] + offset, offset, mults)
+    states = _decode(prog, tuple(kept), codes[:n] + offset, offset, mults)
     seconds = time.perf_counter() - t0
     if progress is not None:
         progress(n, nt, seconds)
-    return TransitionSystem(model=model, kind="model", fsm=None, slots=tuple(range(len(prog.slots))), states=states,
+    lab = _view(lab_a, np.int64)
+    goal = np.asarray(label_goal, dtype=np.int64)[lab] if kind == "fsm" else None
+    return TransitionSystem(model=model, kind=kind, fsm=fsm, slots=tuple(kept), states=states,
                             src=_view(src_a, np.int64), dst=_view(dst_a, np.int64),
-                            label=_view(lab_a, np.int64), labels=tuple(labels),
+                            label=lab, labels=tuple(labels),
                             parent=np.concatenate(parent), complete=complete, seconds=seconds,
-                            status=_view(stat_a, np.int8), goal=None,
-                            expanded=expanded, errors=tuple(errors), violations=tuple(violations), open=None)
+                            status=_view(stat_a, np.int8), goal=goal,
+                            expanded=expanded, errors=tuple(errors), violations=tuple(violations), open=op)
 
 
 def _view(buf, dtype) -> np.ndarray:
@@ -573,9 +609,9 @@ def _errors(eng, prog, bad, codes, head, ords, cut_at):
     for r, _, leaf in sorted(items, key=lambda x: x[:2]):
         o = EnumOracle(leaf.taken)
         try:
-            prog.step(eng.state_of(int(codes[r])), o)
+            eng.run(eng.state_of(int(codes[r])), o)
         except DomainError as exc:
-            out.append(DomainViolation(head + r, tuple(o.taken), _readable(prog, tuple(o.picks), None)[0],
+            out.append(DomainViolation(head + r, tuple(o.taken), _readable(prog, tuple(o.picks), eng.op)[0],
                                        exc.var, exc.value, exc.where, str(exc)))
         else:
             raise Untraceable("a traced domain error did not happen again")

@@ -73,7 +73,7 @@ class Context:
         ts = self._fsm_ts.get(name)
         if ts is None:
             ts = self._fsm_ts[name] = explore_fsm(self.model, name, max_states=self.max_states,
-                                                  progress=self._progress(f"fsm {name}"))
+                                                  progress=self._progress(f"fsm {name}"), engine=self.engine)
             self.systems.append(ts)
         return ts
 
