@@ -362,46 +362,37 @@ def explore(model, *, max_states=None, progress=None, start=None, engine: str = 
     When the model has an environment, the scalar engine memoises the tree's results by
     the state after the environment (see ``_TreeCache``): a tick is the environment then
     the tree, and the tree's results depend on nothing else."""
-    if _traced_first(engine):
-        from .traced import Untraceable
-        from .traced import explore as traced
-
-        try:
-            return traced(model, max_states=max_states, progress=progress, start=start)
-        except Untraceable:
-            if engine == "traced":
-                raise
     prog = model.program
     kept = tuple(range(len(prog.slots)))
-    split = _TreeCache(model) if model.environment and model.tree is not None else None
-    return _search(model, "model", None, kept, prog.step, tuple(start) if start is not None else prog.initial,
-                   max_states, progress, None, split)
+    init = tuple(start) if start is not None else prog.initial
+    return _explore_with(engine, model, "model", None, kept, prog.step, init, max_states, progress, None)
 
 
 def explore_fsm(model, fsm, *, goals=None, max_states=None, progress=None, start=None,
                 engine: str = "auto") -> TransitionSystem:
     """Explore one FSM as an open system (``open_fsm``): one transition per request.
     ``engine`` as for ``explore``."""
-    if _traced_first(engine):
-        from .traced import Untraceable
-        from .traced import explore_fsm as traced
-
-        try:
-            return traced(model, fsm, goals=goals, max_states=max_states, progress=progress, start=start)
-        except Untraceable:
-            if engine == "traced":
-                raise
     op = open_fsm(model, fsm, goals)
     prog = model.program
     init = tuple(start) if start is not None else prog.initial
     init = tuple(prog.initial[k] if k in dict(op.inputs) else v for k, v in enumerate(init))
-    return _search(model, "fsm", op.fsm, op.kept, op.run, init, max_states, progress, op)
+    return _explore_with(engine, model, "fsm", op.fsm, op.kept, op.run, init, max_states, progress, op)
 
 
-def _traced_first(engine: str) -> bool:
+def _explore_with(engine, model, kind, fsm, kept, run, init, max_states, progress, op) -> TransitionSystem:
+    """One system, explored by the engine asked for (see ``explore``)."""
     if engine not in ("auto", "traced", "scalar"):
         raise ValueError(f"engine must be auto, traced or scalar, not {engine!r}")
-    return engine != "scalar"
+    if engine != "scalar":
+        from .traced import Untraceable, search
+
+        try:
+            return search(model, kind, fsm, kept, run, init, max_states, progress, op)
+        except Untraceable:
+            if engine == "traced":
+                raise
+    split = _TreeCache(model) if kind == "model" and model.environment and model.tree is not None else None
+    return _search(model, kind, fsm, kept, run, init, max_states, progress, op, split)
 
 
 def _codec(prog, kept):

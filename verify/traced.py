@@ -28,7 +28,8 @@ Nothing here re-states the semantics: every decision, expression and constant co
 a run of ``Program.step``.
 
 >>> from models.pickplace import pickplace
->>> ts = explore(pickplace(3))
+>>> from verify.explore import explore
+>>> ts = explore(pickplace(3), engine="traced")
 >>> ts.n_states, ts.n_transitions
 (10288, 70336)
 """
@@ -44,7 +45,7 @@ from btfsm.errors import DomainError
 from .explore import DEFAULT_MAX_STATES, EnumOracle, _codec, _decode, _readable
 from .system import DomainViolation, TransitionSystem
 
-__all__ = ["explore", "explore_fsm", "Untraceable", "CHUNK", "DENSE_LIMIT"]
+__all__ = ["search", "Untraceable", "CHUNK", "DENSE_LIMIT"]
 
 CHUNK = 1 << 15  # states expanded per batch
 DENSE_LIMIT = 1 << 24  # code space up to which the visited set is a flat id table (64 MB)
@@ -439,28 +440,13 @@ class _Engine:
         return out, ev
 
 
-def explore(model, *, max_states=None, progress=None, start=None) -> TransitionSystem:
-    """Explore the whole model (one transition per BT tick) with path-compiled batches;
-    the result equals ``verify.explore.explore``'s, numbering included. Raises
-    ``Untraceable`` for a model whose step the tracer cannot follow."""
-    prog = model.program
-    s0 = tuple(start) if start is not None else prog.initial
-    return _explore(model, "model", None, tuple(range(len(prog.slots))), prog.step, s0, max_states, progress, None)
-
-
-def explore_fsm(model, fsm, *, goals=None, max_states=None, progress=None, start=None) -> TransitionSystem:
-    """Explore FSM ``fsm`` as an open system (``verify.explore.open_fsm``) with
-    path-compiled batches; equals ``verify.explore.explore_fsm``'s result."""
-    from .explore import open_fsm
-
-    op = open_fsm(model, fsm, goals)
-    prog = model.program
-    s0 = tuple(start) if start is not None else prog.initial
-    s0 = tuple(prog.initial[k] if k in dict(op.inputs) else v for k, v in enumerate(s0))
-    return _explore(model, "fsm", op.fsm, op.kept, op.run, s0, max_states, progress, op)
-
-
-def _explore(model, kind, fsm, kept, run, s0, max_states, progress, op) -> TransitionSystem:
+def search(model, kind, fsm, kept, run, s0, max_states, progress, op) -> TransitionSystem:
+    """Explore one system breadth-first from ``s0`` with path-compiled batches: ``run(state,
+    oracle)`` is one transition (``Program.step``, or ``OpenFSM.run`` with ``op`` at FSM
+    level) and states are coded over the ``kept`` slots. Called by
+    ``verify.explore.explore``/``explore_fsm``, whose scalar engine takes the same
+    arguments and gives the same system. Raises ``Untraceable`` when the tracer cannot
+    follow ``run``."""
     t0 = time.perf_counter()
     prog = model.program
     eng = _Engine(model, run, kept, s0, op)
