@@ -5,9 +5,9 @@ Usage: ``python3 benchmarks/check_speed.py [--big] [--repeats N] [--json]``
 Measures, with both wall time and CPU time of this process (the CPU figure is the one to
 compare on a shared machine):
 
-* ``explore`` (the generic path, ``verify.explore.explore``: its default engine is
-  ``verify.traced``; each row is followed by the same exploration with the scalar
-  engine, one step per transition) on the SPIN pick/place replica ``models.pickplace``
+* ``explore`` (the generic path, ``btfsm.verify.explore.explore``: its default engine is
+  ``btfsm.verify.traced``; each row is followed by the same exploration with the scalar
+  engine, one step per transition) on the SPIN pick/place replica ``btfsm.models.pickplace``
   (state counts identical to SPIN's ``-o2`` run), Q=D=B=3 and 6 (12 with ``--big``:
   1.3 M states), on a synthetic mid-size tree model (two FSMs, counters, an
   environment: about 10^5 states) and on the paper's ARIAC kitting models;
@@ -30,10 +30,10 @@ sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), ".."
 
 from btfsm import (FSM, Bool, Condition, Edge, Enum, EnvEvent, Int, Marker, Model, ReactiveFallback,  # noqa: E402
                    ReactiveSequence, SkillRequest, State, failure, running, success)
-from verify.determinism import analyse  # noqa: E402
-from verify.explore import explore  # noqa: E402
-from verify.properties.workable import traps  # noqa: E402
-from verify.report import check  # noqa: E402
+from btfsm.verify.determinism import analyse  # noqa: E402
+from btfsm.verify.explore import explore  # noqa: E402
+from btfsm.verify.properties.workable import traps  # noqa: E402
+from btfsm.verify.report import check  # noqa: E402
 
 
 ENGINE = {"auto": "(generic path: traced)", "scalar": "(scalar engine)"}
@@ -107,8 +107,8 @@ def main(argv=None) -> int:
     ap.add_argument("--repeats", type=int, default=1)
     ap.add_argument("--json", action="store_true")
     args = ap.parse_args(argv)
-    from models.ariac import baseline, preemptive
-    from models.pickplace import SPIN_STATES, pickplace
+    from btfsm.models.ariac import baseline, preemptive
+    from btfsm.models.pickplace import SPIN_STATES, pickplace
 
     rows = []
 

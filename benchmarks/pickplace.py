@@ -3,10 +3,10 @@
 
 For each size it
 
-* builds ``models.pickplace.pickplace(n)`` and explores it with the vectorised engine
-  (``verify.vector.reach``: states and BFS parents) and, at the sizes given by
-  ``--generic``, on the generic path (``verify.explore.explore``, the path every model
-  takes: every transition, labels, statuses; its default engine is ``verify.traced``)
+* builds ``btfsm.models.pickplace.pickplace(n)`` and explores it with the vectorised engine
+  (``btfsm.verify.vector.reach``: states and BFS parents) and, at the sizes given by
+  ``--generic``, on the generic path (``btfsm.verify.explore.explore``, the path every model
+  takes: every transition, labels, statuses; its default engine is ``btfsm.verify.traced``)
   and at the sizes given by ``--scalar`` with its scalar engine (one step per
   transition, the reference the traced engine is tested against);
 * generates SPIN's verifier from the hand-written reference model
@@ -14,7 +14,7 @@ For each size it
   ``spin -o2 -DQMAX=n -DDMAX=n -DBMAX=n -a``, ``gcc -O2 -DSAFETY -DNOCLAIM -DMEMLIM=16000``
   and runs ``./pan -m1000000 -w26``;
 * optionally (``--export-spin``) runs the same SPIN pipeline on btfsm's own Promela
-  export of the model (``verify.export``);
+  export of the model (``btfsm.verify.export``);
 * checks every state count against SPIN's (10,288 / 104,860 / 1,305,694 / 6,053,248 /
   18,291,250 at n = 3 / 6 / 12 / 18 / 24) and prints states/s, time and peak memory
   beside SPIN's, with the ratios.
@@ -44,7 +44,7 @@ ROOT = os.path.dirname(HERE)
 if ROOT not in sys.path:
     sys.path.insert(0, ROOT)
 
-from models.pickplace import SPIN_STATES, pickplace  # noqa: E402
+from btfsm.models.pickplace import SPIN_STATES, pickplace  # noqa: E402
 
 __all__ = ["worker", "run_worker", "run_spin_reference", "run_spin_export", "main", "DEFAULT_PML"]
 
@@ -62,12 +62,12 @@ def worker(engine: str, n: int) -> dict:
     base = _rss_mb()
     t0, c0 = time.perf_counter(), time.process_time()
     if engine == "vector":
-        from verify.vector import reach
+        from btfsm.verify.vector import reach
 
         r = reach(m)
         states, trans, dead, complete = r.n_states, r.n_transitions, len(r.dead), r.complete
     else:
-        from verify.explore import explore
+        from btfsm.verify.explore import explore
 
         ts = explore(m, engine="scalar" if engine == "scalar" else "auto")
         states, trans, dead, complete = ts.n_states, ts.n_transitions, len(ts.dead), ts.complete
@@ -85,7 +85,7 @@ def run_worker(engine: str, n: int) -> dict:
 
 
 def _spin(text: str, n: int, defines=()) -> dict:
-    from verify.promela import compile_pan, run_pan
+    from btfsm.verify.promela import compile_pan, run_pan
 
     work = tempfile.mkdtemp(prefix="btfsm_bench_spin_")
     try:
@@ -109,7 +109,7 @@ def run_spin_reference(pml: str, n: int) -> dict:
 
 def run_spin_export(n: int) -> dict:
     """SPIN on btfsm's Promela export of pickplace(n)."""
-    from verify.export import export
+    from btfsm.verify.export import export
 
     return _spin(export(pickplace(n), "promela"), n)
 
@@ -122,7 +122,7 @@ def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--sizes", type=int, nargs="+", default=[6, 12, 18, 24], help="Q = D = B sizes (default 6 12 18 24)")
     p.add_argument("--generic", type=int, nargs="*", default=[6], help="sizes also run on the generic path, "
-                   "verify.explore.explore (default 6)")
+                   "btfsm.verify.explore.explore (default 6)")
     p.add_argument("--scalar", type=int, nargs="*", default=[], help="sizes also run with the generic path's scalar "
                    "engine (one step per transition; default none)")
     p.add_argument("--pml", default=DEFAULT_PML, help="SPIN's reference pickplace.pml")

@@ -1,8 +1,8 @@
 #!/usr/bin/env python3
-"""Simulated seconds per wall second of sim.cell, beside the shared reference pymunk cell.
+"""Simulated seconds per wall second of btfsm.sim.cell, beside the shared reference pymunk cell.
 
 * trial (the product path): the checked ARIAC model (preemptive, k = 1) in the btfsm
-  Runtime at 10 Hz, bound to the cell by ``sim.binding``, physics at 240 Hz, for the
+  Runtime at 10 Hz, bound to the cell by ``btfsm.sim.binding``, physics at 240 Hz, for the
   first ``--sim-seconds`` of the trial;
 * cell: physics at 240 Hz with a small scripted kitting controller at 10 Hz (the cell's
   own cost, without the runtime);
@@ -26,7 +26,7 @@ import time
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 sys.path.insert(0, ROOT)
 
-from sim.cell import BELT, Cell, CellConfig, Place, periodic_arrivals  # noqa: E402
+from btfsm.sim.cell import BELT, Cell, CellConfig, Place, periodic_arrivals  # noqa: E402
 
 DEFAULT_REFERENCE = os.path.join(os.path.dirname(ROOT), "shared", "bench", "pymunk_cell_bench.py")
 TICK_STEPS = 24  # 10 Hz at dt = 1/240
@@ -124,8 +124,8 @@ def run_ours(sim_seconds: float, seed: int = 1) -> dict:
 
 
 def run_trial_bench(sim_seconds: float) -> dict:
-    from sim.experiment import TrialSpec
-    from sim.trial import run_trial
+    from btfsm.sim.experiment import TrialSpec
+    from btfsm.sim.trial import run_trial
 
     spec = TrialSpec("preemptive", 1, time_limit=sim_seconds)
     t0 = time.perf_counter()
@@ -136,7 +136,7 @@ def run_trial_bench(sim_seconds: float) -> dict:
 
 
 def run_experiment_bench(workers: int) -> dict:
-    from sim.experiment import run_experiment, summarize, trial_specs
+    from btfsm.sim.experiment import run_experiment, summarize, trial_specs
 
     t0 = time.perf_counter()
     results = run_experiment(trial_specs(), workers=workers, progress=False)

@@ -27,12 +27,12 @@ COMMANDS = {
     "show": ("btfsm.show:cli_show", "draw the tree and each FSM (dot, svg, png)"),
     "run": ("btfsm.cli:cli_run", "run a model in the runtime with seeded random outcomes; write a trace"),
     "replay": ("btfsm.cli:cli_replay", "re-run a trace or counterexample and confirm it reproduces"),
-    "check": ("verify.cli:cli_check", "model-check a model; print verdicts and counterexamples"),
-    "export": ("verify.cli:cli_export", "export a model to Promela, SMV or dot"),
-    "skills": ("verify.skills:cli_skills", "derive the skill transitions a tree can request"),
-    "sim": ("sim.cli:cli_sim", "run a model in the pymunk kitting cell"),
-    "experiment": ("sim.cli:cli_experiment", "reproduce the paper's ARIAC experiment"),
-    "conform": ("sim.cli:cli_conform", "run scenarios and check runtime conformance"),
+    "check": ("btfsm.verify.cli:cli_check", "model-check a model; print verdicts and counterexamples"),
+    "export": ("btfsm.verify.cli:cli_export", "export a model to Promela, SMV or dot"),
+    "skills": ("btfsm.verify.skills:cli_skills", "derive the skill transitions a tree can request"),
+    "sim": ("btfsm.sim.cli:cli_sim", "run a model in the pymunk kitting cell"),
+    "experiment": ("btfsm.sim.cli:cli_experiment", "reproduce the paper's ARIAC experiment"),
+    "conform": ("btfsm.sim.cli:cli_conform", "run scenarios and check runtime conformance"),
 }
 
 
@@ -228,7 +228,7 @@ def cli_replay(args) -> int:
 
     model = load_model(args.model)
     if str(args.trace).endswith(".json"):
-        from verify.counterexample import replay_counterexample
+        from btfsm.verify.counterexample import replay_counterexample
 
         try:
             ok, text = replay_counterexample(args.trace, model)
@@ -236,8 +236,8 @@ def cli_replay(args) -> int:
             raise UsageError(f"{args.trace}: not a counterexample of this model ({exc})") from None
         print(text)
         if args.cell:
-            from sim.binding import CellBinding
-            from sim.replay import replay_in_cell
+            from btfsm.sim.binding import CellBinding
+            from btfsm.sim.replay import replay_in_cell
 
             why = CellBinding.unsupported(model)
             if why:

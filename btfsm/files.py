@@ -1129,11 +1129,11 @@ def loads_model(text, fmt: str = "yaml", file_name: str = "<string>") -> Model:
 
 
 def builtin_models() -> dict:
-    """The registry of built-in models (``models.registry.BUILTIN``); empty when absent."""
+    """The registry of built-in models (``btfsm.models.registry.BUILTIN``); empty when absent."""
     try:
-        from models.registry import BUILTIN  # type: ignore[import-not-found]
+        from btfsm.models.registry import BUILTIN
     except ImportError as exc:
-        if getattr(exc, "name", None) in ("models", "models.registry") or "registry" in str(exc):
+        if getattr(exc, "name", None) in ("btfsm.models", "btfsm.models.registry"):
             return {}
         raise
     return dict(BUILTIN)
@@ -1164,9 +1164,9 @@ def _load_builtin(name, entry, file_name):
     if not isinstance(entry, str):
         raise _err("", f"registry entry for '{name}' is not a string", shown)
     if Path(entry).suffix.lower() in FORMATS:
-        import models  # the package the registry lives in
+        import btfsm.models as shipped  # the package the registry lives in
 
-        path = Path(models.__file__).parent / entry
+        path = Path(shipped.__file__).parent / entry
         return model_from_data(load_data(path, file_name=shown), shown)
     module, _, func = entry.partition(":")
     if not module or not func:

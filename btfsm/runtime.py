@@ -23,6 +23,7 @@ from __future__ import annotations
 from typing import Callable, Iterable, Mapping
 
 from .errors import ConformanceError
+from .clock import Clock
 from .status import Status
 from .trace import TraceWriter, render_answers, tick_record
 
@@ -31,19 +32,6 @@ __all__ = ["Runtime", "Call", "Clock"]
 _RUNNING = int(Status.RUNNING)
 _STATUS = tuple(sorted(Status, key=int))  # int status -> Status, without Status(x)
 _NO_EVENTS = frozenset()
-
-
-class Clock:
-    """Explicit time: ``tick`` counts ticks, ``time`` is ``tick / rate`` seconds."""
-
-    __slots__ = ("rate", "tick")
-
-    def __init__(self, rate: float, tick: int = 0):
-        self.rate, self.tick = float(rate), tick
-
-    @property
-    def time(self) -> float:
-        return self.tick / self.rate
 
 
 class _VarView(Mapping):

@@ -17,6 +17,7 @@ import io
 import json
 from typing import Iterable
 
+from .clock import Clock
 from .status import Status
 
 __all__ = ["TraceWriter", "tick_record", "read_trace", "replay", "ReplayOracle", "AnswerOracle",
@@ -178,8 +179,6 @@ class AnswerOracle(_NamedEvents):
 def render_answers(program, initial, answers, writer: "TraceWriter", first_tick: int = 0, last_status=None):
     """Write the tick records of an answer log by re-running the pure step function.
     Returns (state, last_status) after the last tick, to continue rendering later."""
-    from .runtime import Clock
-
     s, clock = tuple(initial), Clock(program.model.tick_rate, first_tick)
     last = {} if last_status is None else last_status
     for events, outcome_indices in answers:
@@ -192,8 +191,6 @@ def render_answers(program, initial, answers, writer: "TraceWriter", first_tick:
 
 def replay(source, model, state=None) -> "tuple[int, str] | None":
     """Re-run a trace; return ``(tick, why)`` at the first difference, or None."""
-    from .runtime import Clock
-
     header, records = read_trace(source)
     program = model.program
     if header.get("model") != model.name:

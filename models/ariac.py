@@ -5,7 +5,7 @@ One arm serves three areas: the AGV tray ``agv`` (A), the ``bins`` (B) and the
 areas are Y and Z); the arm's FSM is the union of the template over the three cyclic
 rotations of the areas: 42 states, one goal ``pick_<area>`` and ``place_<area>`` per area.
 
-Corrections relative to the authors' original (``models.original``):
+Corrections relative to the authors' original (``btfsm.models.original``):
 
 * no ``withdraw`` goal: every goal takes over from every state through its own edges. A
   pick is undone (direct edges to ``put_back``/``disable_gripper``), a place before the

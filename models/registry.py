@@ -18,33 +18,33 @@ __all__ = ["BUILTIN", "DEFECTS", "load_builtin", "names"]
 
 BUILTIN: dict = {
     # the paper's ARIAC cell, corrected design (models/ariac.py)
-    "ariac-preemptive": "models.ariac:preemptive",
-    "ariac-baseline": "models.ariac:baseline",
+    "ariac-preemptive": "btfsm.models.ariac:preemptive",
+    "ariac-baseline": "btfsm.models.ariac:baseline",
     # the authors' original FSM and executive, defects kept (models/original.py)
-    "original": "models.original:original",
-    "original-preemptive": "models.original:original_preemptive",
+    "original": "btfsm.models.original:original",
+    "original-preemptive": "btfsm.models.original:original_preemptive",
     # teaching examples (models/examples/)
-    "two-area": "models.examples.two_area:two_area",
-    "two-area-file": "models.examples.files:two_area_file",
-    "templated": "models.examples.files:templated",
-    "spectrum-continue": "models.examples.spectrum:continue_",
-    "spectrum-hold": "models.examples.spectrum:hold",
-    "spectrum-reverse": "models.examples.spectrum:reverse",
+    "two-area": "btfsm.models.examples.two_area:two_area",
+    "two-area-file": "btfsm.models.examples.files:two_area_file",
+    "templated": "btfsm.models.examples.files:templated",
+    "spectrum-continue": "btfsm.models.examples.spectrum:continue_",
+    "spectrum-hold": "btfsm.models.examples.spectrum:hold",
+    "spectrum-reverse": "btfsm.models.examples.spectrum:reverse",
     # the SPIN pick/place benchmark model at Q=D=B=3 (models/pickplace.py)
-    "pickplace3": "models.pickplace:pickplace",
-    "pickplace3-dead": "models.pickplace:pickplace_dead",
-    "pickplace3-bug": "models.pickplace:pickplace_bug",
+    "pickplace3": "btfsm.models.pickplace:pickplace",
+    "pickplace3-dead": "btfsm.models.pickplace:pickplace_dead",
+    "pickplace3-bug": "btfsm.models.pickplace:pickplace_bug",
     # the seeded-defect catalogue: one model per property (models/examples/defects.py)
-    "defect-trap": "models.examples.defects:trap",
-    "defect-unreachable-goal": "models.examples.defects:unreachable_goal",
-    "defect-nondeterminism": "models.examples.defects:nondeterminism",
-    "defect-dead-state": "models.examples.defects:dead_state",
-    "defect-nonprogress": "models.examples.defects:nonprogress",
-    "defect-latency": "models.examples.defects:latency",
-    "defect-invariant": "models.examples.defects:invariant",
-    "defect-contract": "models.examples.defects:contract",
-    "defect-domain": "models.examples.defects:domain",
-    "defect-shadowed-marker": "models.examples.defects:shadowed_marker",
+    "defect-trap": "btfsm.models.examples.defects:trap",
+    "defect-unreachable-goal": "btfsm.models.examples.defects:unreachable_goal",
+    "defect-nondeterminism": "btfsm.models.examples.defects:nondeterminism",
+    "defect-dead-state": "btfsm.models.examples.defects:dead_state",
+    "defect-nonprogress": "btfsm.models.examples.defects:nonprogress",
+    "defect-latency": "btfsm.models.examples.defects:latency",
+    "defect-invariant": "btfsm.models.examples.defects:invariant",
+    "defect-contract": "btfsm.models.examples.defects:contract",
+    "defect-domain": "btfsm.models.examples.defects:domain",
+    "defect-shadowed-marker": "btfsm.models.examples.defects:shadowed_marker",
 }
 
 # defect model -> the property it is seeded to violate (the catalogue's table)

@@ -80,7 +80,7 @@ _STATUS = {"RUNNING": 0, "SUCCESS": 1, "FAILURE": 2}
 
 
 class CellBinding:
-    """Primitive implementations and sensor events for ``models.ariac`` in a ``Cell``."""
+    """Primitive implementations and sensor events for ``btfsm.models.ariac`` in a ``Cell``."""
 
     def __init__(self, cell, model, bins=(2, 3), speed_scale: float = 0.5):
         self.cell, self.model, self.bins = cell, model, tuple(bins)

@@ -121,7 +121,7 @@ def cli_conform(args) -> int:
     variant = variant_of(model)
     monitor = None
     if not args.no_path:
-        from verify.explore import explore
+        from btfsm.verify.explore import explore
 
         ts = explore(model, max_states=args.max_states)
         if not ts.complete:

@@ -15,13 +15,13 @@ import json
 import os
 import statistics
 import sys
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict
 from typing import Iterable, Sequence
+
+from .protocol import VARIANTS, TrialResult, TrialSpec, arrival_period
 
 __all__ = ["TrialSpec", "TrialResult", "PAPER", "VARIANTS", "trial_specs", "run_experiment",
            "summarize", "format_table", "write_results", "plot_reaction_times", "arrival_period"]
-
-VARIANTS = ("preemptive", "baseline")
 
 # The paper's figures over its 80 trials, as the project brief quotes them.
 PAPER = {
@@ -30,43 +30,6 @@ PAPER = {
     "lost": {"preemptive": 0, "baseline": 17},
     "max_reaction_fraction": 0.75,
 }
-
-
-def arrival_period(k: int) -> float:
-    """dTa for trial k: 30 + 0.2 k seconds."""
-    return 30.0 + 0.2 * k
-
-
-@dataclass(frozen=True)
-class TrialSpec:
-    variant: str
-    k: int
-    parts: int = 18
-    pick_window: float = 16.0
-    time_limit: float = 1500.0
-    physics_rate: float = 240.0  # the BT ticks at the model's tick_rate (10 Hz for ARIAC)
-
-    @property
-    def seed(self) -> int:
-        return 1000 * self.k + VARIANTS.index(self.variant)
-
-
-@dataclass
-class TrialResult:
-    variant: str
-    k: int
-    seed: int
-    completed: bool
-    sim_time: float
-    tray: int
-    skills: int
-    preemptions: int
-    conveyor_arrivals: int
-    conveyor_picks: int
-    lost: int
-    reaction_times: list = field(default_factory=list)
-    ticks: int = 0
-    conformance_error: str = ""
 
 
 def trial_specs(ks: Sequence[int] = tuple(range(1, 41)), variants: Sequence[str] = VARIANTS, **kw) -> list:

@@ -11,13 +11,13 @@ from btfsm.runtime import Runtime
 
 from .binding import CellBinding
 from .cell import BELT, GRIPPER, Cell, CellConfig
-from .experiment import TrialResult, TrialSpec, arrival_period
+from .protocol import TrialResult, TrialSpec, arrival_period
 
 __all__ = ["run_trial", "build_trial"]
 
 
 def build_model(spec: TrialSpec):
-    from models import ariac
+    from btfsm.models import ariac
 
     make = {"preemptive": ariac.preemptive, "baseline": ariac.baseline}[spec.variant]
     return make(n_tray=spec.parts)

@@ -17,11 +17,11 @@ from btfsm import (FSM, Action, Bool, Edge, Enum, EnvEvent, Int, Marker, Model, 
                    State, success)
 from btfsm.errors import ModelError
 from btfsm.expr import BOOL, compile_fn
-from models.pickplace import pickplace
+from btfsm.models.pickplace import pickplace
 from test_spin_crosscheck import SPIN_MISSING, feature_model, seeded_models, spin_verdicts
-from verify.explore import explore, explore_fsm
-from verify.export import DOT_MAX_STATES, export, step_spec, to_dot
-from verify.system import reverse_reach
+from btfsm.verify.explore import explore, explore_fsm
+from btfsm.verify.export import DOT_MAX_STATES, export, step_spec, to_dot
+from btfsm.verify.system import reverse_reach
 
 # ---------------------------------------------------------------------- an SMV evaluator
 
@@ -406,7 +406,7 @@ def _awkward_model():
 def test_promela_escapes_keywords():
     text = export(_awkward_model(), "promela")
     decls = re.findall(r"^(?:bool|byte|short|int) (\w+) =", text, re.M)
-    from verify.promela import PROMELA_RESERVED
+    from btfsm.verify.promela import PROMELA_RESERVED
 
     assert decls and not set(decls) & PROMELA_RESERVED
     assert len(set(decls)) == len(decls)
@@ -418,7 +418,7 @@ def test_promela_escapes_keywords():
 def test_smv_escapes_keywords():
     check_smv_against_btfsm(_awkward_model(), None)
     text = export(_awkward_model(), "smv")
-    from verify.smv import SMV_RESERVED
+    from btfsm.verify.smv import SMV_RESERVED
 
     assert not set(Smv(text).vars) & SMV_RESERVED
 

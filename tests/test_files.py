@@ -373,9 +373,9 @@ def test_template_recursion_and_error_origin():
 
 
 def test_unknown_name_lists_builtins(monkeypatch):
-    fake = types.ModuleType("models.registry")
+    fake = types.ModuleType("btfsm.models.registry")
     fake.BUILTIN = {"two": "examples/two_area.yaml", "pp": "tests_fake_builder:build", "broken": "nope"}
-    monkeypatch.setitem(sys.modules, "models.registry", fake)
+    monkeypatch.setitem(sys.modules, "btfsm.models.registry", fake)
     with pytest.raises(ModelError, match="built-in models: broken, pp, two"):
         load_model("no_such_model")
     assert load_model("two") == load_model(ROOT / "models/examples/two_area.yaml")

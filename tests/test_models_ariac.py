@@ -7,7 +7,7 @@ from hypothesis import strategies as st
 from btfsm.oracles import RandomOracle
 from btfsm.runtime import Runtime
 from btfsm.status import Status
-from models.ariac import AREAS, HUBS, ROTATIONS, SKILLS, arm_fsm, baseline, generate_fsm, preemptive
+from btfsm.models.ariac import AREAS, HUBS, ROTATIONS, SKILLS, arm_fsm, baseline, generate_fsm, preemptive
 
 VARIANTS = {"preemptive": preemptive, "baseline": baseline}
 
@@ -182,7 +182,7 @@ def test_lints_are_only_the_unused_chains():
 
 
 def test_skills_derivation_ariac():
-    from verify.skills import check_support, counts, derive
+    from btfsm.verify.skills import check_support, counts, derive
 
     names = {goal: s for s, (goal, _) in SKILLS.items()}
     for variant, make in VARIANTS.items():

@@ -5,9 +5,9 @@ from btfsm.oracles import SucceedOracle
 from btfsm.oracles import RandomOracle
 from btfsm.runtime import Runtime
 from btfsm.status import Status
-from models.examples import defects, spectrum
-from models.examples.two_area import two_area
-from models.registry import BUILTIN, DEFECTS, load_builtin, names
+from btfsm.models.examples import defects, spectrum
+from btfsm.models.examples.two_area import two_area
+from btfsm.models.registry import BUILTIN, DEFECTS, load_builtin, names
 
 
 
@@ -25,7 +25,7 @@ def test_registry_builds_every_model_with_its_name():
     for name in names():
         m = load_builtin(name)
         assert m.name == name, (name, m.name)
-        assert BUILTIN[name].startswith("models.")
+        assert BUILTIN[name].startswith("btfsm.models.")
 
 
 def test_registry_unknown_name_lists_the_names():
@@ -124,7 +124,7 @@ def test_reverse_undoes_and_continue_finishes():
 
 
 def test_spectrum_skills_are_a_preemption_each():
-    from verify.skills import check_support, derive
+    from btfsm.verify.skills import check_support, derive
 
     for mode, make in MODELS.items():
         d = derive(make())

@@ -6,7 +6,7 @@ import pytest
 
 from btfsm.oracles import SucceedOracle
 from btfsm.status import Status
-from models.original import (ROTATIONS, TARGETS, TRACKS, movement_manager, original,
+from btfsm.models.original import (ROTATIONS, TARGETS, TRACKS, movement_manager, original,
                              original_preemptive, transit_table)
 
 MM = "movement_manager"

@@ -16,7 +16,7 @@ def _example():
 
 
 def test_readme_example_checks_clean():
-    from verify import check
+    from btfsm.verify import check
 
     report = check(_example())
     assert report.exit_code == 0, report.format_text()

@@ -7,8 +7,8 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from sim.cell import BELT, FLOOR, GRIPPER, LOST, RAIL_TRAVEL_LIMIT, Cell, CellConfig, Place
-from sim.render import Recorder, render_png
+from btfsm.sim.cell import BELT, FLOOR, GRIPPER, LOST, RAIL_TRAVEL_LIMIT, Cell, CellConfig, Place
+from btfsm.sim.render import Recorder, render_png
 
 TICK = 24  # controller period in steps (10 Hz at dt = 1/240)
 

@@ -7,11 +7,11 @@ import sys
 import pytest
 from hypothesis import HealthCheck, given, settings, strategies as st
 
-from sim.cli import select_ks
-from sim.conformance import Scenario, random_scenarios, run_scenario
-from sim.experiment import (TrialSpec, format_table, plot_reaction_times, run_experiment, summarize,
+from btfsm.sim.cli import select_ks
+from btfsm.sim.conformance import Scenario, random_scenarios, run_scenario
+from btfsm.sim.experiment import (TrialSpec, format_table, plot_reaction_times, run_experiment, summarize,
                             trial_specs, write_results)
-from sim.trial import build_trial, run_trial
+from btfsm.sim.trial import build_trial, run_trial
 
 QUICK = dict(parts=4, time_limit=200.0)
 
@@ -102,9 +102,9 @@ def test_random_scenarios_conform(seed, variant):
 
 @pytest.mark.parametrize("variant", ["preemptive", "baseline"])
 def test_path_monitor_accepts_runtime_paths(variant):
-    explore = pytest.importorskip("verify.explore").explore
-    from models import ariac
-    from sim.conformance import PathMonitor
+    explore = pytest.importorskip("btfsm.verify.explore").explore
+    from btfsm.models import ariac
+    from btfsm.sim.conformance import PathMonitor
 
     model = getattr(ariac, variant)(n_tray=3)
     ts = explore(model)
@@ -115,9 +115,9 @@ def test_path_monitor_accepts_runtime_paths(variant):
 
 
 def test_path_monitor_rejects_a_foreign_step():
-    explore = pytest.importorskip("verify.explore").explore
-    from models import ariac
-    from sim.conformance import PathMonitor
+    explore = pytest.importorskip("btfsm.verify.explore").explore
+    from btfsm.models import ariac
+    from btfsm.sim.conformance import PathMonitor
 
     model = ariac.preemptive(n_tray=2)
     monitor = PathMonitor(explore(model))

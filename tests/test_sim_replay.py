@@ -4,8 +4,8 @@ import sys
 
 import pytest
 
-from models import ariac, original
-from sim.replay import replay_in_cell, triggers_of
+from btfsm.models import ariac, original
+from btfsm.sim.replay import replay_in_cell, triggers_of
 
 verify = pytest.importorskip("verify")
 

@@ -7,8 +7,8 @@ import pytest
 
 from btfsm import (FSM, Bool, Condition, Edge, EnvEvent, Marker, Model, Parallel, Primitive,
                    ReactiveFallback, ReactiveSequence, SkillRequest, State, running, success)
-from models.original import original, original_preemptive
-from verify.skills import check_support, counts, derive, format_text, skills_of, to_dot, to_json
+from btfsm.models.original import original, original_preemptive
+from btfsm.verify.skills import check_support, counts, derive, format_text, skills_of, to_dot, to_json
 
 MOVE = Primitive("move", (running(), success()))
 

@@ -28,12 +28,12 @@ from btfsm import (FSM, Bool, Edge, Enum, EnvChoice, EnvEvent, Int, Marker, Mode
                    failure, success)
 from btfsm.errors import ModelError
 from btfsm.status import Status
-from verify.explore import explore, explore_fsm
-from verify.export import export, step_spec, terminal_expr
+from btfsm.verify.explore import explore, explore_fsm
+from btfsm.verify.export import export, step_spec, terminal_expr
 
 SPIN_MISSING = None
 try:
-    from verify.promela import compile_pan, run_pan, spin_available
+    from btfsm.verify.promela import compile_pan, run_pan, spin_available
 
     SPIN_MISSING = spin_available()
 except ImportError as exc:  # pragma: no cover
@@ -310,7 +310,7 @@ def crosscheck(model, fsm):
 ])
 @pytest.mark.parametrize("level", ["model", "fsm"])
 def test_pickplace_matches_spin(kw, states, dead, bad, level):
-    from models.pickplace import pickplace
+    from btfsm.models.pickplace import pickplace
 
     m = pickplace(3, **kw)
     fsm = "skill" if level == "fsm" else None
@@ -328,7 +328,7 @@ def test_hand_written_features_match_spin(fsm):
 @needs_spin
 def test_pickplace_size6_matches_spin_reference():
     """The exported model reproduces SPIN's count of the hand-written pickplace.pml."""
-    from models.pickplace import SPIN_STATES, pickplace
+    from btfsm.models.pickplace import SPIN_STATES, pickplace
 
     assert spin_verdicts(export(pickplace(6), "promela"))[:2] == (SPIN_STATES[6], 0)
 

@@ -13,10 +13,10 @@ from hypothesis import HealthCheck, given, settings
 
 from btfsm import FSM, Action, Bool, Edge, Int, Model, ReactiveFallback, SkillRequest, State, success
 from btfsm.errors import ModelError
-from models.pickplace import SPIN_STATES, pickplace
+from btfsm.models.pickplace import SPIN_STATES, pickplace
 from test_spin_crosscheck import feature_model, random_models, seeded_models
-from verify import vector
-from verify.explore import explore, explore_fsm
+from btfsm.verify import vector
+from btfsm.verify.explore import explore, explore_fsm
 
 
 def _rows(ts):

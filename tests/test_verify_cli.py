@@ -131,7 +131,7 @@ def test_progress_line_on_stderr_for_long_explorations(tmp_path):
     import sys
 
     from btfsm.files import dump_model
-    from models.pickplace import pickplace
+    from btfsm.models.pickplace import pickplace
 
     path = tmp_path / "pp12.json"
     dump_model(pickplace(12), str(path))  # about 3 s of exploration

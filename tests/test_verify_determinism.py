@@ -4,8 +4,8 @@ from __future__ import annotations
 import pytest
 
 from btfsm import FSM, Bool, Edge, Enum, Int, Marker, Model, State, failure, running, success
-from verify import check, replay_counterexample
-from verify.determinism import _disjoint, _literals, analyse, confirm_overlap, describe_overlap
+from btfsm.verify import check, replay_counterexample
+from btfsm.verify.determinism import _disjoint, _literals, analyse, confirm_overlap, describe_overlap
 
 
 def _model(edges, markers=(), states=None, variables=None, params=()):
@@ -117,7 +117,7 @@ def test_solver_is_reused(n):
 def test_witnesses_are_the_same_on_every_call():
     """Each analysis builds its terms in its own z3 context, so asking again in the same
     process gives the same witness values (z3's shared main context did not)."""
-    from models.registry import load_builtin
+    from btfsm.models.registry import load_builtin
 
     m = load_builtin("pickplace3-bug")
     first = analyse(m)

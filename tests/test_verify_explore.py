@@ -6,10 +6,10 @@ import pytest
 
 from btfsm import (FSM, Action, Bool, Condition, Edge, Enum, EnvChoice, EnvEvent, Int, Marker, Model,
                    ReactiveSequence, SkillRequest, State, failure, running, success)
-from verify import TransitionSystem, explore_fsm, open_fsm
-from verify.explore import explore
-from verify.explore import script_of, successor_scripts
-from verify.system import forward_reach, reverse_reach, shortest_path
+from btfsm.verify import TransitionSystem, explore_fsm, open_fsm
+from btfsm.verify.explore import explore
+from btfsm.verify.explore import script_of, successor_scripts
+from btfsm.verify.system import forward_reach, reverse_reach, shortest_path
 
 
 def _counter(hi=3, expr=None):
@@ -178,7 +178,7 @@ def test_unknown_fsm_and_goal():
 
 
 def test_pickplace_matches_spin_state_counts():
-    pp = pytest.importorskip("models.pickplace")
+    pp = pytest.importorskip("btfsm.models.pickplace")
     ts = explore(pp.pickplace(3))
     assert ts.n_states == pp.SPIN_STATES[3] == 10_288
     dead = explore(pp.pickplace(3, dead=True))

@@ -15,13 +15,13 @@ from btfsm import (FSM, Action, Bool, Condition, Edge, Enum, EnvChoice, EnvEvent
 from btfsm.expr import BOOL, compile_fn, names_in
 from tests.oracle_bruteforce import FSMGraph, ModelGraph
 from tests.strategies import random_models
-from verify.counterexample import replay_counterexample
-from verify.determinism import analyse, statuses_of_state
-from verify.explore import explore, explore_fsm
-from verify.properties.dead import dead_states, non_progress
-from verify.properties.goals import goal_failures
-from verify.properties.workable import traps
-from verify.report import check
+from btfsm.verify.counterexample import replay_counterexample
+from btfsm.verify.determinism import analyse, statuses_of_state
+from btfsm.verify.explore import explore, explore_fsm
+from btfsm.verify.properties.dead import dead_states, non_progress
+from btfsm.verify.properties.goals import goal_failures
+from btfsm.verify.properties.workable import traps
+from btfsm.verify.report import check
 
 SETTINGS = settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 VARS = (Bool("b"), Enum("e", ("a", "b", "c")), Int("n", 0, 2))
@@ -290,7 +290,7 @@ def test_determinism_matches_enumeration(m):
     overlaps, _ = analyse(m)
     got = {(o["fsm"], o["state"], o["a"], o["b"]) for o in overlaps}
     assert got == _overlaps_by_enumeration(m)
-    from verify.determinism import confirm_overlap
+    from btfsm.verify.determinism import confirm_overlap
 
     for o in overlaps:
         assert confirm_overlap(m, o)[0]

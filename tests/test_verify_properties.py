@@ -8,8 +8,8 @@ import pytest
 
 from btfsm import (FSM, Action, Bool, Condition, Edge, EnvChoice, EnvEvent, Int, Marker, Model,
                    ReactiveFallback, ReactiveSequence, SkillRequest, State, failure, running, success)
-from verify import check, replay_counterexample
-from verify.counterexample import Counterexample
+from btfsm.verify import check, replay_counterexample
+from btfsm.verify.counterexample import Counterexample
 
 
 def _one(model, name, **kw):

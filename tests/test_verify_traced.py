@@ -11,11 +11,11 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-import verify.traced as traced
-from models.registry import BUILTIN, load_builtin
+import btfsm.verify.traced as traced
+from btfsm.models.registry import BUILTIN, load_builtin
 from strategies import random_models
 from test_spin_crosscheck import seeded_models
-from verify.explore import explore, explore_fsm
+from btfsm.verify.explore import explore, explore_fsm
 
 ARRAYS = ("states", "src", "dst", "label", "parent", "status")
 FIELDS = ("labels", "complete", "expanded", "violations", "kind", "slots")
@@ -137,7 +137,7 @@ def _without_times(obj):
 @pytest.mark.parametrize("name", ["original-preemptive", "defect-domain", "pickplace3-bug"])
 def test_check_reports_are_the_same_with_either_engine(name):
     """Verdicts and counterexamples (shortest paths follow the same BFS numbering)."""
-    from verify.report import check
+    from btfsm.verify.report import check
 
     m = load_builtin(name)
     a, b = (_without_times(check(m, engine=e).to_json()) for e in ("scalar", "traced"))

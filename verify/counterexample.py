@@ -495,7 +495,7 @@ def _confirm_fsm(ce, model, state, kind) -> tuple:
         return False, f"'{goal}' can succeed from the final state"
     if kind == "latency":
         from .explore import open_fsm
-        from .properties.latency import late_requests
+        from .retarget import late_requests
 
         op = open_fsm(model, ce.fsm, ce.extra.get("goals"))
         want = ce.violation["request"]

@@ -353,10 +353,10 @@ def explore(model, *, max_states=None, progress=None, start=None, engine: str = 
     start from instead of ``model.program.initial``. ``progress(states, transitions,
     seconds)`` is called every few thousand expanded states.
 
-    ``engine``: ``"traced"`` runs ``verify.traced`` (the step function traced once per
+    ``engine``: ``"traced"`` runs ``btfsm.verify.traced`` (the step function traced once per
     path, then applied to whole batches with numpy); ``"scalar"`` runs the step once per
     transition here; ``"auto"`` (the default) is traced unless the tracer cannot follow
-    the model (``verify.traced.Untraceable``), then scalar. Both give the same system,
+    the model (``btfsm.verify.traced.Untraceable``), then scalar. Both give the same system,
     numbering included (tests compare them).
 
     When the model has an environment, the scalar engine memoises the tree's results by

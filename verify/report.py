@@ -106,9 +106,9 @@ def exit_code_of(results) -> int:
 
 def check(model, properties=None, *, max_states: "int | None" = DEFAULT_MAX_STATES, progress=None,
           engine: str = "auto") -> Report:
-    """Decide ``properties`` (names; default: all of ``verify.properties.PROPERTIES``).
+    """Decide ``properties`` (names; default: all of ``btfsm.verify.properties.PROPERTIES``).
     ``progress(what, states, transitions, seconds)`` is called during long explorations;
-    ``engine``: the model-level exploration engine (``verify.explore.explore``)."""
+    ``engine``: the model-level exploration engine (``btfsm.verify.explore.explore``)."""
     names = list(PROPERTIES) if not properties else list(dict.fromkeys(properties))
     unknown = [n for n in names if n not in PROPERTIES]
     if unknown:

@@ -29,7 +29,7 @@ the skill FSM must then support each of them. Here the steps are mechanical:
 6. an unsupported transition gets a counterexample: the state it starts from and what the
    FSM does instead, with every primitive succeeding.
 
->>> from models.examples.spectrum import reverse
+>>> from btfsm.models.examples.spectrum import reverse
 >>> d = derive(reverse())
 >>> sorted((d.name(a), d.name(b)) for (a, b, k) in d.pairs if k == "preemption")
 [('work', 'serve')]
@@ -123,7 +123,7 @@ class Support:
 def skills_of(model) -> list:
     """The skills of ``model``: (fsm, goal) pairs of its tree's SkillRequests, in tree order.
 
-    >>> from models.ariac import preemptive
+    >>> from btfsm.models.ariac import preemptive
     >>> [s.goal for s in skills_of(preemptive(n_tray=1))]
     ['place_bins', 'pick_conveyor', 'place_agv', 'pick_bins']
     """
@@ -562,7 +562,7 @@ def _load(ref):
     try:
         from btfsm.files import load_model
     except ImportError:  # the file loader is optional here: built-in names still work
-        from models.registry import load_builtin
+        from btfsm.models.registry import load_builtin
 
         return load_builtin(ref)
     return load_model(ref)

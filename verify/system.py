@@ -1,4 +1,4 @@
-"""Explicit transition systems: the result of exploring a model (``verify.explore``).
+"""Explicit transition systems: the result of exploring a model (``btfsm.verify.explore``).
 
 A ``TransitionSystem`` stores states as rows of small ints (one column per kept slot of
 ``model.program.slots``) and transitions as flat int64 arrays (``src``, ``dst``,
@@ -10,7 +10,7 @@ Two kinds exist: ``"model"`` (one transition = one BT tick of the whole model) a
 environment, the goal, its parameters and free inputs chosen every possible way).
 
 >>> from btfsm import Model, Int, Action, success
->>> from verify.explore import explore
+>>> from btfsm.verify.explore import explore
 >>> m = Model("c", variables=[Int("n", 0, 2)], tree=Action("inc", outcomes=[success(n="min(n + 1, 2)")]))
 >>> ts = explore(m)
 >>> ts.n_states, ts.n_transitions, ts.successors(2).tolist()
@@ -47,7 +47,7 @@ class TransitionSystem:
     reply per transition), ``goal`` (requested goal index per transition, FSM level),
     ``expanded`` (states ``0..expanded-1`` have all their successors), ``errors``
     (``DomainViolation``s), ``violations`` (``(transition, violations)`` contract breaches),
-    ``open`` (FSM level: the open system's description, see ``verify.explore.OpenFSM``)."""
+    ``open`` (FSM level: the open system's description, see ``btfsm.verify.explore.OpenFSM``)."""
 
     model: object
     kind: str  # "model" | "fsm"

@@ -19,7 +19,7 @@ expression is evaluated once per batch), a choice point sends the rows down ever
 a leaf turns its rows into transitions (next-state codes from one expression). A row
 that reaches a part of the trie not traced yet is traced there (its own state is the
 representative) and the walk goes on. Transitions are then ordered by (source, choice
-script in the order ``verify.explore``'s depth-first search takes them), so states,
+script in the order ``btfsm.verify.explore``'s depth-first search takes them), so states,
 labels and transitions are numbered exactly as the generic engine numbers them (tests
 compare the two systems field by field). Domain errors are re-run with the real step on
 concrete states to report them exactly.
@@ -27,8 +27,8 @@ concrete states to report them exactly.
 Nothing here re-states the semantics: every decision, expression and constant comes from
 a run of ``Program.step``.
 
->>> from models.pickplace import pickplace
->>> from verify.explore import explore
+>>> from btfsm.models.pickplace import pickplace
+>>> from btfsm.verify.explore import explore
 >>> ts = explore(pickplace(3), engine="traced")
 >>> ts.n_states, ts.n_transitions
 (10288, 70336)
@@ -444,7 +444,7 @@ def search(model, kind, fsm, kept, run, s0, max_states, progress, op) -> Transit
     """Explore one system breadth-first from ``s0`` with path-compiled batches: ``run(state,
     oracle)`` is one transition (``Program.step``, or ``OpenFSM.run`` with ``op`` at FSM
     level) and states are coded over the ``kept`` slots. Called by
-    ``verify.explore.explore``/``explore_fsm``, whose scalar engine takes the same
+    ``btfsm.verify.explore.explore``/``explore_fsm``, whose scalar engine takes the same
     arguments and gives the same system. Raises ``Untraceable`` when the tracer cannot
     follow ``run``."""
     t0 = time.perf_counter()

@@ -20,7 +20,7 @@ from btfsm.status import Status
 from ..counterexample import path_counterexample
 from ..explore import EnumOracle
 from ..system import shortest_path
-from . import Result, evaluate
+from .base import Result, evaluate
 
 __all__ = ["check", "dead_states", "terminal_mask", "non_progress", "progress_mask"]
 

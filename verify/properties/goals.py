@@ -1,6 +1,6 @@
 """``goal-reachability``: every goal that can be requested can still succeed.
 
-FSM level, for each FSM as an open system (``verify.explore.explore_fsm``). For every
+FSM level, for each FSM as an open system (``btfsm.verify.explore.explore_fsm``). For every
 reachable state s and every goal g that can be requested in s (g is requested by some
 SkillRequest whose ``pre`` can hold there, or by any request for a model without tree),
 a SUCCESS reply to g must be reachable from s while g stays held: along a sequence of
@@ -17,7 +17,7 @@ from btfsm.status import Status
 from ..counterexample import path_counterexample
 from ..explore import successor_scripts
 from ..system import forward_reach, reverse_reach
-from . import Result
+from .base import Result
 
 __all__ = ["check", "goal_failures"]
 

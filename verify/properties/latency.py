@@ -14,41 +14,10 @@ hold trivially.
 from __future__ import annotations
 
 from ..counterexample import path_counterexample
-from ..explore import EnumOracle, _readable
-from btfsm.errors import DomainError
-from . import Result
+from ..retarget import late_requests
+from .base import Result
 
 __all__ = ["check", "late_requests"]
-
-
-def _results(op, state, adopt) -> dict:
-    """request (readable, without outcomes) -> set of (next state, reply)."""
-    prog = op.program
-    out: dict = {}
-    stack = [()]
-    while stack:
-        script = stack.pop()
-        o = EnumOracle(script)
-        try:
-            st = op.run(state, o, False, adopt)
-            res = None if st is None else (st.state, st.status)
-        except DomainError as exc:
-            res = ("domain", exc.var)
-        for k in range(len(script), len(o.arities)):
-            for c in range(1, o.arities[k]):
-                stack.append(tuple(o.taken[:k]) + (c,))
-        if res is None:
-            continue
-        request = tuple(it for it in _readable(prog, tuple(o.picks), op)[0] if it[0] != "outcome")
-        out.setdefault(request, set()).add(res)
-    return out
-
-
-def late_requests(model, op, state) -> list:
-    """Requests from ``state`` whose results differ from the adopted-parameters reference."""
-    actual = _results(op, state, False)
-    ref = _results(op, state, True)
-    return [req for req in actual if actual[req] != ref.get(req)]
 
 
 def check(ctx) -> Result:

@@ -13,7 +13,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..explore import successor_scripts
-from . import Result
+from .base import Result
 
 __all__ = ["check", "FIRE_LIMIT"]
 

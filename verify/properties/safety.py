@@ -14,7 +14,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..counterexample import path_counterexample
-from . import Result, evaluate
+from .base import Result, evaluate
 
 __all__ = ["check_invariants", "check_contracts", "check_domain"]
 

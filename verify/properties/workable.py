@@ -13,7 +13,7 @@ import numpy as np
 
 from ..counterexample import path_counterexample
 from ..system import forward_reach, reverse_reach
-from . import Result, evaluate
+from .base import Result, evaluate
 
 __all__ = ["check", "workable_mask", "traps"]
 

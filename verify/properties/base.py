@@ -1,0 +1,109 @@
+"""What every property module shares: the ``Result`` of a property, the ``Context`` that
+explores the model and each FSM once, and vectorised expression evaluation over states.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..explore import DEFAULT_MAX_STATES, explore, explore_fsm
+
+__all__ = ["Result", "Context", "evaluate", "columns_of"]
+
+
+@dataclass
+class Result:
+    """The verdict of one property."""
+
+    name: str
+    holds: "bool | None"
+    counterexample: object = None
+    notes: list = field(default_factory=list)
+    info: dict = field(default_factory=dict)
+    seconds: float = 0.0
+
+    def to_json(self) -> dict:
+        return {"name": self.name, "holds": self.holds,
+                "counterexample": self.counterexample.to_json() if self.counterexample is not None else None,
+                "notes": list(self.notes), "info": self.info, "seconds": round(self.seconds, 6)}
+
+
+class Context:
+    """The model under check and its explorations (each done once, on demand)."""
+
+    def __init__(self, model, *, max_states: "int | None" = DEFAULT_MAX_STATES, progress=None, engine: str = "auto"):
+        self.model = model
+        self.max_states = max_states
+        self.engine = engine
+        self.progress = progress
+        self._model_ts = None
+        self._fsm_ts: dict = {}
+        self.systems: list = []
+
+    def model_ts(self):
+        """The whole model's transition system."""
+        if self._model_ts is None:
+            self._model_ts = explore(self.model, max_states=self.max_states,
+                                     progress=self._progress("model"), engine=self.engine)
+            self.systems.append(self._model_ts)
+        return self._model_ts
+
+    def fsm_ts(self, name: str):
+        """FSM ``name`` as an open system."""
+        ts = self._fsm_ts.get(name)
+        if ts is None:
+            ts = self._fsm_ts[name] = explore_fsm(self.model, name, max_states=self.max_states,
+                                                  progress=self._progress(f"fsm {name}"), engine=self.engine)
+            self.systems.append(ts)
+        return ts
+
+    def _progress(self, what):
+        if self.progress is None:
+            return None
+        return lambda states, transitions, seconds: self.progress(what, states, transitions, seconds)
+
+
+def evaluate(ts, expr) -> np.ndarray:
+    """A boolean array: ``expr`` (a checked model expression) in every state of ``ts``,
+    vectorised with numpy over int64 columns (only the columns it reads are built)."""
+    from btfsm.expr import BOOL, compile_fn, to_numpy_source
+
+    prog = ts.model.program
+    if _constant_not(expr):  # numpy evaluates ``~True`` to -2: use the compiled predicate
+        fn = compile_fn(expr, prog.scope, "predicate", BOOL)
+        return np.fromiter((bool(fn(list(ts.full_state(i)))) for i in range(ts.n_states)), bool, ts.n_states)
+    src = to_numpy_source(expr, prog.scope)
+    val = eval(src, {"__builtins__": {}, "np": np, "c": columns_of(ts)})  # noqa: S307 - generated from a checked AST
+    arr = np.asarray(val)
+    if arr.dtype != bool:
+        arr = arr != 0
+    return np.broadcast_to(arr, (ts.n_states,)).copy()
+
+
+def _constant_not(expr) -> bool:
+    """Does ``expr`` negate a sub-expression that reads no variable (a Python bool in numpy)?"""
+    from btfsm.expr import BinOp, BoolOp, Call, Compare, IfElse, Unary, names_in
+
+    if isinstance(expr, Unary):
+        return (expr.op == "not" and not names_in(expr.arg)) or _constant_not(expr.arg)
+    if isinstance(expr, (BoolOp, Call)):
+        return any(_constant_not(a) for a in expr.args)
+    if isinstance(expr, (Compare, BinOp)):
+        return _constant_not(expr.left) or _constant_not(expr.right)
+    if isinstance(expr, IfElse):
+        return any(_constant_not(a) for a in (expr.cond, expr.then, expr.other))
+    return False
+
+
+class columns_of:
+    """Lazy int64 state columns of a transition system, indexed by program slot."""
+
+    def __init__(self, ts):
+        self.ts, self.cache = ts, {}
+
+    def __getitem__(self, slot):
+        col = self.cache.get(slot)
+        if col is None:
+            col = self.cache[slot] = self.ts.column(slot).astype(np.int64)
+        return col
