@@ -36,7 +36,9 @@ transcript; a block that shows something else is tagged (```` ```text ````, ``ya
 **Markers**: an HTML comment on the line just before a fence: ``<!-- transcript: slow -->``
 marks a transcript whose commands take too long for the default test run (its test runs
 only with ``BTFSM_SLOW_DOCS=1``); ``<!-- file: PATH -->`` says that the block's text is
-the repository file PATH (a test compares them; the update copies the file into the block).
+the repository file PATH (a test compares them; the update copies the file into the block);
+``<!-- excerpt: PATH -->`` says that the block's lines appear, consecutively, in that file
+(a test checks it; the update leaves such blocks alone).
 
 **Updating** keeps the shape of each documented output: a command whose output still
 matches is left as it is (so timings do not churn). Otherwise the new output replaces the
@@ -70,7 +72,7 @@ __all__ = ["ROOT", "Block", "Command", "doc_files", "find_blocks", "transcripts"
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 ELISION = "..."
 _FENCE = re.compile(r"^(```+)(.*)$")
-_MARKER = re.compile(r"^<!--\s*(transcript|file)\s*:\s*(.*?)\s*-->\s*$")
+_MARKER = re.compile(r"^<!--\s*(transcript|file|excerpt)\s*:\s*(.*?)\s*-->\s*$")
 _EXIT = re.compile(r"#\s*exit\s+(\d+)")
 _RULES = [(re.compile(r"\(\d+(?:\.\d+)? s\)"), "(<t> s)"),
           (re.compile(r" in \d+(?:\.\d+)? s\b"), " in <t> s"),

@@ -6,8 +6,9 @@
   by the rules of scripts/update_doc_outputs.py (which also regenerates them:
   ``python scripts/update_doc_outputs.py``). Transcripts marked ``<!-- transcript: slow -->``
   run only with ``BTFSM_SLOW_DOCS=1``.
-* Every untagged fenced block is a transcript (a block showing anything else is tagged), and
-  every block marked ``<!-- file: PATH -->`` is that repository file.
+* Every untagged fenced block is a transcript (a block showing anything else is tagged),
+  every block marked ``<!-- file: PATH -->`` is that repository file, and every block
+  marked ``<!-- excerpt: PATH -->`` is a run of consecutive lines of it.
 """
 import importlib.util
 import os
@@ -92,6 +93,14 @@ def test_file_blocks_are_the_files():
     for b in blocks:
         text = open(os.path.join(ROOT, b.markers["file"]), encoding="utf-8").read().rstrip("\n")
         assert "\n".join(b.lines) == text, f"{b.id} differs from {b.markers['file']} (python scripts/update_doc_outputs.py)"
+
+
+def test_excerpt_blocks_are_in_their_files():
+    blocks = [b for p in dox.doc_files() for b in dox.find_blocks(p) if "excerpt" in b.markers]
+    assert blocks, "no <!-- excerpt: PATH --> blocks found"
+    for b in blocks:
+        text = open(os.path.join(ROOT, b.markers["excerpt"]), encoding="utf-8").read()
+        assert b.lines and "\n" + "\n".join(b.lines) + "\n" in "\n" + text, f"{b.id} is not in {b.markers['excerpt']}"
 
 
 # ------------------------------------------------------------- the checker's own rules
