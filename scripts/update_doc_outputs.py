@@ -41,7 +41,8 @@ the repository file PATH (a test compares them; the update copies the file into 
 (a test checks it; the update leaves such blocks alone).
 
 **Updating** keeps the shape of each documented output: a command whose output still
-matches is left as it is (so timings do not churn). Otherwise the new output replaces the
+matches is left as it is, and in a changed output every line that equals a documented line
+after normalisation keeps its documented text (so timings do not churn). Otherwise the new output replaces the
 old, except where ``...`` elides lines: each run of documented lines between elisions
 (a segment) is placed in the new output at the line equal to its first line (or, failing
 that, starting with the same text up to its first ``:``); a segment that ended with an empty
@@ -304,7 +305,7 @@ def updated_output(expected: list, printed: str, tmp: str | None = None) -> list
     if not segs and (lead or trail):
         return expected                         # everything elided
     if not segs:
-        return lines
+        return _keep_equal_lines(expected, lines)
     out: list = [ELISION] if lead else []
     pos = 0
     for n, seg in enumerate(segs):
@@ -316,6 +317,18 @@ def updated_output(expected: list, printed: str, tmp: str | None = None) -> list
         if n < len(segs) - 1 or trail:
             out.append(ELISION)
         pos = end
+    return _keep_equal_lines(expected, out)
+
+
+def _keep_equal_lines(old: list, new: list) -> list:
+    """``new``, where a line equal to a documented one after normalisation (a timing, say)
+    keeps its documented text."""
+    a = [(normalise([x]) or [""])[0] for x in old]
+    b = [(normalise([x]) or [""])[0] for x in new]
+    out = list(new)
+    for tag, i1, i2, j1, j2 in difflib.SequenceMatcher(None, a, b, autojunk=False).get_opcodes():
+        if tag == "equal":
+            out[j1:j2] = old[i1:i2]
     return out
 
 

@@ -148,6 +148,7 @@ def test_normalisation_drops_progress_redraws_and_temporary_paths():
     (["...", "FSM support: 1"], "a\n\nFSM support: 2\nmore\n", ["...", "FSM support: 2", "more"]),
     (["...", "gone", "..."], "a\nb\n", None),                          # cannot be placed
     (["..."], "anything\n", ["..."]),
+    (["a", "x (0.10 s)", "b"], "a\nNEW\nx (9.99 s)\nb\n", ["a", "NEW", "x (0.10 s)", "b"]),   # timing kept
 ])
 def test_update_keeps_the_shape(expected, printed, want):
     assert dox.updated_output(expected, printed) == want
