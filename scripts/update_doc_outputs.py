@@ -42,14 +42,15 @@ the repository file PATH (a test compares them; the update copies the file into 
 
 **Updating** keeps the shape of each documented output: a command whose output still
 matches is left as it is, and in a changed output every line that equals a documented line
-after normalisation keeps its documented text (so timings do not churn). Otherwise the new output replaces the
-old, except where ``...`` elides lines: each run of documented lines between elisions
+after normalisation keeps its documented text (so timings do not churn). Otherwise the
+new output replaces the old, except where ``...`` elides lines: each run of documented lines between elisions
 (a segment) is placed in the new output at the line equal to its first line (or, failing
 that, starting with the same text up to its first ``:``); a segment that ended with an empty
 line before ``...`` is refilled with as many whole paragraphs (blank-line separated) as it
 had, any other segment with as many lines as it had; the last segment, when no ``...``
 follows it, runs to the end of the output. A segment that cannot be placed is reported and
-its block left unchanged (edit that block by hand).
+left out (the script names it and exits 1: review that block and the text around it). A
+changed exit code rewrites the command's ``# exit N`` comment (and says so).
 """
 from __future__ import annotations
 
@@ -68,7 +69,7 @@ from dataclasses import dataclass, field
 
 __all__ = ["ROOT", "Block", "Command", "doc_files", "find_blocks", "transcripts", "parse_commands",
            "normalise", "matches", "run_command", "run_transcript", "check_transcript", "updated_output",
-           "update_file", "main"]
+           "with_exit_code", "update_file", "main"]
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 ELISION = "..."
@@ -190,7 +191,10 @@ def run_command(line: str, cwd: str) -> tuple:
     if argv[0] == "btfsm":
         from btfsm.cli import main as cli_main
 
-        buf = io.StringIO()
+        # one stream for stdout and stderr (their order kept), not a terminal, with a
+        # .buffer and .reconfigure like the real ones
+        raw = io.BytesIO()
+        buf = io.TextIOWrapper(raw, encoding="utf-8", errors="backslashreplace", write_through=True)
         old = os.getcwd()
         os.chdir(cwd)
         try:
@@ -199,9 +203,10 @@ def run_command(line: str, cwd: str) -> tuple:
                     code = cli_main(argv[1:])
                 except SystemExit as exc:
                     code = exc.code if isinstance(exc.code, int) else (0 if exc.code is None else 2)
+                buf.flush()
         finally:
             os.chdir(old)
-        return int(code or 0), buf.getvalue()
+        return int(code or 0), raw.getvalue().decode("utf-8", errors="backslashreplace")
     if argv[0] in ("python", "python3"):
         proc = subprocess.run([sys.executable, *argv[1:]], cwd=cwd, stdout=subprocess.PIPE,
                               stderr=subprocess.STDOUT, text=True, timeout=600)
@@ -292,8 +297,9 @@ def _extent(seg: list, lines: list, at: int, last_open: bool) -> int:
     return min(len(lines), at + len(seg))
 
 
-def updated_output(expected: list, printed: str, tmp: str | None = None) -> list | None:
-    """New documented lines for a command (None: a segment could not be placed)."""
+def updated_output(expected: list, printed: str, tmp: str | None = None, dropped: list | None = None) -> list:
+    """New documented lines for a command. A segment that cannot be placed is left out
+    (its first line is appended to ``dropped``)."""
     lines = [line.rstrip() for line in printed.split("\n") if "\r" not in line]
     if tmp:
         lines = [line.replace(os.path.realpath(tmp), "<tmp>").replace(tmp, "<tmp>") for line in lines]
@@ -311,13 +317,27 @@ def updated_output(expected: list, printed: str, tmp: str | None = None) -> list
     for n, seg in enumerate(segs):
         at = pos if (n == 0 and not lead) else _find(seg[0], lines, pos)
         if at is None:
-            return None
+            if dropped is not None:
+                dropped.append(seg[0])
+            if not out or out[-1] != ELISION:
+                out.append(ELISION)
+            continue
         end = _extent(seg, lines, at, last_open=(n == len(segs) - 1 and not trail))
         out.extend(lines[at:end])
-        if n < len(segs) - 1 or trail:
+        if (n < len(segs) - 1 or trail) and (not out or out[-1] != ELISION):
             out.append(ELISION)
         pos = end
     return _keep_equal_lines(expected, out)
+
+
+def with_exit_code(line: str, code: int) -> str:
+    """A command line whose ``# exit N`` comment says ``code`` (none for 0)."""
+    m = _EXIT.search(line)
+    if m:
+        if code == 0:
+            return line[:line.index("#", m.start())].rstrip()
+        return line[:m.start(1)] + str(code) + line[m.end(1):]
+    return line if code == 0 else f"{line}   # exit {code}"
 
 
 def _keep_equal_lines(old: list, new: list) -> list:
@@ -344,17 +364,18 @@ def update_file(path: str, fast: bool = False, log=print) -> tuple:
         elif block.is_transcript and not (fast and block.slow):
             new = []
             for cmd, code, out, tmp in run_transcript(block):
+                line = cmd.line
                 if code != cmd.exit_code:
-                    log(f"{block.id}: $ {cmd.line}: exit code {code}, documented {cmd.exit_code} "
-                        "(fix the '# exit N' comment by hand)")
-                got = updated_output(cmd.expected, out, tmp)
-                if got is None:
-                    log(f"{block.id}: $ {cmd.line}: an elided segment is no longer in the output; "
-                        "block left unchanged, edit it by hand")
+                    line = with_exit_code(line, code)
+                    log(f"{block.id}: $ {cmd.line}: exit code {code}, documented {cmd.exit_code}: "
+                        "comment updated (check the text around the block)")
+                dropped: list = []
+                got = updated_output(cmd.expected, out, tmp, dropped)
+                for first in dropped:
                     failed += 1
-                    new = None
-                    break
-                new.append("$ " + cmd.line)
+                    log(f"{block.id}: $ {cmd.line}: no longer printed, left out: {first!r} "
+                        "(review the block and the text around it)")
+                new.append("$ " + line)
                 new.extend(got)
         if new is not None and new != block.lines:
             lines[block.start + 1:block.start + 1 + len(block.lines)] = new
@@ -382,6 +403,14 @@ def main(argv=None) -> int:
                     for problem in check_transcript(block):
                         print(problem)
                         bad += 1
+                for kind in ("file", "excerpt"):
+                    if kind in block.markers:
+                        text = open(os.path.join(ROOT, block.markers[kind]), encoding="utf-8").read()
+                        shown = "\n".join(block.lines)
+                        ok = (shown == text.rstrip("\n")) if kind == "file" else ("\n" + shown + "\n") in ("\n" + text)
+                        if not ok:
+                            print(f"{block.id}: not the text of {block.markers[kind]}")
+                            bad += 1
         else:
             bad += update_file(path, fast=args.fast)[1]
     return 1 if bad else 0

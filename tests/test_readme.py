@@ -146,9 +146,27 @@ def test_normalisation_drops_progress_redraws_and_temporary_paths():
     (["s1", "", "..."], "s1\ns2\n\nw1\nw2\n", ["s1", "s2", "", "..."]),   # whole paragraph kept
     (["...", "k: x", "..."], "a\nk: y\nb\n", ["...", "k: y", "..."]),     # anchored by 'k:'
     (["...", "FSM support: 1"], "a\n\nFSM support: 2\nmore\n", ["...", "FSM support: 2", "more"]),
-    (["...", "gone", "..."], "a\nb\n", None),                          # cannot be placed
+    (["...", "gone", "..."], "a\nb\n", ["..."]),                       # cannot be placed: left out
+    (["s", "...", "gone", "...", "k: 1"], "s\nx\nk: 2\n", ["s", "...", "k: 2"]),
     (["..."], "anything\n", ["..."]),
     (["a", "x (0.10 s)", "b"], "a\nNEW\nx (9.99 s)\nb\n", ["a", "NEW", "x (0.10 s)", "b"]),   # timing kept
 ])
 def test_update_keeps_the_shape(expected, printed, want):
     assert dox.updated_output(expected, printed) == want
+    assert dox.matches(dox.normalise(want), dox.normalise(printed))
+
+
+def test_update_names_what_it_left_out():
+    dropped = []
+    dox.updated_output(["a", "...", "gone", "..."], "a\nb\n", dropped=dropped)
+    assert dropped == ["gone"]
+
+
+@pytest.mark.parametrize("line, code, want", [
+    ("btfsm check m", 0, "btfsm check m"),
+    ("btfsm check m", 1, "btfsm check m   # exit 1"),
+    ("btfsm check m   # exit 1: violated", 3, "btfsm check m   # exit 3: violated"),
+    ("btfsm check m   # exit 1: violated", 0, "btfsm check m"),
+])
+def test_exit_code_comment(line, code, want):
+    assert dox.with_exit_code(line, code) == want
