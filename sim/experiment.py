@@ -118,11 +118,23 @@ def format_table(summary: dict, paper: dict = PAPER) -> str:
             ("reaction min / median / max [s]", lambda s, v: _rt(s), lambda v: "-"),
             ("max reaction / dt* (16 s)", lambda s, v: _pct(s["reaction_max_fraction"]),
              lambda v: f"{paper['max_reaction_fraction']:.0%}" if v == "preemptive" else "-")]
+    n_paper = paper.get("trials", 40)
     head = f"{'':34s}" + "".join(f"{v + ' (ours)':>20s}{v + ' (paper)':>20s}" for v in summary)
-    lines = [head, "-" * len(head)]
+    counts = f"{'totals over':34s}" + "".join(f"{_trials(summary[v]['trials']):>20s}{_trials(n_paper):>20s}"
+                                               for v in summary)
+    lines = [head, counts, "-" * len(head)]
     for label, ours, theirs in rows:
         lines.append(f"{label:34s}" + "".join(f"{ours(summary[v], v):>20s}{theirs(v):>20s}" for v in summary))
+    ns = sorted({summary[v]["trials"] for v in summary})
+    if ns != [n_paper]:
+        ours = " or ".join(_trials(n) for n in ns)
+        lines.append(f"note: ours are totals over {ours} per variant, the paper's over {n_paper}: "
+                     "compare counts per trial, not the totals")
     return "\n".join(lines)
+
+
+def _trials(n: int) -> str:
+    return f"{n} trial" + ("" if n == 1 else "s")
 
 
 def _rt(s) -> str:
