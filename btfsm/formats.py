@@ -36,9 +36,15 @@ class FormatError(ValueError):
         super().__init__(printable(": ".join(p for p in (self.file, where, problem) if p)))
 
 
+# control characters and line separators, escaped so that a message stays one line
+_CONTROLS = {c: f"\\x{c:02x}" if c < 0x100 else f"\\u{c:04x}"
+             for c in [*range(0x20), *range(0x7f, 0xa0), 0x2028, 0x2029]}
+
+
 def printable(text: str, limit: int = 0) -> str:
-    """``text`` with lone surrogates (and other unencodable characters) escaped, so that
-    printing it never raises; cut to ``limit`` characters when ``limit`` > 0.
+    """``text`` with lone surrogates, control characters and line separators escaped, so
+    that printing it never raises and stays on one line; cut to ``limit`` characters when
+    ``limit`` > 0.
 
     >>> printable("a\\udc80b")
     'a\\\\udc80b'
@@ -46,7 +52,7 @@ def printable(text: str, limit: int = 0) -> str:
     text = str(text)
     if limit and len(text) > limit:
         text = text[: limit - 3] + "..."
-    return text.encode("utf-8", "backslashreplace").decode("utf-8")
+    return text.translate(_CONTROLS).encode("utf-8", "backslashreplace").decode("utf-8")
 
 
 def describe(value) -> str:
@@ -112,7 +118,7 @@ def parse_json(text: str, file: str, line: "int | None" = None):
         obj = json.loads(text, parse_constant=_constant, parse_float=_finite)
     except json.JSONDecodeError as exc:
         where = f"line {line}" if line is not None else f"line {exc.lineno} column {exc.colno}"
-        ended = exc.pos >= len(text.rstrip())
+        ended = exc.pos >= len(text.rstrip()) or exc.msg.startswith("Unterminated string")
         problem = "the JSON ends too early (truncated?)" if ended and text.strip() else f"not valid JSON ({exc.msg})"
         if not text.strip():
             problem = "empty, not JSON"
