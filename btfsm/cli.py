@@ -201,8 +201,10 @@ def cli_run(args) -> int:
             except DomainError as exc:
                 problem = f"tick {tick}: domain error: {exc}"
                 break
-            except ConformanceError as exc:  # its text starts with the tick or names the site
-                problem = f"{'' if str(exc).startswith('tick ') else f'tick {tick}: '}blocked: {exc}"
+            except ConformanceError as exc:  # a tick the model cannot take, or a refused answer
+                text = str(exc)
+                prefix = f"tick {tick}: "
+                problem = f"{prefix}blocked: {text[len(prefix):] if text.startswith(prefix) else text}"
                 break
             counts[step.status.name] += 1
             if step.violations:

@@ -424,3 +424,125 @@ def test_fast_record_check_accepts_only_what_the_schema_accepts(rec):
 def test_fast_record_check_accepts_real_records(real):
     lines = _lines(real)
     assert all(plain_record(json.loads(x)) for x in lines[1:])
+
+
+# ---------------------------------------------------------------------- the formats cover what is written
+
+from btfsm.models.examples.defects import EXPECTED  # noqa: E402
+
+
+@pytest.mark.parametrize("name", sorted(k for k, v in EXPECTED.items() if v))
+def test_every_counterexample_of_the_defect_catalogue_follows_the_schema(name):
+    """Model, FSM and static levels, lassos, domain errors: each counterexample as written
+    passes the schema (checked with plain jsonschema too) and replays."""
+    import jsonschema
+
+    from btfsm.files import load_model
+    from btfsm.formats import load_schema
+    from btfsm.verify import check, replay_counterexample
+
+    model = load_model(name)
+    report = check(model, sorted(EXPECTED[name]))
+    ces = [r.counterexample for r in report.results if r.counterexample is not None]
+    assert ces
+    for ce in ces:
+        doc = json.loads(json.dumps(ce.to_json(), default=lambda x: x.item() if hasattr(x, "item") else str(x)))
+        jsonschema.validate(doc, load_schema("counterexample"))
+        assert load_counterexample(doc).to_json() == doc
+        ok, text = replay_counterexample(doc, model)
+        assert ok, text
+
+
+@pytest.mark.parametrize("name", ["two-area", "defect-contract", "ariac-preemptive"])
+def test_traces_as_written_follow_the_schema(name, tmp_path):
+    import jsonschema
+
+    from btfsm.formats import load_schema
+
+    path = tmp_path / "t.jsonl"
+    with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(io.StringIO()):
+        assert _main(["run", name, "--ticks", "60", "--trace", str(path)]) in (0, 1)
+    schema = load_schema("trace")
+    lines = path.read_text().splitlines()
+    jsonschema.validate(json.loads(lines[0]), {"$defs": schema["$defs"], "$ref": "#/$defs/header"})
+    for line in lines[1:]:
+        rec = json.loads(line)
+        jsonschema.validate(rec, {"$defs": schema["$defs"], "$ref": "#/$defs/record"})
+        assert plain_record(rec)
+
+
+# ---------------------------------------------------------------------- btfsm run meets a violation
+
+
+@pytest.mark.parametrize("name,what", [("defect-domain", "domain error"), ("defect-dead-state", "blocked"),
+                                       ("defect-contract", "contract violation")])
+def test_run_stops_at_a_violation_with_one_line_and_exit_1(name, what, tmp_path, capsys):
+    trace = tmp_path / "t.jsonl"
+    assert _main(["run", name, "--ticks", "200", "--trace", str(trace)]) == 1
+    out, err = capsys.readouterr()
+    assert err.count("\n") == 1 and err.startswith("btfsm run: stopped at tick ") and what in err
+    assert "Traceback" not in out + err
+    header, records = read_trace(str(trace))  # the ticks up to the violation, complete
+    assert records and f"{len(records)} ticks" in out
+    if what == "contract violation":
+        assert records[-1]["violations"]  # the violating tick is in the trace
+    assert [p.name for p in tmp_path.iterdir()] == ["t.jsonl"]  # no temporary file left
+    assert _main(["replay", str(trace), name]) == 0
+    assert "reproduces exactly" in capsys.readouterr().out
+
+
+def test_run_without_violation_exits_0(capsys):
+    assert _main(["run", "two-area", "--ticks", "30"]) == 0
+    out, err = capsys.readouterr()
+    assert err == "" and "30 ticks" in out
+
+
+def test_run_trace_is_replaced_only_when_complete(tmp_path, capsys, monkeypatch):
+    """A run that fails half-way (here: an unexpected error) leaves an existing trace as it
+    was and no temporary file; a successful run replaces it."""
+    from btfsm.runtime import Runtime
+
+    trace = tmp_path / "t.jsonl"
+    trace.write_text("old\n")
+    calls = []
+
+    def broken(self, events=()):
+        calls.append(1)
+        if len(calls) > 3:
+            raise RuntimeError("implementation crashed")
+        return real_tick(self, events)
+
+    real_tick = Runtime.tick
+    monkeypatch.setattr(Runtime, "tick", broken)
+    with pytest.raises(RuntimeError):
+        cli.main(["run", "two-area", "--ticks", "10", "--trace", str(trace)])
+    assert trace.read_text() == "old\n" and [p.name for p in tmp_path.iterdir()] == ["t.jsonl"]
+    monkeypatch.setattr(Runtime, "tick", real_tick)
+    assert _main(["run", "two-area", "--ticks", "10", "--trace", str(trace)]) == 0
+    assert len(read_trace(str(trace))[1]) == 10
+    capsys.readouterr()
+
+
+@pytest.mark.parametrize("target", ["model", "folder", "missing-folder"])
+def test_run_refuses_trace_targets(target, tmp_path, capsys):
+    model = tmp_path / "m.yaml"
+    from btfsm.files import dump_model, load_model
+
+    dump_model(load_model("two-area"), str(model))
+    before = model.read_bytes()
+    path = {"model": model, "folder": tmp_path, "missing-folder": tmp_path / "no" / "t.jsonl"}[target]
+    assert _main(["run", str(model), "--ticks", "3", "--trace", str(path)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and str(path) in err
+    assert model.read_bytes() == before
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["m.yaml"]
+
+
+def test_run_trace_to_a_full_device(capsys):
+    import os
+
+    if not os.path.exists("/dev/full"):
+        pytest.skip("no /dev/full")
+    assert _main(["run", "two-area", "--ticks", "3", "--trace", "/dev/full"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "/dev/full" in err
