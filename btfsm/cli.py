@@ -213,13 +213,13 @@ def cli_run(args) -> int:
                            "is false")
                 break
     except KeyboardInterrupt:
-        rt.close()  # the ticks done so far make a complete trace
+        _finish_run(rt)  # the ticks done so far make a complete trace
         raise
     except BaseException:
         if rt.trace is not None:
             rt.trace.discard()
         raise
-    rt.close()
+    _finish_run(rt)
     done = sum(counts.values())
     print(f"{model.name}: {done} ticks ({done / model.tick_rate:g} s), root "
           + ", ".join(f"{k} {v}" for k, v in counts.items()))
@@ -234,6 +234,16 @@ def cli_run(args) -> int:
         print(f"btfsm run: stopped at {printable(problem)}", file=sys.stderr)
         return 1
     return 0
+
+
+def _finish_run(rt) -> None:
+    """Write the rest of the trace and put it in place; on failure leave nothing behind."""
+    try:
+        rt.close()
+    except BaseException:
+        if rt.trace is not None:
+            rt.trace.discard()
+        raise
 
 
 def _check_trace_target(trace, model_ref) -> None:
