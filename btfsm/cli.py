@@ -173,30 +173,91 @@ def main(argv=None) -> int:
 
 
 def cli_run(args) -> int:
+    """Run with seeded random outcomes. The run stops at the first violation (a domain
+    error, a tick the model cannot take or a conformance error, a contract violation):
+    one line on stderr, exit 1; the trace holds every tick up to it (the violating tick
+    itself when it completed, as a contract violation does)."""
+    from .errors import ConformanceError, DomainError
     from .files import load_model
+    from .formats import printable
     from .oracles import RandomOracle
     from .runtime import Runtime
 
     model = load_model(args.model)
     if args.ticks < 0:
         raise UsageError("--ticks must be >= 0")
+    if args.trace:
+        _check_trace_target(args.trace, args.model)
     rt = Runtime(model, fallback=RandomOracle(args.seed, args.p_env), trace=args.trace)
     env_rng = RandomOracle(args.seed + 1, args.p_env)
     rt_oracle_events = _random_events(model, env_rng)
     counts = {"RUNNING": 0, "SUCCESS": 0, "FAILURE": 0}
-    for _ in range(args.ticks):
-        step = rt.tick(rt_oracle_events(rt))
-        counts[step.status.name] += 1
-    rt.close()
-    print(f"{model.name}: {args.ticks} ticks ({args.ticks / model.tick_rate:g} s), root "
+    problem = None
+    try:
+        for _ in range(args.ticks):
+            tick = rt.clock.tick
+            try:
+                step = rt.tick(rt_oracle_events(rt))
+            except DomainError as exc:
+                problem = f"tick {tick}: domain error: {exc}"
+                break
+            except ConformanceError as exc:  # a tick the model cannot take, or a refused answer
+                text = str(exc)
+                prefix = f"tick {tick}: "
+                problem = f"{prefix}blocked: {text[len(prefix):] if text.startswith(prefix) else text}"
+                break
+            counts[step.status.name] += 1
+            if step.violations:
+                nodes = ", ".join(f"'{v[1]}'" for v in step.violations)
+                problem = (f"tick {tick}: contract violation: {nodes} replied SUCCESS while its post-condition "
+                           "is false")
+                break
+    except KeyboardInterrupt:
+        _finish_run(rt)  # the ticks done so far make a complete trace
+        raise
+    except BaseException:
+        if rt.trace is not None:
+            rt.trace.discard()
+        raise
+    _finish_run(rt)
+    done = sum(counts.values())
+    print(f"{model.name}: {done} ticks ({done / model.tick_rate:g} s), root "
           + ", ".join(f"{k} {v}" for k, v in counts.items()))
     print("final: " + ", ".join(f"{k}={v}" for k, v in rt.vars.items()))
     for f in model.fsms:
         st, goal = rt.fsm_state(f.name)
         print(f"fsm {f.name}: state '{st}', goal {goal}")
     if args.trace:
-        print(f"trace: {args.trace}")
+        print(f"trace: {printable(args.trace)}")
+    if problem is not None:
+        sys.stdout.flush()
+        print(f"btfsm run: stopped at {printable(problem)}", file=sys.stderr)
+        return 1
     return 0
+
+
+def _finish_run(rt) -> None:
+    """Write the rest of the trace and put it in place; on failure leave nothing behind."""
+    try:
+        rt.close()
+    except BaseException:
+        if rt.trace is not None:
+            rt.trace.discard()
+        raise
+
+
+def _check_trace_target(trace, model_ref) -> None:
+    """Refuse a --trace path that is a folder or the model file itself."""
+    from .formats import printable as printable_path
+
+    if os.path.isdir(trace):
+        raise UsageError(f"--trace {printable_path(trace)}: is a directory")
+    try:
+        same = os.path.exists(trace) and os.path.exists(model_ref) and os.path.samefile(trace, model_ref)
+    except OSError:
+        same = False
+    if same:
+        raise UsageError(f"--trace {printable_path(trace)}: is the model file; give the trace another name")
 
 
 def _random_events(model, rng):
@@ -223,18 +284,23 @@ def _random_events(model, rng):
 
 
 def cli_replay(args) -> int:
+    """Replay a trace (JSON Lines) or a counterexample (``.json``): exit 0 when it
+    reproduces, 1 when the model does something else, 2 when the file is not a valid
+    trace or counterexample (one line naming the file, the line or JSON path, the problem)."""
     from .files import load_model
+    from .formats import FormatError, printable
     from .trace import replay
 
     model = load_model(args.model)
     if str(args.trace).endswith(".json"):
-        from btfsm.verify.counterexample import replay_counterexample
+        from btfsm.verify.counterexample import load_counterexample, replay_counterexample
 
         try:
-            ok, text = replay_counterexample(args.trace, model)
-        except (OSError, ValueError, KeyError) as exc:
-            raise UsageError(f"{args.trace}: not a counterexample of this model ({exc})") from None
-        print(text)
+            ce = load_counterexample(args.trace)
+        except FormatError as exc:
+            raise UsageError(str(exc)) from None
+        ok, text = replay_counterexample(ce, model)
+        print(printable(text))
         if args.cell:
             from btfsm.sim.binding import CellBinding
             from btfsm.sim.replay import replay_in_cell
@@ -242,19 +308,19 @@ def cli_replay(args) -> int:
             why = CellBinding.unsupported(model)
             if why:
                 raise UsageError(f"{model.name}: the kitting cell cannot run this model ({why})")
-            print(replay_in_cell(model, args.trace, time_limit=args.time, render=args.render, gif=args.gif).text())
+            print(replay_in_cell(model, ce.to_json(), time_limit=args.time, render=args.render, gif=args.gif).text())
         return 0 if ok else 1
     if args.cell:
         raise UsageError("--cell replays counterexamples (.json), not traces")
     try:
         result = replay(args.trace, model)
-    except (OSError, ValueError) as exc:
-        raise UsageError(f"{args.trace}: {exc}") from None
+    except FormatError as exc:
+        raise UsageError(str(exc)) from None
     if result is None:
-        print(f"replay: {args.trace} reproduces exactly on {model.name}")
+        print(f"replay: {printable(args.trace)} reproduces exactly on {model.name}")
         return 0
     tick, why = result
-    print(f"replay: differs at tick {tick}: {why}")
+    print(f"replay: differs at tick {tick}: {printable(why)}")
     return 1
 
 

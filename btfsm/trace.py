@@ -8,20 +8,30 @@ Line 1 is a header ``{"format": "btfsm-trace/1", "model": ..., "tick_rate": ...,
 status changed, ``"halted"`` for halted ones), ``fired`` ([fsm, edge or marker id]),
 ``fsm`` ({name: [state, goal]}), ``writes`` ({variable: value}), ``violations``.
 
+The format is written down as a JSON Schema, ``btfsm/schema/trace.schema.json``
+(``$defs/header``, ``$defs/record``). ``read_trace`` checks every line against it and the
+ticks for being consecutive from 0; a file that does not follow the format raises a
+``btfsm.formats.FormatError`` naming the file, the line, the field and the problem.
+
 ``replay(lines, model)`` re-runs the model answering every choice from the trace and
 returns the first tick whose regenerated record differs (None when all agree).
+
+A trace written to a path goes to a temporary name in the same folder and is renamed
+when the writer is closed, so a run that fails half-way leaves no half-written file
+(a FIFO, a device such as ``/dev/stdout``, is written directly).
 """
 from __future__ import annotations
 
-import io
 import json
-from typing import Iterable
+import os
+import stat
 
 from .clock import Clock
-from .status import Status
+from .errors import DomainError
+from .formats import FormatError, decode_utf8, parse_json, printable, validate
 
 __all__ = ["TraceWriter", "tick_record", "read_trace", "replay", "ReplayOracle", "AnswerOracle",
-           "render_answers", "FORMAT"]
+           "render_answers", "FORMAT", "FormatError"]
 
 FORMAT = "btfsm-trace/1"
 _NAMES = ("RUNNING", "SUCCESS", "FAILURE")
@@ -73,43 +83,198 @@ def tick_record(program, clock, step, last_status: dict) -> dict:
             "violations": violations}
 
 
+def _open_replacing(path) -> tuple:
+    """(text stream, temporary path or None) to write ``path``: a regular file (or a new
+    one) is written to ``.NAME.PID.tmp`` in the same folder, to be renamed over ``path``
+    when complete; a FIFO or a device is opened directly; a folder is refused."""
+    path = os.path.realpath(os.fspath(path))  # a symbolic link stays a link to the new file
+    try:
+        mode = os.stat(path).st_mode
+    except FileNotFoundError:
+        mode = None
+    if mode is not None and stat.S_ISDIR(mode):
+        raise IsADirectoryError(21, "is a directory", path)
+    if mode is not None and not stat.S_ISREG(mode):
+        return open(path, "w", encoding="utf-8"), None
+    folder, base = os.path.split(path)
+    tmp = os.path.join(folder, f".{base}.{os.getpid()}.tmp")
+    try:
+        return open(tmp, "w", encoding="utf-8"), tmp
+    except OSError as exc:
+        raise type(exc)(exc.errno, exc.strerror, path) from None
+
+
 class TraceWriter:
-    """Writes a header and tick records as JSON Lines to a path or a text stream."""
+    """Writes a header and tick records as JSON Lines to a path or a text stream.
+
+    A path is written under a temporary name; ``close()`` renames it into place and
+    ``discard()`` removes it (the path is then left as it was)."""
 
     def __init__(self, target, program, initial_state):
         self._own = not hasattr(target, "write")
-        self.out = open(target, "w", encoding="utf-8") if self._own else target
+        self._tmp = None
+        if self._own:
+            self.path = os.path.realpath(os.fspath(target))
+            self.out, self._tmp = _open_replacing(self.path)
+        else:
+            self.path, self.out = None, target
         header = {"format": FORMAT, "model": program.model.name, "tick_rate": program.model.tick_rate,
                   "initial": _jsonable(program.decode(initial_state))}
-        self.out.write(json.dumps(header) + "\n")
+        try:
+            self.out.write(json.dumps(header) + "\n")
+        except OSError as exc:
+            self.discard()
+            raise self._named(exc) from None
+        except BaseException:
+            self.discard()
+            raise
 
     def write(self, record: dict) -> None:
-        self.out.write(json.dumps(record) + "\n")
+        try:
+            self.out.write(json.dumps(record) + "\n")
+        except OSError as exc:
+            raise self._named(exc) from None
+
+    def _named(self, exc: OSError) -> OSError:
+        """The error with the trace's path as its file name (not the temporary one)."""
+        if self.path is None or exc.errno is None:
+            return exc
+        return type(exc)(exc.errno, exc.strerror, self.path)
 
     def close(self) -> None:
-        if self._own:
-            self.out.close()
-        else:
+        """Finish the trace: a path is complete and in place afterwards."""
+        if not self._own:
             self.out.flush()
+            return
+        if self.out.closed:
+            return
+        try:
+            self.out.close()
+            if self._tmp is not None:
+                os.replace(self._tmp, self.path)
+                self._tmp = None
+        except OSError as exc:
+            self.discard()
+            raise self._named(exc) from None
+        except BaseException:
+            self.discard()
+            raise
+
+    def discard(self) -> None:
+        """Drop a trace written to a path (its temporary file); the path keeps what it had."""
+        if not self._own:
+            return
+        try:
+            self.out.close()
+        except OSError:
+            pass
+        if self._tmp is not None:
+            try:
+                os.unlink(self._tmp)
+            except OSError:
+                pass
+            self._tmp = None
 
 
 def _jsonable(d: dict) -> dict:
     return {k: (v if isinstance(v, (bool, int, str)) or v is None else str(v)) for k, v in d.items()}
 
 
-def read_trace(source) -> tuple[dict, list]:
-    """(header, tick records) from a path, a text stream or a list of lines."""
+def _lines_of(source) -> tuple:
+    """(file name for messages, [(line number, text)]) of a path, stream or list of lines."""
     if isinstance(source, (list, tuple)):
-        lines = list(source)
-    elif hasattr(source, "read"):
-        lines = source.read().splitlines()
+        return "<trace>", [(i, str(line)) for i, line in enumerate(source, 1)]
+    if hasattr(source, "read"):
+        name, data = str(getattr(source, "name", "<trace>")), source.read()
     else:
-        with open(source, encoding="utf-8") as fh:
-            lines = fh.read().splitlines()
-    objs = [json.loads(line) for line in lines if line.strip()]
-    if not objs or objs[0].get("format") != FORMAT:
-        raise ValueError(f"not a {FORMAT} trace (first line must be its header)")
-    return objs[0], objs[1:]
+        name = os.fspath(source)
+        with open(name, "rb") as fh:
+            data = fh.read()
+    if isinstance(data, bytes):
+        data = decode_utf8(data, name)
+    return name, [(i, line.rstrip("\r")) for i, line in enumerate(data.split("\n"), 1)]
+
+
+_RECORD_KEYS = frozenset(("tick", "time", "status", "env", "outcomes", "changes", "fired", "fsm", "writes",
+                          "violations"))
+_CHANGED = frozenset(("RUNNING", "SUCCESS", "FAILURE", "halted"))
+
+
+def _names_pairs(xs) -> bool:
+    return type(xs) is list and all(type(p) is list and len(p) == 2 and type(p[0]) is str and type(p[1]) is str
+                                    for p in xs)
+
+
+def plain_record(r) -> bool:
+    """A fast check that ``r`` follows ``$defs/record`` of the trace schema; it accepts a
+    subset of what the schema accepts (tested), so long traces need not go through
+    ``jsonschema`` line by line. What it does not accept is judged by the schema."""
+    if type(r) is not dict or r.keys() != _RECORD_KEYS:
+        return False
+    tick, time, status = r["tick"], r["time"], r["status"]
+    env, changes, fsm, writes, violations = r["env"], r["changes"], r["fsm"], r["writes"], r["violations"]
+    return (type(tick) is int and tick >= 0 and type(time) in (int, float) and time >= 0
+            and type(status) is str and status in _NAMES
+            and type(env) is list and all(type(e) is str for e in env)
+            and _names_pairs(r["outcomes"]) and _names_pairs(r["fired"])
+            and type(changes) is dict and all(type(v) is str and v in _CHANGED for v in changes.values())
+            and type(fsm) is dict and all(type(v) is list and len(v) == 2 and type(v[0]) is str
+                                          and (v[1] is None or type(v[1]) is str) for v in fsm.values())
+            and type(writes) is dict and all(v is None or type(v) in (bool, int, str) for v in writes.values())
+            and type(violations) is list and all(type(v) is list and len(v) >= 2 and all(type(x) is str for x in v)
+                                                 for v in violations))
+
+
+def read_trace(source) -> tuple[dict, list]:
+    """(header, tick records) from a path, a text stream or a list of lines, each line
+    checked against the format (``btfsm/schema/trace.schema.json``); blank lines are
+    skipped. Raises ``FormatError`` (a ValueError) naming the file, line and field."""
+    name, lines = _lines_of(source)
+    header, records = None, []
+    for no, line in lines:
+        if not line.strip():
+            continue
+        obj = parse_json(line, name, line=no)
+        if header is None:
+            if not isinstance(obj, dict) or obj.get("format") != FORMAT:
+                raise FormatError(name, f"line {no}", f"not a {FORMAT} trace: the first line must be its header "
+                                                      f'{{"format": "{FORMAT}", "model": ..., "tick_rate": ..., "initial": ...}}')
+            validate(obj, "trace", name, f"line {no}", "header")
+            header = obj
+            continue
+        if not plain_record(obj):  # the schema decides, and words the problem
+            validate(obj, "trace", name, f"line {no}", "record")
+        if obj["tick"] != len(records):
+            raise FormatError(name, f"line {no}: tick", f"expected {len(records)} (ticks are consecutive from 0), "
+                                                        f"got {printable(obj['tick'], 40)}")
+        records.append(obj)
+    if header is None:
+        raise FormatError(name, "", f"empty: not a {FORMAT} trace (the first line must be its header)")
+    return header, records
+
+
+def encode_state(program, values: dict) -> tuple:
+    """The state tuple of readable ``values`` ({slot: value}, as ``Program.decode`` gives
+    them; missing slots keep their initial value), checked slot by slot: a ValueError
+    names the first slot that the model does not have or whose value it cannot hold."""
+    names = {info.name for info in program.slots}
+    unknown = [k for k in values if k not in names]
+    if unknown:
+        raise ValueError(f"'{printable(unknown[0], 60)}' is not a variable or slot of {program.model.name}")
+    state = list(program.initial)
+    for i, info in enumerate(program.slots):
+        if info.name not in values:
+            continue
+        val = values[info.name]
+        try:
+            code = program.encode({info.name: val})[i]
+        except (KeyError, ValueError, IndexError, TypeError, OverflowError):
+            code = None
+        back = None if code is None or not info.lo <= code < info.lo + info.size else program.decode_slot(i, code)
+        if back is None or back != val or isinstance(back, bool) != isinstance(val, bool):
+            raise ValueError(f"{info.name} = {printable(json.dumps(val), 40)} is not a value it can hold")
+        state[i] = code
+    return tuple(state)
 
 
 class _NamedEvents:
@@ -190,23 +355,31 @@ def render_answers(program, initial, answers, writer: "TraceWriter", first_tick:
 
 
 def replay(source, model, state=None) -> "tuple[int, str] | None":
-    """Re-run a trace; return ``(tick, why)`` at the first difference, or None."""
+    """Re-run a trace; return ``(tick, why)`` at the first difference, or None. A trace
+    that does not follow the format raises ``FormatError`` (see ``read_trace``)."""
     header, records = read_trace(source)
     program = model.program
-    if header.get("model") != model.name:
-        return (0, f"trace is of model '{header.get('model')}', not '{model.name}'")
+    if header["model"] != model.name:
+        return (0, f"trace is of model '{printable(header['model'], 80)}', not '{model.name}'")
+    if header["tick_rate"] != model.tick_rate:
+        return (0, f"trace has tick rate {header['tick_rate']:g}, {model.name} has {model.tick_rate:g}")
     if state is None:
         try:
-            state = program.encode(header.get("initial") or {})
-        except (KeyError, ValueError, IndexError) as exc:
+            state = encode_state(program, header["initial"])
+        except ValueError as exc:
             return (0, f"the trace's initial state does not fit this model ({exc})")
     s = tuple(state)
     clock, last = Clock(model.tick_rate), {}
     for rec in records:
         oracle = ReplayOracle(program, rec)
-        step = program.step(s, oracle, True)
+        try:
+            step = program.step(s, oracle, True)
+        except DomainError as exc:
+            return (rec["tick"], oracle.error or f"the model fails here: {exc}")
         if oracle.error:
             return (rec["tick"], oracle.error)
+        if step.state is None:
+            return (rec["tick"], "the model cannot take this tick (an environment choice has no enabled option)")
         mine = tick_record(program, clock, step, last)
         if mine != rec:
             diff = sorted(k for k in rec if mine.get(k) != rec.get(k))

@@ -43,35 +43,25 @@ def _run_one(spec: TrialSpec) -> TrialResult:
 
 
 def run_experiment(specs: Sequence[TrialSpec], workers: int = 1, progress: bool = True) -> list:
-    """Run trials (in ``workers`` processes); results come back in ``specs`` order."""
+    """Run trials (in ``workers`` processes); results come back in ``specs`` order.
+    ``progress``: a bar with an ETA on stderr (``btfsm.progress``; on a terminal only)."""
+    from btfsm.progress import progress_bar
+
     specs = list(specs)
     results: list = [None] * len(specs)
-    done = 0
+    with progress_bar(len(specs), desc="trials", unit=" trial", disable=not progress, leave=True) as bar:
+        if workers <= 1 or len(specs) <= 1:
+            for i, spec in enumerate(specs):
+                results[i] = _run_one(spec)
+                bar.update(1)
+        else:
+            import multiprocessing as mp
 
-    def tick_progress():
-        if progress:
-            width = 30
-            fill = int(width * done / max(len(specs), 1))
-            sys.stderr.write(f"\r[{'#' * fill}{'.' * (width - fill)}] {done}/{len(specs)} trials")
-            sys.stderr.flush()
-
-    tick_progress()
-    if workers <= 1 or len(specs) <= 1:
-        for i, spec in enumerate(specs):
-            results[i] = _run_one(spec)
-            done += 1
-            tick_progress()
-    else:
-        import multiprocessing as mp
-
-        ctx = mp.get_context("fork" if sys.platform.startswith("linux") else "spawn")
-        with ctx.Pool(workers) as pool:
-            for i, res in pool.imap_unordered(_indexed, list(enumerate(specs))):
-                results[i] = res
-                done += 1
-                tick_progress()
-    if progress:
-        sys.stderr.write("\n")
+            ctx = mp.get_context("fork" if sys.platform.startswith("linux") else "spawn")
+            with ctx.Pool(workers) as pool:
+                for i, res in pool.imap_unordered(_indexed, list(enumerate(specs))):
+                    results[i] = res
+                    bar.update(1)
     return results
 
 

@@ -9,9 +9,9 @@ on its own ``FigureCanvasAgg``. GIFs are assembled with Pillow (a matplotlib dep
 """
 from __future__ import annotations
 
-import os
-
+import contextlib
 import math
+import os
 from typing import Iterable
 
 from matplotlib.backends.backend_agg import FigureCanvasAgg
@@ -148,8 +148,8 @@ def render_png(cell, path, title: str | None = None, fsm_state: str | None = Non
     ax = fig.add_subplot(1, 1, 1)
     draw_snapshot(ax, _as_snapshot(cell), title, fsm_state)
     fig.tight_layout()
-    os.makedirs(os.path.dirname(os.path.abspath(path)), exist_ok=True)
-    fig.savefig(path)
+    with _replacing(path) as tmp:
+        fig.savefig(tmp, format="png")
     return str(path)
 
 
@@ -162,27 +162,67 @@ def _pillow():
     return Image
 
 
-def render_gif(snapshots: Iterable[dict], path, fps: float = 10.0, title: str | None = None) -> int:
-    """Write snapshot dicts (any iterable, e.g. a generator) as an animated GIF; return frames."""
+def render_gif(snapshots: Iterable[dict], path, fps: float = 10.0, title: str | None = None,
+               progress: bool = True) -> int:
+    """Write snapshot dicts (any iterable, e.g. a generator) as an animated GIF; return frames.
+    ``progress``: a bar on stderr while frames are drawn (on a terminal only; with an ETA
+    when ``snapshots`` has a length)."""
+    from btfsm.progress import progress_bar
+
     image = _pillow()
+    _writable_target(path)  # before minutes of drawing
     fig = _new_figure()
     ax = fig.add_subplot(1, 1, 1)
     frames = []
-    for snap in snapshots:
-        ax.clear()
-        draw_snapshot(ax, snap, title)
-        if not frames:
-            fig.tight_layout()  # same layout for every frame
-        canvas = fig.canvas
-        canvas.draw()
-        rgb = image.frombuffer("RGBA", canvas.get_width_height(), canvas.buffer_rgba()).convert("RGB")
-        frames.append(rgb.quantize(colors=64, method=image.Quantize.FASTOCTREE))
+    total = len(snapshots) if hasattr(snapshots, "__len__") else None
+    with progress_bar(total, desc="GIF frames", unit=" frame", disable=not progress) as bar:
+        for snap in snapshots:
+            ax.clear()
+            draw_snapshot(ax, snap, title)
+            if not frames:
+                fig.tight_layout()  # same layout for every frame
+            canvas = fig.canvas
+            canvas.draw()
+            rgb = image.frombuffer("RGBA", canvas.get_width_height(), canvas.buffer_rgba()).convert("RGB")
+            frames.append(rgb.quantize(colors=64, method=image.Quantize.FASTOCTREE))
+            bar.update(1)
     if not frames:
         raise ValueError("render_gif got no snapshots")
-    os.makedirs(os.path.dirname(os.path.abspath(path)), exist_ok=True)
-    frames[0].save(path, save_all=True, append_images=frames[1:], loop=0,
-                   duration=max(1, round(1000.0 / fps)))
+    with _replacing(path) as tmp:
+        frames[0].save(tmp, format="GIF", save_all=True, append_images=frames[1:], loop=0,
+                       duration=max(1, round(1000.0 / fps)))
     return len(frames)
+
+
+def _writable_target(path) -> None:
+    """Refuse a folder as the output file (an IsADirectoryError naming it)."""
+    if os.path.isdir(path):
+        raise IsADirectoryError(21, "is a directory", str(path))
+
+
+@contextlib.contextmanager
+def _replacing(path):
+    """Yield the name to write ``path`` under: a temporary file in the same folder that
+    replaces ``path`` once written (nothing half-written is left when writing fails); a
+    FIFO or a device is written directly. (A local copy of the atomic-writing rule; see
+    btfsm.trace's writer.)"""
+    _writable_target(path)
+    path = os.path.realpath(os.fspath(path))
+    if os.path.exists(path) and not os.path.isfile(path):
+        yield path
+        return
+    folder, base = os.path.split(path)
+    os.makedirs(folder, exist_ok=True)
+    tmp = os.path.join(folder, f".{base}.{os.getpid()}.tmp")
+    try:
+        yield tmp
+        os.replace(tmp, path)
+    except BaseException as exc:
+        with contextlib.suppress(OSError):
+            os.unlink(tmp)
+        if isinstance(exc, OSError) and exc.errno is not None:  # name the file asked for
+            raise type(exc)(exc.errno, exc.strerror, path) from None
+        raise
 
 
 class Recorder:

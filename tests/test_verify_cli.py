@@ -126,17 +126,45 @@ def test_entry_point_subprocess(tmp_path):
 
 
 def test_progress_line_on_stderr_for_long_explorations(tmp_path):
-    """An exploration longer than a second shows a progress line on stderr (stdout stays clean)."""
+    """An exploration longer than a second shows a progress bar on stderr when stderr is a
+    terminal (a pseudo-terminal here), nothing when it is not; stdout stays clean."""
+    import os
+    import pty
     import subprocess
     import sys
+    import threading
 
     from btfsm.files import dump_model
     from btfsm.models.pickplace import pickplace
 
     path = tmp_path / "pp12.json"
     dump_model(pickplace(12), str(path))  # about 3 s of exploration
-    out = subprocess.run([sys.executable, "-m", "btfsm.cli", "check", str(path), "--property", "invariants"],
-                         capture_output=True, text=True, timeout=300)
-    assert out.returncode == 0, out.stderr
-    assert "states/s" in out.stderr  # the \r-updated line (text mode turns \r into \n)
+    master, slave = pty.openpty()
+    chunks = []
+
+    def drain():
+        while True:
+            try:
+                data = os.read(master, 65536)
+            except OSError:
+                return
+            if not data:
+                return
+            chunks.append(data)
+
+    reader = threading.Thread(target=drain, daemon=True)
+    reader.start()
+    try:
+        out = subprocess.run([sys.executable, "-m", "btfsm.cli", "check", str(path), "--property", "invariants"],
+                             stdout=subprocess.PIPE, stderr=slave, text=True, timeout=300)
+    finally:
+        os.close(slave)
+        reader.join(10)
+        os.close(master)
+    assert out.returncode == 0
+    shown = b"".join(chunks).decode("utf-8", "replace")
+    assert "states/s" in shown and "model" in shown and "transitions" in shown  # the tqdm bar
     assert "1305694 states" in out.stdout.replace(",", "")
+    piped = subprocess.run([sys.executable, "-m", "btfsm.cli", "check", str(path), "--property", "invariants"],
+                           capture_output=True, text=True, timeout=300)
+    assert piped.returncode == 0 and piped.stderr == ""  # not a terminal: no bar

@@ -3,8 +3,9 @@
 ``btfsm check MODEL [--property NAME]... [--json] [--max-states N] [--counterexample-dir DIR]``
 exits 0 when every property holds, 1 when one is violated (its counterexample is printed),
 2 on bad input or usage (an unknown property name lists the known ones), 3 when the state
-budget was hit and some property is undecided. A ``\\r``-updated progress line (states and
-states/s) goes to stderr for explorations longer than a second.
+budget was hit and some property is undecided. On a terminal, a progress bar (states,
+states/s, transitions; ``btfsm.progress``) goes to stderr for explorations longer than a
+second.
 """
 from __future__ import annotations
 
@@ -13,29 +14,6 @@ import os
 import sys
 
 __all__ = ["cli_check", "cli_export"]
-
-
-class _Progress:
-    """Prints ``what: N states, M states/s`` on stderr once an exploration runs > 1 s."""
-
-    def __init__(self, stream=None, after: float = 1.0):
-        self.stream = stream or sys.stderr
-        self.after = after
-        self.shown = False
-
-    def __call__(self, what, states, transitions, seconds):
-        if seconds < self.after:
-            return
-        rate = states / seconds if seconds > 0 else 0.0
-        self.stream.write(f"\r{what}: {states:,} states, {transitions:,} transitions, {rate:,.0f} states/s   ")
-        self.stream.flush()
-        self.shown = True
-
-    def done(self):
-        if self.shown:
-            self.stream.write("\n")
-            self.stream.flush()
-            self.shown = False
 
 
 def cli_check(args) -> int:
@@ -52,8 +30,10 @@ def cli_check(args) -> int:
     max_states = DEFAULT_MAX_STATES if args.max_states is None else args.max_states
     if max_states < 1:
         raise UsageError("--max-states must be at least 1")
+    from btfsm.progress import ExplorationProgress
+
     model = _load(args.model)
-    progress = _Progress()
+    progress = ExplorationProgress()
     try:
         report = check(model, props or None, max_states=max_states, progress=progress, engine=args.engine)
     except MemoryError:

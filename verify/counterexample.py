@@ -16,9 +16,11 @@ from the recorded choices, and then confirms the final violation.
 from __future__ import annotations
 
 import json
+import os
 from dataclasses import dataclass, field
 
 from btfsm.errors import ConformanceError, DomainError
+from btfsm.formats import FormatError, decode_utf8, json_path, parse_json, printable, validate
 from btfsm.status import Status
 
 from .explore import EnumOracle, _readable, run_script, script_of
@@ -210,22 +212,54 @@ def static_counterexample(model, prop: str, summary: str, violation: dict, fsm=N
 # ---------------------------------------------------------------------- replay
 
 
-def load_counterexample(source) -> Counterexample:
+def load_counterexample(source, name: "str | None" = None) -> Counterexample:
     """From a path, a JSON string, a dict (a counterexample, or a ``btfsm check --json``
-    report holding exactly one counterexample), or a Counterexample."""
+    report holding exactly one counterexample), or a Counterexample.
+
+    The object is checked against ``btfsm/schema/counterexample.schema.json`` and for
+    steps numbered 1..n and a ``loop`` within them; anything else raises a
+    ``FormatError`` (a ValueError) naming the file, the JSON path and the problem.
+    ``name``: the file name used in messages (default: the path, or ``<counterexample>``)."""
     if isinstance(source, Counterexample):
         return source
     if isinstance(source, dict):
-        d = source
+        d, name = source, name or "<counterexample>"
     else:
-        text = source if isinstance(source, str) and source.lstrip().startswith("{") else open(source, encoding="utf-8").read()
-        d = json.loads(text)
-    if isinstance(d, dict) and d.get("format") != FORMAT and "properties" in d:
-        ces = [p["counterexample"] for p in d["properties"] if p.get("counterexample")]
-        if len(ces) != 1:
-            raise ValueError(f"the report holds {len(ces)} counterexamples; pass one (btfsm check --counterexample-dir)")
-        d = ces[0]
+        if isinstance(source, str) and source.lstrip().startswith("{"):
+            text, name = source, name or "<counterexample>"
+        else:
+            name = name or os.fspath(source)
+            with open(source, "rb") as fh:
+                text = decode_utf8(fh.read(), name)
+        d = parse_json(text, name)
+    where = ""
+    if isinstance(d, dict) and "format" not in d and "properties" in d:  # a btfsm check --json report
+        props = d["properties"]
+        if not isinstance(props, list) or not all(isinstance(p, dict) for p in props):
+            raise FormatError(name, "properties", "expected a list of property results (btfsm check --json)")
+        found = [(i, p["counterexample"]) for i, p in enumerate(props) if p.get("counterexample")]
+        if len(found) != 1:
+            raise FormatError(name, "", f"the report holds {len(found)} counterexamples; "
+                                        "pass one (btfsm check --counterexample-dir)")
+        where, d = f"properties[{found[0][0]}].counterexample", found[0][1]
+    if not isinstance(d, dict) or d.get("format") != FORMAT:
+        raise FormatError(name, where, f"not a {FORMAT} object (its \"format\" must be \"{FORMAT}\")")
+    validate(d, "counterexample", name, where)
+    for k, st in enumerate(d["steps"]):
+        if st["tick"] != k + 1:
+            raise FormatError(name, _at(where, "steps", k, "tick"),
+                              f"expected {k + 1} (steps are numbered from 1), got {printable(st['tick'], 40)}")
+    if d["loop"] is not None and d["loop"] > len(d["steps"]):
+        raise FormatError(name, _at(where, "loop"),
+                          f"{printable(d['loop'], 40)} is past the last of the {len(d['steps'])} step(s)")
+    if d["violation"].get("kind") == "non-progress" and d["loop"] is None:
+        raise FormatError(name, _at(where, "loop"),
+                          "a non-progress cycle needs its loop start (an integer), not null")
     return Counterexample.from_json(d)
+
+
+def _at(where: str, *parts) -> str:
+    return ".".join(p for p in (where, json_path(parts)) if p)
 
 
 class _Recorded:
@@ -250,7 +284,7 @@ def replay_counterexample(source, model) -> tuple:
     """Re-execute a counterexample and confirm its violation: ``(ok, text)``."""
     try:
         ce = load_counterexample(source)
-    except (OSError, ValueError, KeyError, json.JSONDecodeError) as exc:
+    except (OSError, ValueError) as exc:  # FormatError is a ValueError
         return False, f"cannot read the counterexample: {exc}"
     if ce.model != model.name:
         return False, f"the counterexample is of model '{ce.model}', not '{model.name}'"

@@ -580,16 +580,11 @@ def cli_skills(args) -> int:
     model = _load(args.model)
     if model.tree is None:
         raise ModelError("tree", f"{model.name} has no tree: there are no skill requests to derive from")
-    shown = [False]
+    from btfsm.progress import ExplorationProgress
 
-    def progress(states, seconds):
-        if seconds > 1.0:
-            shown[0] = True
-            print(f"\rskills: {states} states, {states / seconds:,.0f} states/s", end="", file=sys.stderr, flush=True)
-
-    d = derive(model, max_states=args.max_states if args.max_states is not None else 2_000_000, progress=progress)
-    if shown[0]:
-        print(file=sys.stderr)
+    with ExplorationProgress() as bar:  # on a terminal only, after a second
+        d = derive(model, max_states=args.max_states if args.max_states is not None else 2_000_000,
+                   progress=lambda states, seconds: bar("skills", states))
     support = check_support(d) if d.complete else None
     if args.format == "json":
         print(json.dumps(to_json(d, support), indent=1))
