@@ -166,7 +166,7 @@ def _step_record(ts, k, before, script, step, oracle, error=None) -> dict:
             rec["env"] = env_seen
         rec["fired"] = [[e[1], e[2]] for e in ev if e[0] == "fire"]
         rec["halted"] = [e[1] for e in ev if e[0] == "halt"]
-        rec["notes"] = [[e[0], e[1], e[2]] for e in ev if e[0] in ("withdraw", "not-applicable", "busy", "violation")]
+        rec["notes"] = [[e[0], e[1], e[2]] for e in ev if e[0] in ("withdraw", "not-applicable", "busy", "handover", "violation")]
         rec["status"] = _NAMES[step.status]
         after = step.state
         keep = range(len(after)) if ts.kind == "model" else ts.slots
@@ -432,6 +432,13 @@ def _confirm(ce, model, state, last, error) -> tuple:
         if last is not None and ("post", node) in [tuple(v) for v in last.violations]:
             return True, f"confirmed: tick {n}: '{node}' replied SUCCESS while its post-condition is false"
         return False, f"no contract violation of '{node}' at the last tick"
+    if kind == "conflict":
+        node = ce.violation["node"]
+        if last is not None and ("busy", node, ce.violation.get("fsm")) in [tuple(v) for v in last.violations]:
+            return True, f"confirmed: tick {n}: '{node}' was refused because another request used FSM '{ce.violation.get('fsm')}'"
+        return False, f"no conflict on '{node}' at the last tick"
+    if kind == "sink":
+        return _confirm_sink(ce, model, state)
     if kind == "dead":
         from .explore import explore
 
@@ -451,6 +458,16 @@ def _confirm(ce, model, state, last, error) -> tuple:
     if kind in ("goal", "non-progress", "latency"):
         return _confirm_fsm(ce, model, state, kind)
     return False, f"unknown violation kind {kind!r}"
+
+
+def _confirm_sink(ce, model, state) -> tuple:
+    from .properties.dead import sink_states
+
+    name, sid = ce.violation.get("fsm"), ce.violation.get("state")
+    at = model.program.fsm_state(state, name)[0]
+    if at == sid and sid in sink_states(model.fsm(name)):
+        return True, f"confirmed: after {len(ce.steps)} step(s) FSM {name} is in '{sid}', which has no edge, no marker and is not terminal"
+    return False, f"FSM {name} ends in '{at}', not in the sink '{sid}'"
 
 
 def _confirm_fsm(ce, model, state, kind) -> tuple:
