@@ -225,16 +225,27 @@ def check(ctx) -> Result:
         fts, prefix, cycle = lassos[name]
         f = model.fsm(name)
         gname = f.goals[int(fts.goal[cycle[0]])]
-        viol = {"kind": "non-progress", "goal": gname,
-                "text": (f"requesting '{gname}' again and again comes back to the same state with no progress: "
-                         "each request ends with the token where it started (it may pass through other states "
-                         "within the request), the reply stays RUNNING and no primitive reports RUNNING "
-                         "(e.g. a failing primitive retried forever, or a refused request)")}
+        viol = {"kind": "non-progress", "goal": gname}
         ce = path_counterexample(fts, prefix + cycle, "no-dead-states",
                                  f"FSM {name}: a non-progress cycle requesting '{gname}'", viol, loop=len(prefix))
+        ce.violation["text"] = _non_progress_text(f, gname, ce.steps[len(prefix):])
     if ce is not None:
         return Result("no-dead-states", False, ce, notes, info)
     return Result("no-dead-states", None if undecided else True, None, notes, info)
+
+
+def _non_progress_text(f, gname, cycle_steps) -> str:
+    """Why the cycle makes no progress, saying how the token moves within it."""
+    ids = {e.id: e for e in f.edges}
+    passed = [ids[e] for st in cycle_steps for fsm, e in st.get("fired", []) if fsm == f.name and e in ids]
+    if passed:
+        route = " -> ".join([passed[0].source] + [e.target for e in passed])
+        token = (f"the token moves ({route}) but each request ends with it back where the request started")
+    else:
+        token = "the token does not move"
+    return (f"requesting '{gname}' again and again comes back to the same state with no progress: {token}, "
+            "the reply stays RUNNING and no primitive reports RUNNING "
+            "(e.g. a failing primitive retried forever, or a refused request)")
 
 
 def _why_dead(ts, i) -> str:

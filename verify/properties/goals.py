@@ -98,8 +98,49 @@ def _explain(ts, g, i) -> str:
     ids = ts.model.program.fsm_info[ts.open.index][1]
     where = sorted({ids[int(x)] for x in ts.states[region, tok]})
     fails = any(int(ts.status[t]) == FAILURE for s in region.tolist() for t in ts.out_transitions(s).tolist() if is_g[t])
-    lines.append(f"  while it is held (RUNNING) the token only visits {', '.join(where)} "
-                 f"({region.size} state(s)); from there it " + ("can only reply FAILURE or keep RUNNING" if fails
-                                                                 else "keeps RUNNING forever (stuck)"))
+    looping = _on_cycles(ts, region, held)
+    loop_where = sorted({ids[int(x)] for x in ts.states[looping, tok]}) if looping.size else where
+    if fails:
+        end = "can only reply FAILURE or keep RUNNING"
+    elif len(loop_where) > 1:
+        end = f"keeps RUNNING forever, the token cycling through {', '.join(loop_where)}"
+    else:
+        route = _route_within(ts, g, (looping if looping.size else region)[:_RERUN])
+        end = (f"keeps RUNNING forever, the token cycling within each request ({route})" if route
+               else f"keeps RUNNING forever with the token on {loop_where[0]} (stuck)")
+    lines.append(f"  while it is held (RUNNING) its requests end with the token only on {', '.join(where)} "
+                 f"({region.size} state(s)); from there it {end}")
     return "\n".join(lines)
 
+
+
+_RERUN = 50  # region states re-run to see the token's moves within a request
+
+
+def _route_within(ts, g, states) -> "str | None":
+    """``home -> p1 -> p2 -> home``: the edges a g-request fires from one of ``states``
+    (re-run with recording), or None when the token never moves within a request."""
+    f = ts.model.fsm(ts.fsm)
+    edges = {e.id: e for e in f.edges}
+    for i in states.tolist():
+        for _script, st, o in successor_scripts(ts, ts.full_state(i)):
+            if st is None or ("choice", ("goal",), g) not in o.picks:
+                continue
+            fired = [edges[ev[2]] for ev in st.events or () if ev[0] == "fire" and ev[1] == f.name and ev[2] in edges]
+            if fired:
+                return " -> ".join([fired[0].source] + [e.target for e in fired])
+    return None
+
+
+def _on_cycles(ts, region, held) -> np.ndarray:
+    """States of ``region`` on a cycle of ``held`` transitions (where RUNNING repeats)."""
+    import networkx as nx
+
+    inside = np.zeros(ts.n_states, bool)
+    inside[region] = True
+    t = np.flatnonzero(held & inside[ts.src] & inside[ts.dst])
+    g = nx.DiGraph()
+    g.add_edges_from(zip(ts.src[t].tolist(), ts.dst[t].tolist()))
+    out = {x for comp in nx.strongly_connected_components(g) if len(comp) > 1 for x in comp}
+    out |= {int(a) for a, b in zip(ts.src[t].tolist(), ts.dst[t].tolist()) if a == b}
+    return np.array(sorted(out), np.int64)
