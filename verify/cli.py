@@ -55,7 +55,8 @@ def cli_check(args) -> int:
     model = _load(args.model)
     progress = _Progress()
     try:
-        report = check(model, props or None, max_states=max_states, progress=progress, engine=args.engine)
+        report = check(model, props or None, max_states=max_states, progress=progress, engine=args.engine,
+                       goal_level=getattr(args, "goal_level", "open"))
     except MemoryError:
         progress.done()
         print(f"btfsm check: out of memory while exploring {model.name}; lower --max-states", file=sys.stderr)

@@ -492,6 +492,19 @@ def _confirm(ce, model, state, last, error) -> tuple:
         return False, f"no conflict on '{node}' at the last tick"
     if kind == "sink":
         return _confirm_sink(ce, model, state)
+    if kind == "goal-tree":
+        from .explore import explore
+        from .properties.goals import tree_goal_failures
+
+        ts = explore(model, start=state, max_states=_CONFIRM_BUDGET)
+        if not ts.complete:
+            return False, f"could not confirm within {_CONFIRM_BUDGET} states"
+        key = (ce.violation.get("fsm"), ce.violation.get("goal"))
+        bad = tree_goal_failures(ts).get(key)
+        if bad is not None and int(bad[0]) == 0:
+            return True, (f"confirmed: after {n} tick(s) the tree can request '{key[1]}' of FSM {key[0]} and no run "
+                          "from there gets SUCCESS for it")
+        return False, f"'{key[1]}' can succeed from the final state (or is not requested there)"
     if kind == "dead":
         from .explore import explore
 

@@ -142,17 +142,18 @@ def exit_code_of(results) -> int:
 
 
 def check(model, properties=None, *, max_states: "int | None" = DEFAULT_MAX_STATES, progress=None,
-          engine: str = "auto") -> Report:
+          engine: str = "auto", goal_level: str = "open") -> Report:
     """Decide ``properties`` (names; default: all of ``btfsm.verify.properties.PROPERTIES``).
     ``progress(what, states, transitions, seconds)`` is called during long explorations;
-    ``engine``: the model-level exploration engine (``btfsm.verify.explore.explore``)."""
+    ``engine``: the model-level exploration engine (``btfsm.verify.explore.explore``);
+    ``goal_level``: ``open`` or ``tree`` (``btfsm.verify.properties.goals``)."""
     names = list(PROPERTIES) if not properties else list(dict.fromkeys(properties))
     unknown = [n for n in names if n not in PROPERTIES]
     if unknown:
         raise ValueError(f"unknown propert{'y' if len(unknown) == 1 else 'ies'} {', '.join(unknown)} "
                          f"(known: {', '.join(PROPERTIES)})")
     t0 = time.perf_counter()
-    ctx = Context(model, max_states=max_states, progress=progress, engine=engine)
+    ctx = Context(model, max_states=max_states, progress=progress, engine=engine, goal_level=goal_level)
     results = [run_property(ctx, n) for n in names]
     systems = [{"kind": ts.kind, "fsm": ts.fsm, "states": ts.n_states, "transitions": ts.n_transitions,
                 "complete": ts.complete, "seconds": round(ts.seconds, 6)} for ts in ctx.systems]

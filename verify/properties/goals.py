@@ -1,12 +1,22 @@
 """``goal-reachability``: every goal that can be requested can still succeed.
 
-FSM level, for each FSM as an open system (``btfsm.verify.explore.explore_fsm``). For every
-reachable state s and every goal g that can be requested in s (g is requested by some
-SkillRequest whose ``pre`` can hold there, or by any request for a model without tree),
-a SUCCESS reply to g must be reachable from s while g stays held: along a sequence of
-g-requests replying RUNNING, then one replying SUCCESS, with everything else (environment,
-free inputs, parameters, outcomes) chosen some way. Decided per goal by backward
-reachability inside the sub-system of g-requests.
+Two levels (``Context.goal_level``, ``btfsm check --goal-level``):
+
+* ``open`` (default): each FSM as an open system (``btfsm.verify.explore.explore_fsm``).
+  For every reachable state s and every goal g that can be requested in s (g is requested
+  by some SkillRequest whose ``pre`` can hold there, or by any request for a model without
+  tree), a SUCCESS reply to g must be reachable from s while g stays held: along a
+  sequence of g-requests replying RUNNING, then one replying SUCCESS, with everything else
+  (environment, free inputs, parameters, outcomes) chosen some way. Decided per goal by
+  backward reachability inside the sub-system of g-requests. Only ``pre`` restricts the
+  requests: a Condition in front of a SkillRequest in the tree is not seen.
+* ``tree``: the requests the tree actually makes, in the explored model. For every
+  reachable model state s from which some tick requests g of FSM f (the FSM is driven
+  toward g, or a SkillRequest of g replies RUNNING or SUCCESS), a tick in which a
+  SkillRequest of g on f replies SUCCESS must be reachable from s (the tree chooses what
+  to request on the way). Needs the whole model explored, with at most
+  ``TREE_LIMIT`` transitions (each is re-run once); a model without tree is judged at
+  ``open`` level.
 """
 from __future__ import annotations
 
@@ -15,11 +25,17 @@ import numpy as np
 from btfsm.status import Status
 
 from ..counterexample import path_counterexample
-from ..explore import successor_scripts
+from btfsm.bt import SkillRequest, walk
+from btfsm.oracles import all_choices
+
+from ..explore import EnumOracle, successor_scripts
 from ..system import forward_reach, reverse_reach
 from .base import Result
 
-__all__ = ["check", "goal_failures"]
+__all__ = ["check", "goal_failures", "tree_goal_failures", "TREE_LIMIT", "LEVELS"]
+
+TREE_LIMIT = 200_000
+LEVELS = ("open", "tree")
 
 RUNNING, SUCCESS, FAILURE = int(Status.RUNNING), int(Status.SUCCESS), int(Status.FAILURE)
 
@@ -40,7 +56,93 @@ def goal_failures(ts) -> dict:
     return out
 
 
+class _Driven(EnumOracle):
+    """An ``EnumOracle`` that also notes every (fsm index, goal index) an FSM is driven toward."""
+
+    __slots__ = ("driven",)
+
+    def __init__(self, script=()):
+        super().__init__(script)
+        self.driven = set()
+
+    def request(self, fsm_index, goal_index):
+        self.driven.add((fsm_index, goal_index))
+
+
+def tree_goal_failures(ts) -> dict:
+    """(fsm name, goal) -> indices of model states from which the tree can request the goal
+    but no tick where it succeeds is reachable (``tree`` level; ``ts`` a model system)."""
+    from btfsm.errors import DomainError
+
+    model, prog = ts.model, ts.model.program
+    nodes = {}  # SkillRequest name -> (fsm index, goal index)
+    for _path, root in model.roots():
+        for n in walk(root):
+            if isinstance(n, SkillRequest):
+                fi = prog.fsm_index[n.fsm]
+                nodes[n.name] = (fi, model.fsms[fi].goals.index(n.goal))
+    pairs = sorted(set(nodes.values()))
+    asked = {p: np.zeros(ts.n_states, bool) for p in pairs}
+    won = {p: np.zeros(ts.n_states, bool) for p in pairs}
+    run = prog.step
+    for i in range(ts.expanded):
+        for _taken, st, o in all_choices(lambda s, o: run(s, o, True), tuple(ts.full_state(i)), _Driven, (DomainError,)):
+            if isinstance(st, DomainError) or st is None or st.state is None:
+                continue
+            seen = set(o.driven)
+            for ev in st.events or ():
+                if ev[0] == "status" and ev[1] in nodes and ev[2] != FAILURE:
+                    seen.add(nodes[ev[1]])
+                    if ev[2] == SUCCESS:
+                        won[nodes[ev[1]]][i] = True
+            for p in seen:
+                if p in asked:
+                    asked[p][i] = True
+    out = {}
+    for p in pairs:
+        bad = np.flatnonzero(asked[p] & ~reverse_reach(ts, won[p]))
+        if bad.size:
+            fi, g = p
+            out[(model.fsms[fi].name, model.fsms[fi].goals[g])] = bad
+    return out
+
+
 def check(ctx) -> Result:
+    level = getattr(ctx, "goal_level", "open")
+    if level not in LEVELS:
+        raise ValueError(f"unknown goal level {level!r} (known: {', '.join(LEVELS)})")
+    if level == "tree" and ctx.model.tree is not None:
+        return _check_tree(ctx)
+    res = _check_open(ctx)
+    if level == "tree":
+        res.notes.insert(0, "the model has no tree: judged at open level")
+    return res
+
+
+def _check_tree(ctx) -> Result:
+    ts = ctx.model_ts()
+    info = {"level": "tree", "states": ts.n_states}
+    if not ts.complete or ts.n_transitions > TREE_LIMIT:
+        why = "state budget hit" if not ts.complete else f"more than {TREE_LIMIT:,} transitions to re-run"
+        return Result("goal-reachability", None, None,
+                      [f"level tree: {why}; not decided (--goal-level open judges each FSM alone)"], info)
+    fails = tree_goal_failures(ts)
+    info["failing"] = {f"{f}/{g}": int(v.size) for (f, g), v in fails.items()}
+    notes = [f"level tree: FSM {f}: goal '{g}' can be requested but never succeeds from {v.size} model state(s)"
+             for (f, g), v in fails.items()]
+    if not fails:
+        return Result("goal-reachability", True, None, ["level tree: the requests the tree makes in the explored model"], info)
+    (fname, gname), bad = min(fails.items(), key=lambda kv: (int(kv[1][0]), kv[0]))
+    i = int(bad[0])
+    viol = {"kind": "goal-tree", "fsm": fname, "goal": gname,
+            "text": (f"level tree: from here the tree can request '{gname}' of FSM {fname}, but no run from here "
+                     f"has a tick in which a request of '{gname}' gets SUCCESS")}
+    ce = path_counterexample(ts, ts.path_to(i), "goal-reachability",
+                             f"FSM {fname}: goal '{gname}' can be requested by the tree here but can never succeed", viol)
+    return Result("goal-reachability", False, ce, notes, info)
+
+
+def _check_open(ctx) -> Result:
     model = ctx.model
     notes, info, undecided = [], {}, False
     worst = None  # (depth, fsm, goal, state)
@@ -61,9 +163,13 @@ def check(ctx) -> Result:
                 worst = (d, ts, g, i)
     if worst is None:
         return Result("goal-reachability", None if undecided else True, None, notes, info)
+    info["level"] = "open"
     _, ts, g, i = worst
     f = model.fsm(ts.fsm)
-    text = _explain(ts, g, i)
+    text = _explain(ts, g, i) + (
+        "\n  (level open: the FSM is judged alone, requested in every state where the `pre` of a request of "
+        f"'{f.goals[g]}' can hold; a Condition in front of the request in the tree is not seen: move it into "
+        "`pre:`, or check with --goal-level tree)" if model.tree is not None else "")
     viol = {"kind": "goal", "goal": f.goals[g], "text": text}
     ce = path_counterexample(ts, ts.path_to(i), "goal-reachability",
                              f"FSM {f.name}: goal '{f.goals[g]}' can be requested here but can never succeed",
