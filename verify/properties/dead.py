@@ -14,7 +14,7 @@
    which no step makes progress. A step makes progress when the token moves, or the reply
    is SUCCESS or FAILURE, or a primitive returned RUNNING (still working; assumed to
    finish). This catches a failing primitive retried forever and a refused withdraw that
-   freezes the robot. The counterexample is a lasso: the shortest path to the nearest
+   freezes the robot (a request refused with FAILURE is progress: see sinks, 2). The counterexample is a lasso: the shortest path to the nearest
    state on such a cycle, then the shortest cycle through it.
 """
 from __future__ import annotations
