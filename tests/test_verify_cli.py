@@ -145,3 +145,15 @@ def test_progress_line_on_stderr_for_long_explorations(tmp_path):
     assert out.returncode == 0, out.stderr
     assert "states/s" in out.stderr  # the \r-updated line (text mode turns \r into \n)
     assert "1305694 states" in out.stdout.replace(",", "")
+
+
+def test_quiet_verbose_and_goal_level_flags(capsys):
+    code, out, _ = _run(capsys, "check", "ariac-preemptive", "--quiet")
+    assert code == 0 and "warning(s):" not in out and "gap" not in out and "contracts" in out
+    code, out, _ = _run(capsys, "check", "ariac-preemptive")
+    assert re.search(r"^\d+ warning\(s\): \d+ edge\(s\) never fire, .*\(--verbose lists them\)$", out, re.M)
+    assert "fsms.arm." not in out
+    code, out, _ = _run(capsys, "check", "ariac-preemptive", "--verbose", "--property", "lints")
+    assert "fsms.arm.goals: goal 'pick_agv' is never requested" in out
+    code, out, _ = _run(capsys, "check", "original", "--property", "goal-reachability", "--goal-level", "tree")
+    assert code == 0 and "goal-reachability  holds" in out
