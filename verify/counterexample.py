@@ -494,7 +494,7 @@ def _confirm(ce, model, state, last, error) -> tuple:
         return _confirm_sink(ce, model, state)
     if kind == "goal-tree":
         from .explore import explore
-        from .properties.goals import tree_goal_failures
+        from .treegoals import tree_goal_failures
 
         ts = explore(model, start=state, max_states=_CONFIRM_BUDGET)
         if not ts.complete:
@@ -527,11 +527,11 @@ def _confirm(ce, model, state, last, error) -> tuple:
 
 
 def _confirm_sink(ce, model, state) -> tuple:
-    from .properties.dead import sink_states
-
     name, sid = ce.violation.get("fsm"), ce.violation.get("state")
+    f = model.fsm(name)
     at = model.program.fsm_state(state, name)[0]
-    if at == sid and sid in sink_states(model.fsm(name)):
+    used = {e.source for e in f.edges} | {m.state for m in f.markers}
+    if at == sid and sid not in used and sid not in f.terminal:
         return True, f"confirmed: after {len(ce.steps)} step(s) FSM {name} is in '{sid}', which has no edge, no marker and is not terminal"
     return False, f"FSM {name} ends in '{at}', not in the sink '{sid}'"
 

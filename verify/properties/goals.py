@@ -25,11 +25,9 @@ import numpy as np
 from btfsm.status import Status
 
 from ..counterexample import path_counterexample
-from btfsm.bt import SkillRequest, walk
-from btfsm.oracles import all_choices
-
-from ..explore import EnumOracle, successor_scripts
+from ..explore import successor_scripts
 from ..system import forward_reach, reverse_reach
+from ..treegoals import tree_goal_failures
 from .base import Result
 
 __all__ = ["check", "goal_failures", "tree_goal_failures", "TREE_LIMIT", "LEVELS"]
@@ -53,57 +51,6 @@ def goal_failures(ts) -> dict:
         bad = np.flatnonzero(requestable & ~good)
         if bad.size:
             out[g] = bad
-    return out
-
-
-class _Driven(EnumOracle):
-    """An ``EnumOracle`` that also notes every (fsm index, goal index) an FSM is driven toward."""
-
-    __slots__ = ("driven",)
-
-    def __init__(self, script=()):
-        super().__init__(script)
-        self.driven = set()
-
-    def request(self, fsm_index, goal_index):
-        self.driven.add((fsm_index, goal_index))
-
-
-def tree_goal_failures(ts) -> dict:
-    """(fsm name, goal) -> indices of model states from which the tree can request the goal
-    but no tick where it succeeds is reachable (``tree`` level; ``ts`` a model system)."""
-    from btfsm.errors import DomainError
-
-    model, prog = ts.model, ts.model.program
-    nodes = {}  # SkillRequest name -> (fsm index, goal index)
-    for _path, root in model.roots():
-        for n in walk(root):
-            if isinstance(n, SkillRequest):
-                fi = prog.fsm_index[n.fsm]
-                nodes[n.name] = (fi, model.fsms[fi].goals.index(n.goal))
-    pairs = sorted(set(nodes.values()))
-    asked = {p: np.zeros(ts.n_states, bool) for p in pairs}
-    won = {p: np.zeros(ts.n_states, bool) for p in pairs}
-    run = prog.step
-    for i in range(ts.expanded):
-        for _taken, st, o in all_choices(lambda s, o: run(s, o, True), tuple(ts.full_state(i)), _Driven, (DomainError,)):
-            if isinstance(st, DomainError) or st is None or st.state is None:
-                continue
-            seen = set(o.driven)
-            for ev in st.events or ():
-                if ev[0] == "status" and ev[1] in nodes and ev[2] != FAILURE:
-                    seen.add(nodes[ev[1]])
-                    if ev[2] == SUCCESS:
-                        won[nodes[ev[1]]][i] = True
-            for p in seen:
-                if p in asked:
-                    asked[p][i] = True
-    out = {}
-    for p in pairs:
-        bad = np.flatnonzero(asked[p] & ~reverse_reach(ts, won[p]))
-        if bad.size:
-            fi, g = p
-            out[(model.fsms[fi].name, model.fsms[fi].goals[g])] = bad
     return out
 
 
