@@ -88,6 +88,11 @@ def _args_check(sp):
     sp.add_argument("--json", action="store_true")
     sp.add_argument("--max-states", type=int, default=None)
     sp.add_argument("--counterexample-dir", help="write each counterexample as JSON into this folder")
+    sp.add_argument("--quiet", "-q", action="store_true", help="no warnings and no information lines, only verdicts and failures")
+    sp.add_argument("--verbose", "-v", action="store_true", help="list every warning, determinism gap and note")
+    sp.add_argument("--goal-level", choices=("open", "tree"), default="open",
+                    help="goal-reachability: judge each FSM as an open system (open, default) or only the "
+                         "requests the tree can actually make (tree)")
     sp.add_argument("--engine", choices=("auto", "traced", "scalar"), default="auto",
                     help="model-level exploration engine (default auto: traced, scalar where it cannot trace); "
                          "both give the same system")

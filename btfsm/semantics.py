@@ -387,14 +387,23 @@ class Program:
                     break
             return reply
 
-        def tick(ctx, g, pvals, requester):
+        def tick(ctx, g, pvals, requester, starting=True):
+            """Rules 'Requests, goals and parameters' (docs/semantics.md section 5):
+            once per request, share, hand-over, conflict."""
             done = ctx.fsm_done.get(fi)
-            if done is not None:  # one step per FSM per BT tick
-                if done[0] == g:
-                    return done[1]
+            if done is not None:  # the FSM already stepped in this BT tick
+                if done[2] == requester or (done[0] == g and done[3] == pvals):
+                    return done[1]  # the same request again, or an identical one: share the reply
+                if not starting or done[1] == RUNNING:
+                    # two requests use the FSM in one tick: a conflict (reported by 'contracts')
+                    ctx.violations.append(("busy", requester, name))
+                    if ctx.rec is not None:
+                        ctx.rec.append(("busy", name, requester))
+                    return FAILURE
+                # hand-over: the previous requester let go (SUCCESS/FAILURE) in this tick
+                # and this request starts: the FSM steps again, for it
                 if ctx.rec is not None:
-                    ctx.rec.append(("busy", name, requester))
-                return FAILURE
+                    ctx.rec.append(("handover", name, requester))
             s = ctx.s
             if pslots and tuple(s[p] for p in pslots) != pvals:
                 if withdraw is None:
@@ -409,7 +418,7 @@ class Program:
             else:
                 result = drive(ctx, g)
             s[goal_slot] = g + 1 if result == RUNNING else 0
-            ctx.fsm_done[fi] = (g, result, requester)
+            ctx.fsm_done[fi] = (g, result, requester, pvals)
             return result
 
         def withdraw_goal(ctx, requester):
@@ -614,14 +623,15 @@ class Program:
 
             def tick(ctx):
                 s = ctx.s
-                if not s[flag]:
+                starting = not s[flag]
+                if starting:
                     _halt_before_start(ctx, conflicts)
                 if pre is not None and not pre(s):
                     if s[flag]:  # a running request ends: withdraw its goal
                         prog.fsm_ticks[fi].withdraw(ctx, name)
                     return finish(FAILURE, ctx)
                 pvals = tuple(_param(fn(s), lo, hi, is_bool, pname, name) for fn, lo, hi, is_bool, pname in pfns)
-                st = prog.fsm_ticks[fi](ctx, g, pvals, name)
+                st = prog.fsm_ticks[fi](ctx, g, pvals, name, starting)
                 if st == SUCCESS and post is not None and not post(s):
                     ctx.violations.append(("post", name))
                     if ctx.rec is not None:

@@ -18,7 +18,9 @@ kept on purpose so that ``btfsm check`` can show them (docs/models.md):
 has no extra RUNNING tick per failed branch) and the stateless ``*``/``+`` become reactive
 sequences/fallbacks. ``original()`` is that model; ``original_preemptive()`` makes the
 selector between X and the rest reactive (the paper's inferred preemptive variant), which
-makes the freeze reachable from the tree.
+makes the freeze reachable from the tree. Every primitive may answer RUNNING, SUCCESS or
+FAILURE, as the original's ``_update`` accepts; ``original_narrow()`` keeps the narrower,
+more realistic declarations (``NARROW_PRIMITIVES``).
 
 >>> f = movement_manager()
 >>> len(f.states), len(f.goals), len(f.edges), sum(e.direct for e in f.edges), len(f.markers)
@@ -30,9 +32,9 @@ from btfsm import (FSM, Action, Bool, Condition, Edge, EnvEvent, Int, Inverter, 
                    MemoryFallback, Model, Parallel, Primitive, ReactiveFallback, ReactiveSequence,
                    SkillRequest, State, failure, running, success)
 
-__all__ = ["ROTATIONS", "TRACKS", "TARGETS", "PRIMITIVES", "generate_nodes", "generate_pick",
+__all__ = ["ROTATIONS", "TRACKS", "TARGETS", "PRIMITIVES", "NARROW_PRIMITIVES", "generate_nodes", "generate_pick",
            "generate_place", "movement_manager", "executive", "original", "original_preemptive",
-           "transit_table"]
+           "original_narrow", "transit_table"]
 
 ROTATIONS = (("bins", "conveyor", "agv"), ("agv", "bins", "conveyor"), ("conveyor", "agv", "bins"))
 TRACKS = ("bins/pick", "bins/place", "agv/pick", "agv/place", "conveyor/pick", "conveyor/place",
@@ -40,9 +42,16 @@ TRACKS = ("bins/pick", "bins/place", "agv/pick", "agv/place", "conveyor/pick", "
 # the blackboard ids a choose_* leaf puts in the request (0 is the initial empty target)
 TARGETS = {"part": 1, "first_part_in_queue": 2, "location": 3, "intermediate_location": 4}
 
-# The authors' primitives. They were printing stubs; the port declares what the real ones
-# can do: motions and grasps run for a while, and the physical ones can fail.
-PRIMITIVES = (
+# The authors' primitives. They were printing stubs, and the FSM's ``_update`` accepts any
+# status from any primitive, so the faithful port lets every one of them answer RUNNING,
+# SUCCESS or FAILURE.
+PRIMITIVES = tuple(Primitive(name, (running(), success(), failure()))
+                   for name in ("move_to", "gripper_control", "grasp_in", "record_grasping_pose", "detach_approach"))
+
+# What the real primitives would more likely do (``original_narrow``): motions and grasps
+# run for a while and can fail, the gripper switch answers at once and can fail, recording
+# the grasping pose and detaching always succeed at once.
+NARROW_PRIMITIVES = (
     Primitive("move_to", (running(), success(), failure())),
     Primitive("gripper_control", (success(), failure())),
     Primitive("grasp_in", (running(), success(), failure())),
@@ -268,7 +277,7 @@ def _bookkeeping() -> tuple:
     )
 
 
-def _model(name: str, variant: str, n_parts: int, queue_max: int) -> Model:
+def _model(name: str, variant: str, n_parts: int, queue_max: int, primitives=PRIMITIVES) -> Model:
     if n_parts < 1 or queue_max < 1:
         raise ValueError("n_parts and queue_max must be at least 1")
     hubs = [f"approach {a}" for a, _, _ in ROTATIONS] + [f"{p} to {q}" for q, a, b in ROTATIONS for p in (a, b)]
@@ -276,7 +285,7 @@ def _model(name: str, variant: str, n_parts: int, queue_max: int) -> Model:
         name,
         variables=[Int("queue", 0, queue_max), Bool("gripper_empty", True), Int("placed", 0, n_parts),
                    Int("chosen", 0, len(TARGETS))],
-        primitives=PRIMITIVES + _bookkeeping(),
+        primitives=tuple(primitives) + _bookkeeping(),
         fsms=[movement_manager()],
         tree=executive(n_parts, variant),
         environment=[EnvEvent("arrive", f"queue < {queue_max}", {"queue": "queue + 1"})],
@@ -295,3 +304,10 @@ def original(n_parts: int = 18, queue_max: int = 2) -> Model:
 def original_preemptive(n_parts: int = 18, queue_max: int = 2) -> Model:
     """The same FSM under the inferred preemptive executive ``X + ((done << Y) << Z)``."""
     return _model("original-preemptive", "preemptive", n_parts, queue_max)
+
+
+def original_narrow(n_parts: int = 18, queue_max: int = 2) -> Model:
+    """``original()`` with the narrower primitive declarations (``NARROW_PRIMITIVES``):
+    ``gripper_control`` never RUNNING, ``record_grasping_pose`` and ``detach_approach``
+    always SUCCESS at once. Not what the original accepts, but what its hardware would do."""
+    return _model("original-narrow", "memory", n_parts, queue_max, NARROW_PRIMITIVES)

@@ -23,6 +23,7 @@ BUILTIN: dict = {
     # the authors' original FSM and executive, defects kept (models/original.py)
     "original": "btfsm.models.original:original",
     "original-preemptive": "btfsm.models.original:original_preemptive",
+    "original-narrow": "btfsm.models.original:original_narrow",  # narrower primitive declarations
     # teaching examples (models/examples/)
     "two-area": "btfsm.models.examples.two_area:two_area",
     "two-area-file": "btfsm.models.examples.files:two_area_file",

@@ -243,6 +243,18 @@ class FSMGraph:
             bad |= {(s, g) for s in self.states if s not in good and any(e[1] == g for e in self.edges[s])}
         return bad
 
+    def sink(self) -> bool:
+        """Is a state reachable whose token is on an FSM state with no edge and no marker
+        that is not terminal (every request fails there forever)?"""
+        ids = self.program.fsm_info[self.program.fsm_index[self.fsm.name]][1]
+        f = self.fsm
+        for s in self.states:
+            sid = ids[s[self.token]]
+            if (sid not in f.terminal and not any(e.source == sid for e in f.edges)
+                    and not any(m.state == sid for m in f.markers)):
+                return True
+        return False
+
     def non_progress(self) -> bool:
         """Is there a cycle of requests of one goal without progress?"""
         for g in range(len(self.fsm.goals)):

@@ -12,7 +12,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from btfsm import (FSM, Action, Bool, Condition, ConformanceError, Edge, Effects, EnvChoice, EnvEvent, Int,
-                   Marker, Model, ReactiveFallback, ReactiveSequence, SkillRequest, State, Status,
+                   Marker, Model, Parallel, ReactiveFallback, ReactiveSequence, SkillRequest, State, Status,
                    failure, running, success)
 from btfsm.oracles import RandomOracle
 from btfsm.runtime import Clock, Runtime
@@ -335,16 +335,19 @@ def test_trace_file_contents(tmp_path):
 def test_trace_records_violations_and_busy():
     arm = FSM("arm", states=[State("work", outcomes=[success("ok")])], goals=["go", "other"],
               markers=[Marker("work", ["go", "other"])])
-    m = Model("viol", variables=[Bool("done")], fsms=[arm],
-              tree=ReactiveSequence("root", [SkillRequest("a", fsm="arm", goal="go", post="done"),
-                                             SkillRequest("b", fsm="arm", goal="other")]))
+    slow = FSM("slow", states=[State("w", outcomes=[running("moving")])], goals=["x", "y"],
+               markers=[Marker("w", ["x", "y"], on="failure")])
+    m = Model("viol", variables=[Bool("done")], fsms=[arm, slow],
+              tree=Parallel("root", [SkillRequest("a", fsm="arm", goal="go", post="done"),
+                                     SkillRequest("b1", fsm="slow", goal="x"), SkillRequest("b2", fsm="slow", goal="y")]))
     out = io.StringIO()
-    rt = Runtime(m, trace=out)
+    rt = Runtime(m, {"moving": "moving"}, trace=out)
     rt.tick()
     rt.close()
     rec = read_trace(out.getvalue().splitlines())[1][0]
-    assert rec["violations"] == [["violation", "a", "post"], ["busy", "arm", "b"]]
-    assert rt.last.violations == [("post", "a")]
+    # b2 asks 'slow' while b1 holds it (RUNNING) in the same tick: a conflict ('busy')
+    assert rec["violations"] == [["violation", "a", "post"], ["busy", "slow", "b2"]]
+    assert rt.last.violations == [("post", "a"), ("busy", "b2", "slow")]
 
 
 def test_replay_reports_the_first_difference():

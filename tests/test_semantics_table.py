@@ -839,12 +839,68 @@ def test_fsm_once_per_tick():
     steps = run_rows(m, [
         Tick("f/home:S", "R", running="root r1 r2"),  # r2: same reply without a step; r3: busy
         Tick("f/work:busy", "R", running="root r1 r2"),
-        Tick("f/work:ok", "S", running=""),
     ])
     for step, _ in steps:
         assert events(step, "busy") == [("busy", "f", "r3")]
+        assert step.violations == [("busy", "r3", "f")]  # a conflict (rule 'Conflict')
         assert [e for e in events(step, "status") if e[1] == "r3"] == [("status", "r3", F)]
-    assert [p.fsm_state(s.state, "f") for s, _ in steps] == [("work", "g"), ("work", "g"), ("work", None)]
+    assert [p.fsm_state(s.state, "f") for s, _ in steps] == [("work", "g"), ("work", "g")]
+    # r1 lets go (SUCCESS) and r3 starts: a hand-over, the FSM steps again for 'h' (rule 'Hand-over');
+    # the Parallel succeeds (r1, r2) and halts r3, which withdraws 'h'
+    step, oracle = run_rows(m, [Tick("f/work:ok f/work:busy", "S", running="", halts="r3")], steps[-1][0].state)[0]
+    assert events(step, "handover", "withdraw") == [("handover", "f", "r3"), ("withdraw", "f", "r3")]
+    assert not step.violations and p.fsm_state(step.state, "f") == ("work", None)
+
+
+def _handover_fsm(**kw):
+    base = dict(states=[State("home"), State("door", outcomes=[running("busy"), success("ok")]),
+                        State("cup", outcomes=[running("busy"), success("ok")])],
+                goals=["open_door", "pick_cup"],
+                edges=[Edge("home", "door", ["open_door"]), Edge("door", "cup", ["pick_cup"], direct=True),
+                       Edge("home", "cup", ["pick_cup"], direct=True)],
+                markers=[Marker("door", ["open_door"]), Marker("cup", ["pick_cup"])])
+    base.update(kw)
+    return FSM("arm", **base)
+
+
+def _handover_model():
+    return Model("handover", variables=[Bool("fell_back")], fsms=[_handover_fsm()],
+                 tree=MemoryFallback("root", [
+                     MemorySequence("seq", [SkillRequest("open", fsm="arm", goal="open_door"),
+                                            SkillRequest("pick", fsm="arm", goal="pick_cup")]),
+                     Action("fallback", outcomes=[success(fell_back="true")])]))
+
+
+def test_fsm_handover():
+    m = _handover_model()
+    p = m.program
+    steps = run_rows(m, [
+        Tick("arm/home:S", "R", running="root seq open"),
+        Tick("arm/door:busy", "R", running="root seq open"),
+        # 'open' succeeds; 'pick' starts in the same tick: the FSM steps again, for it
+        Tick("arm/door:ok arm/cup:busy", "R", running="root seq pick", halts=""),
+        Tick("arm/cup:ok", "S", running=""),
+    ])
+    step = steps[2][0]
+    assert events(step, "handover", "busy") == [("handover", "arm", "pick")]
+    assert [e for e in events(step, "status") if e[1] in ("open", "pick")] == [("status", "open", S), ("status", "pick", R)]
+    assert p.fsm_state(step.state, "arm") == ("cup", "pick_cup")
+    assert all(not s.violations for s, _ in steps)
+    assert not any(p.decode(s.state)["fell_back"] for s, _ in steps)  # the fallback never fires
+
+
+def test_fsm_conflict():
+    # r1 replies SUCCESS at once every tick (direct markers); r2 started by a hand-over in
+    # tick 0 and is running in tick 1 when r1 takes the FSM again: a conflict
+    f = _work_fsm(markers=[Marker("home", ["g"], direct=True), Marker("work", ["g"], direct=True), Marker("work", ["h"])])
+    m = Model("conflict", fsms=[f], tree=Parallel("root", [SkillRequest("r1", fsm="f", goal="g"),
+                                                           SkillRequest("r2", fsm="f", goal="h")]))
+    steps = run_rows(m, [
+        Tick("f/home:S", "R", running="root r2"),
+        Tick("", "F", running=""),
+    ])
+    assert events(steps[0][0], "handover") == [("handover", "f", "r2")] and not steps[0][0].violations
+    assert events(steps[1][0], "busy") == [("busy", "f", "r2")] and steps[1][0].violations == [("busy", "r2", "f")]
 
 
 def test_fsm_held_goal():

@@ -60,8 +60,9 @@ def test_unsupported_preemption_has_a_counterexample():
     assert not bad.supported
     assert d.pairs[(1, 0, "preemption")].refused > 0  # the tree asked, the FSM refused at once
     cx = bad.counterexample
-    # right after the refused switch: work withdrawn, serve not applicable at w1
-    assert cx["from_state"] == "w1" and cx["held_goal"] is None and cx["request"] == "serve"
+    # right after the refused switch: serve not applicable at w1; work was withdrawn, and the
+    # fallback handed the FSM back to do_work in the same tick (rule 'Hand-over'), so work is held
+    assert cx["from_state"] == "w1" and cx["held_goal"] == "work" and cx["request"] == "serve"
     assert cx["steps"][0]["reply"] == "FAILURE" and cx["steps"][0].get("not_applicable")
     assert sup[("serve", "work", "completion")].supported
     text = format_text(d, list(sup.values()))

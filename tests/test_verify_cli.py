@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import json
+import re
 import os
 import subprocess
 import sys
@@ -99,12 +100,16 @@ def test_counterexample_dir_and_replay(tmp_path, capsys):
     code, _, _ = _run(capsys, "check", model, "--counterexample-dir", str(ce_dir))
     assert code == 1
     written = sorted(os.listdir(ce_dir))
-    assert written == ["cnt.domain.json", "cnt.invariants.json"]
+    # MODEL.PROPERTY.HASH.json: a second run with another violation does not overwrite
+    assert [re.sub(r"\.[0-9a-f]{10}\.json$", "", n) for n in written] == ["cnt.domain", "cnt.invariants"]
     for name in written:
         code, out, _ = _run(capsys, "replay", str(ce_dir / name), model)
         assert code == 0 and "confirmed" in out
+    code, _, _ = _run(capsys, "check", _write(tmp_path, _counter("n + 1", invariants={"small": "n < 2"}), "m2.yaml"),
+                      "--counterexample-dir", str(ce_dir), "--property", "invariants")
+    assert len(os.listdir(ce_dir)) == 3 and set(written) < set(os.listdir(ce_dir))
     # a counterexample that does not reproduce: exit 1
-    ce = json.loads((ce_dir / "cnt.invariants.json").read_text())
+    ce = json.loads((ce_dir / written[1]).read_text())
     ce["steps"][0]["state"]["n"] = 2
     (ce_dir / "wrong.json").write_text(json.dumps(ce))
     code, out, _ = _run(capsys, "replay", str(ce_dir / "wrong.json"), model)
@@ -168,3 +173,15 @@ def test_progress_line_on_stderr_for_long_explorations(tmp_path):
     piped = subprocess.run([sys.executable, "-m", "btfsm.cli", "check", str(path), "--property", "invariants"],
                            capture_output=True, text=True, timeout=300)
     assert piped.returncode == 0 and piped.stderr == ""  # not a terminal: no bar
+
+
+def test_quiet_verbose_and_goal_level_flags(capsys):
+    code, out, _ = _run(capsys, "check", "ariac-preemptive", "--quiet")
+    assert code == 0 and "warning(s):" not in out and "gap" not in out and "contracts" in out
+    code, out, _ = _run(capsys, "check", "ariac-preemptive")
+    assert re.search(r"^\d+ warning\(s\): \d+ edge\(s\) never fire, .*\(--verbose lists them\)$", out, re.M)
+    assert "fsms.arm." not in out
+    code, out, _ = _run(capsys, "check", "ariac-preemptive", "--verbose", "--property", "lints")
+    assert "fsms.arm.goals: goal 'pick_agv' is never requested" in out
+    code, out, _ = _run(capsys, "check", "original", "--property", "goal-reachability", "--goal-level", "tree")
+    assert code == 0 and "goal-reachability  holds" in out

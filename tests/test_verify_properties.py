@@ -333,3 +333,181 @@ def test_predicates_with_constant_negation():
     m = _counter(invariants={"odd": "n >= 0 and not true"}, workable="not (1 > 2) or n == 3")
     assert _one(m, "invariants").holds is False
     assert _one(m, "workable-reachability").holds is True
+
+
+# ---------------------------------------------------------------------- issue 9: the traps
+
+from btfsm import MemoryFallback, MemorySequence, Parallel  # noqa: E402
+from btfsm.runtime import Runtime  # noqa: E402
+from btfsm.verify.explore import explore  # noqa: E402
+
+
+def _door_cup_fsm():
+    return FSM("arm", [State("home"), State("door", outcomes=[running("busy"), success("ok")]),
+                       State("cup", outcomes=[running("busy"), success("ok")])], "home", ["open_door", "pick_cup", "home"],
+               [Edge("home", "door", ["open_door"]), Edge("door", "cup", ["pick_cup"], direct=True),
+                Edge("home", "cup", ["pick_cup"], direct=True), Edge("cup", "home", ["home", "open_door"], direct=True),
+                Edge("door", "home", ["home"], direct=True)],
+               [Marker("door", ["open_door"]), Marker("cup", ["pick_cup"]), Marker("home", ["home"], direct=True)])
+
+
+def _door_then_cup():
+    """MemorySequence[open_door, pick_cup, home] on one FSM with a fallback behind it."""
+    return Model("handover", variables=[Bool("fell_back")], fsms=[_door_cup_fsm()],
+                 tree=MemoryFallback("root", [
+                     MemorySequence("seq", [SkillRequest("open", fsm="arm", goal="open_door"),
+                                            SkillRequest("pick", fsm="arm", goal="pick_cup"),
+                                            SkillRequest("back", fsm="arm", goal="home")]),
+                     Action("fallback", outcomes=[success(fell_back="true")])]),
+                 invariants=[("no_fallback", "not fell_back")])
+
+
+def test_handover_checker_and_runtime_agree():
+    m = _door_then_cup()
+    r = check(m, ["invariants", "contracts"])
+    assert r.exit_code == 0  # the fallback never fires, no conflict
+    ts = explore(m)
+    assert not ts.violations and set(ts.status.tolist()) <= {0, 1}  # never FAILURE
+    # the runtime (same step function) starts pick_cup in the tick open_door succeeds
+    script = {"arm/door": ["busy", "ok"], "arm/cup": ["busy", "ok"]}
+    seen = {k: 0 for k in script}
+
+    def answer(call):
+        label = call.site.label
+        out = script[label][min(seen[label], 1)]
+        seen[label] += 1
+        return out
+    impls = {"door": answer, "cup": answer}
+    rt = Runtime(m, impls)
+    statuses = [rt.tick().status.name[0] for _ in range(4)]
+    # home->door; door busy; door ok and pick_cup starts (cup busy); cup ok and 'back' succeeds at once
+    assert statuses == ["R", "R", "R", "S"]
+    assert not m.program.decode(rt.state)["fell_back"]
+
+
+def test_concurrent_requests_are_a_contract_violation():
+    m = Model("conflict", fsms=[_door_cup_fsm()],
+              tree=Parallel("root", [SkillRequest("open", fsm="arm", goal="open_door"),
+                                     SkillRequest("pick", fsm="arm", goal="pick_cup")]))
+    res = _one(m, "contracts")
+    assert res.holds is False
+    ce = res.counterexample
+    assert ce.violation["kind"] == "conflict" and ce.violation["node"] == "pick" and ce.violation["fsm"] == "arm"
+    assert ["busy", "pick", "arm"] in ce.steps[-1]["violations"]
+    assert "one FSM serves one request at a time" in ce.format_text()
+    assert "confirmed" in _replays(res, m)
+
+
+def _sink(terminal=()):
+    f = FSM("arm", [State("home"), State("p1", outcomes=[running("moving"), success("there")]), State("stuck")], "home",
+            ["go"], [Edge("home", "p1", ["go"]), Edge("p1", "stuck", ["go"])], [Marker("p1", ["go"])], terminal=terminal)
+    return f
+
+
+@pytest.mark.parametrize("tree", [True, False])
+def test_reachable_sink_is_a_dead_state(tree):
+    m = Model("sink", fsms=[_sink()], tree=SkillRequest("req", fsm="arm", goal="go") if tree else None)
+    res = _one(m, "no-dead-states")
+    assert res.holds is False
+    ce = res.counterexample
+    assert ce.violation["kind"] == "sink" and ce.violation["state"] == "stuck"
+    assert ce.steps[-1]["fsm"]["arm"][0] == "stuck" if tree else ce.steps[-1]["state"]["arm.state"] == "stuck"
+    assert "every request gets FAILURE ('not applicable')" in ce.format_text()
+    assert "confirmed" in _replays(res, m)
+    # declared terminal: intended, not reported
+    ok = Model("sink", fsms=[_sink(("stuck",))], tree=SkillRequest("req", fsm="arm", goal="go") if tree else None)
+    assert _one(ok, "no-dead-states").holds is True
+
+
+def test_workable_without_tree_is_vacuous():
+    m = Model("notree", fsms=[_sink(("stuck",))])
+    res = _one(m, "workable-reachability")
+    assert res.holds is True and res.info["vacuous"]
+    assert any("vacuous" in n for n in res.notes)
+    text = check(m, ["workable-reachability"]).format_text()
+    assert "holds (vacuously: the model has no tree)" in text and "vacuous:" in text
+    assert not _one(_worker(True), "workable-reachability").info.get("vacuous")
+
+
+def _away_and_back(guard=True, order=("out", "back")):
+    f = FSM("arm", [State("home"), State("away")], "home", ["out", "back"],
+            [Edge("home", "away", ["out"]), Edge("away", "home", ["back"])],
+            [Marker("away", ["out"], direct=True), Marker("away", ["back"])])
+    req = {g: SkillRequest(g, fsm="arm", goal=g) for g in ("out", "back")}
+    if guard:
+        req["back"] = ReactiveSequence("guarded", [Condition("is_away", "arm.state == 'away'"), req["back"]])
+    return Model("away", fsms=[f], tree=MemorySequence("trip", [req[g] for g in order]))
+
+
+def test_goal_level_tree_sees_conditions_in_front_of_requests():
+    m = _away_and_back()
+    res = _one(m, "goal-reachability")  # open: 'back' requested at home, not applicable there
+    assert res.holds is False and "level open" in res.counterexample.violation["text"]
+    assert "--goal-level tree" in res.counterexample.violation["text"] and "`pre:`" in res.counterexample.violation["text"]
+    res = _one(m, "goal-reachability", goal_level="tree")
+    assert res.holds is True and res.info["level"] == "tree"
+    bad = _away_and_back(guard=False, order=("back", "out"))  # the tree really asks 'back' at home
+    res = _one(bad, "goal-reachability", goal_level="tree")
+    assert res.holds is False and res.counterexample.violation["kind"] == "goal-tree"
+    assert res.counterexample.violation["text"].startswith("level tree")
+    assert "confirmed" in _replays(res, bad)
+    with pytest.raises(ValueError, match="goal level"):
+        _one(m, "goal-reachability", goal_level="nope")
+
+
+def _through():
+    """A request passes home -> p1 -> p2 (direct edges), runs p2 and goes back home."""
+    f = FSM("arm", [State("home"), State("p1"), State("p2", outcomes=[success("ok"), failure("jam")])], "home", ["go"],
+            [Edge("home", "p1", ["go"], direct=True), Edge("p1", "p2", ["go"], direct=True),
+             Edge("p2", "home", ["go"], on="failure"), Edge("p2", "home", ["go"])],
+            [Marker("p2", ["go"], guard="false")])
+    return Model("through", fsms=[f], tree=SkillRequest("req", fsm="arm", goal="go"))
+
+
+def test_texts_say_how_the_token_moves_within_a_request():
+    m = _through()
+    ce = _one(m, "no-dead-states").counterexample
+    assert ce.violation["kind"] == "non-progress"
+    assert "the token moves (home -> p1 -> p2 -> home)" in ce.violation["text"]
+    assert "does not move" not in ce.violation["text"]
+    text = _one(m, "goal-reachability").counterexample.violation["text"]
+    assert "cycling within each request (home -> p1 -> p2 -> home)" in text and "(stuck)" not in text
+    # the token passes p1 within every tick: p1 is reached, not a lint
+    lints = _one(m, "lints").notes
+    assert not any("'p1' is never reached" in n or "'p2' is never reached" in n for n in lints), lints
+
+
+def test_steps_print_events_in_order():
+    """A higher-priority request starting withdraws the old goal before its own edge fires."""
+    f = FSM("arm", [State("home", outcomes=[running("moving"), success()]), State("away", outcomes=[running("moving")])],
+            "home", ["go", "stay"], [Edge("home", "away", ["go"])], [Marker("home", ["stay"], on="failure")])
+    m = Model("order", variables=[Bool("call")], fsms=[f],
+              environment=[EnvEvent("ring", "not call and arm.goal == 'stay'", {"call": True})],
+              tree=ReactiveFallback("root", [ReactiveSequence("urgent", [Condition("called", "call"),
+                                                                         SkillRequest("go", fsm="arm", goal="go")]),
+                                             SkillRequest("stay", fsm="arm", goal="stay")]),
+              invariants=[("quiet", "not (call and arm.state == 'away')")])
+    ce = _one(m, "invariants").counterexample
+    line = ce.format_text().splitlines()
+    step = next(x for x in line if "ring" in x)
+    assert step.index("withdraw arm (stay)") < step.index("fired arm:home->away"), step
+    assert ce.steps[-1]["sequence"][0][0] in ("outcome", "withdraw", "halt")
+
+
+def test_lints_are_grouped_and_quiet_hides_them():
+    m = _door_then_cup()
+    r = check(m)
+    text = r.format_text()
+    lint = r.result("lints")
+    assert f"{len(lint.notes)} warning(s): " in text and "(--verbose lists them)" in text
+    assert not any(n in text for n in lint.notes)
+    assert all(n in r.format_text(verbose=True) for n in lint.notes)
+    quiet = r.format_text(quiet=True)
+    assert "warning(s):" not in quiet and "gap" not in quiet and "information" not in quiet
+
+
+def test_counterexample_file_names_differ_per_violation():
+    a = _one(_worker(False), "workable-reachability").counterexample
+    b = _one(Model("worker", fsms=[_sink()], tree=SkillRequest("do", fsm="arm", goal="go")), "workable-reachability").counterexample
+    assert a.file_name() != b.file_name() and a.file_name().startswith("worker.workable-reachability.")
+    assert a.file_name() == _one(_worker(False), "workable-reachability").counterexample.file_name()  # stable

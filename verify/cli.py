@@ -35,7 +35,8 @@ def cli_check(args) -> int:
     model = _load(args.model)
     progress = ExplorationProgress()
     try:
-        report = check(model, props or None, max_states=max_states, progress=progress, engine=args.engine)
+        report = check(model, props or None, max_states=max_states, progress=progress, engine=args.engine,
+                       goal_level=getattr(args, "goal_level", "open"))
     except MemoryError:
         progress.done()
         print(f"btfsm check: out of memory while exploring {model.name}; lower --max-states", file=sys.stderr)
@@ -46,7 +47,7 @@ def cli_check(args) -> int:
     if args.json:
         print(json.dumps(report.to_json(), default=_plain))
     else:
-        print(report.format_text())
+        print(report.format_text(quiet=getattr(args, "quiet", False), verbose=getattr(args, "verbose", False)))
         if not report.complete:
             print(f"(state budget of {max_states:,} states hit: raise --max-states to decide the rest)")
     return report.exit_code
@@ -77,7 +78,7 @@ def _write_counterexamples(report, folder):
         os.makedirs(folder, exist_ok=True)
         for r in report.results:
             if r.counterexample is not None:
-                path = os.path.join(folder, f"{report.model}.{r.name}.json")
+                path = os.path.join(folder, r.counterexample.file_name())
                 with open(path, "w", encoding="utf-8") as fh:
                     json.dump(r.counterexample.to_json(), fh, indent=1, default=_plain)
                     fh.write("\n")

@@ -86,6 +86,23 @@ class Counterexample:
     def __str__(self) -> str:
         return self.format_text()
 
+    def file_name(self) -> str:
+        """``MODEL.PROPERTY.HASH.json``: what ``--counterexample-dir`` names this file. HASH is
+        the first 10 hex digits of the SHA-256 of the canonical JSON, so two different
+        violations never overwrite each other and the same one keeps its name. Characters
+        other than letters, digits, ``_``, ``-`` and ``.`` in the model name become ``_``.
+
+        >>> Counterexample("m/x", "contracts", "model", "s").file_name()[:-16]
+        'm_x.contracts'
+        """
+        import hashlib
+        import re
+
+        text = json.dumps(self.to_json(), sort_keys=True, default=str, ensure_ascii=True)
+        digest = hashlib.sha256(text.encode("ascii")).hexdigest()[:10]
+        safe = re.sub(r"[^A-Za-z0-9_.-]", "_", self.model).lstrip(".") or "model"
+        return f"{safe[:80]}.{self.property}.{digest}.json"
+
 
 def _state_text(d: dict) -> str:
     return ", ".join(f"{k}={_v(v)}" for k, v in d.items() if not (":" in k))
@@ -104,14 +121,17 @@ def _step_text(st: dict) -> str:
         parts.append(f"request {req['goal']}{ps}" + (f" [inputs {ins}]" if ins else ""))
     if st.get("env"):
         parts.append("env " + ", ".join(st["env"]))
-    if st.get("outcomes"):
+    if st.get("sequence") is not None:  # what happened, in order (files since issue 9)
+        parts += _sequence_text(st["sequence"])
+    elif st.get("outcomes"):
         parts.append("; ".join(f"{s} -> {o}" for s, o in st["outcomes"]))
-    if st.get("halted"):
-        parts.append("halted " + ", ".join(st["halted"]))
-    if st.get("fired"):
-        parts.append("fired " + ", ".join(f"{f}:{e}" for f, e in st["fired"]))
-    if st.get("notes"):
-        parts.append(", ".join(f"{k} {a} ({b})" for k, a, b in st["notes"]))
+    if st.get("sequence") is None:
+        if st.get("halted"):
+            parts.append("halted " + ", ".join(st["halted"]))
+        if st.get("fired"):
+            parts.append("fired " + ", ".join(f"{f}:{e}" for f, e in st["fired"]))
+        if st.get("notes"):
+            parts.append(", ".join(f"{k} {a} ({b})" for k, a, b in st["notes"]))
     status = st.get("status")
     head = f"step {st['tick']}: " + ("; ".join(parts) if parts else "(no choice)")
     if status:
@@ -124,6 +144,28 @@ def _step_text(st: dict) -> str:
     if st.get("fsm") and not req:
         head += "\n      fsm: " + ", ".join(f"{f} at {s}" + (f" (goal {g})" if g else "") for f, (s, g) in st["fsm"].items())
     return head
+
+
+def _sequence_text(seq) -> list:
+    """Parts of a step line from its ordered events; runs of one kind are joined
+    (``fired arm:a->b, arm:b->c``)."""
+    parts, last = [], None
+    for item in seq:
+        kind = item[0]
+        if kind == "outcome":
+            text, group = f"{item[1]} -> {item[2]}", "outcome"
+        elif kind == "halt":
+            text, group = item[1], "halted"
+        elif kind == "fire":
+            text, group = f"{item[1]}:{item[2]}", "fired"
+        else:
+            text, group = f"{kind} {item[1]} ({item[2]})", "note"
+        if group == last and group != "outcome":
+            parts[-1] += ", " + text
+        else:
+            parts.append(text if group in ("outcome", "note") else f"{group} {text}")
+        last = group
+    return parts
 
 
 # ---------------------------------------------------------------------- building
@@ -168,7 +210,8 @@ def _step_record(ts, k, before, script, step, oracle, error=None) -> dict:
             rec["env"] = env_seen
         rec["fired"] = [[e[1], e[2]] for e in ev if e[0] == "fire"]
         rec["halted"] = [e[1] for e in ev if e[0] == "halt"]
-        rec["notes"] = [[e[0], e[1], e[2]] for e in ev if e[0] in ("withdraw", "not-applicable", "busy", "violation")]
+        rec["notes"] = [[e[0], e[1], e[2]] for e in ev if e[0] in _NOTES]
+        rec["sequence"] = [_sequence_item(e) for e in ev if e[0] in _SEQUENCE]
         rec["status"] = _NAMES[step.status]
         after = step.state
         keep = range(len(after)) if ts.kind == "model" else ts.slots
@@ -180,6 +223,16 @@ def _step_record(ts, k, before, script, step, oracle, error=None) -> dict:
     if error is not None:
         rec["error"] = str(error)
     return rec
+
+
+_NOTES = ("withdraw", "not-applicable", "busy", "handover", "violation")
+_SEQUENCE = ("outcome", "halt", "fire") + _NOTES
+
+
+def _sequence_item(e) -> list:
+    """One event of a step, in the order it happened: [kind, ...] (outcome: site, outcome;
+    halt: node; fire: fsm, element; notes: fsm, node)."""
+    return [e[0]] + [_jsonable(x) for x in e[1:3]]
 
 
 def path_counterexample(ts, transitions, prop: str, summary: str, violation: dict, *, loop=None,
@@ -466,6 +519,26 @@ def _confirm(ce, model, state, last, error) -> tuple:
         if last is not None and ("post", node) in [tuple(v) for v in last.violations]:
             return True, f"confirmed: tick {n}: '{node}' replied SUCCESS while its post-condition is false"
         return False, f"no contract violation of '{node}' at the last tick"
+    if kind == "conflict":
+        node = ce.violation["node"]
+        if last is not None and ("busy", node, ce.violation.get("fsm")) in [tuple(v) for v in last.violations]:
+            return True, f"confirmed: tick {n}: '{node}' was refused because another request used FSM '{ce.violation.get('fsm')}'"
+        return False, f"no conflict on '{node}' at the last tick"
+    if kind == "sink":
+        return _confirm_sink(ce, model, state)
+    if kind == "goal-tree":
+        from .explore import explore
+        from .treegoals import tree_goal_failures
+
+        ts = explore(model, start=state, max_states=_CONFIRM_BUDGET)
+        if not ts.complete:
+            return False, f"could not confirm within {_CONFIRM_BUDGET} states"
+        key = (ce.violation.get("fsm"), ce.violation.get("goal"))
+        bad = tree_goal_failures(ts).get(key)
+        if bad is not None and int(bad[0]) == 0:
+            return True, (f"confirmed: after {n} tick(s) the tree can request '{key[1]}' of FSM {key[0]} and no run "
+                          "from there gets SUCCESS for it")
+        return False, f"'{key[1]}' can succeed from the final state (or is not requested there)"
     if kind == "dead":
         from .explore import explore
 
@@ -485,6 +558,16 @@ def _confirm(ce, model, state, last, error) -> tuple:
     if kind in ("goal", "non-progress", "latency"):
         return _confirm_fsm(ce, model, state, kind)
     return False, f"unknown violation kind {kind!r}"
+
+
+def _confirm_sink(ce, model, state) -> tuple:
+    name, sid = ce.violation.get("fsm"), ce.violation.get("state")
+    f = model.fsm(name)
+    at = model.program.fsm_state(state, name)[0]
+    used = {e.source for e in f.edges} | {m.state for m in f.markers}
+    if at == sid and sid not in used and sid not in f.terminal:
+        return True, f"confirmed: after {len(ce.steps)} step(s) FSM {name} is in '{sid}', which has no edge, no marker and is not terminal"
+    return False, f"FSM {name} ends in '{at}', not in the sink '{sid}'"
 
 
 def _confirm_fsm(ce, model, state, kind) -> tuple:

@@ -19,9 +19,8 @@ from dataclasses import dataclass, field
 from .explore import DEFAULT_MAX_STATES
 from .properties import PROPERTIES, Context, run_property
 
-__all__ = ["Report", "check", "exit_code_of"]
+__all__ = ["Report", "check", "exit_code_of", "lint_kind", "lint_summary"]
 
-_LIST = 12  # items of a list printed in text (all are in the JSON)
 
 
 @dataclass
@@ -58,7 +57,11 @@ class Report:
                 "seconds": round(self.seconds, 6), "complete": self.complete, "systems": self.systems,
                 "properties": [r.to_json() for r in self.results]}
 
-    def format_text(self) -> str:
+    def format_text(self, quiet: bool = False, verbose: bool = False) -> str:
+        """The verdicts, counterexamples and notes of failing properties. Lints are grouped
+        by kind with counts and information lines (determinism gaps, notes of holding
+        properties) are summed up in one line; ``verbose`` lists them all, ``quiet``
+        leaves out lints and information entirely."""
         explored = "; ".join(_system_text(s) for s in self.systems) or "nothing to explore"
         lines = [f"model {self.model}: {explored} ({self.seconds:.2f} s)"]
         if not self.complete:
@@ -68,25 +71,59 @@ class Report:
             verdict = {True: "holds", False: "VIOLATED", None: "undecided"}[r.holds]
             if r.name == "lints":
                 verdict = f"{len(r.notes)} warning(s)"
+            elif r.holds is True and r.info.get("vacuous"):
+                verdict = "holds (vacuously: the model has no tree)"
             lines.append(f"  {r.name.ljust(width)}  {verdict}")
         for r in self.results:
             if r.counterexample is not None:
                 lines += ["", r.counterexample.format_text()]
         for r in self.results:
             notes = [n for n in r.notes if r.name not in ("lints", "determinism")]
-            if notes and r.holds is not True:
+            if notes and (r.holds is not True or (verbose and not quiet) or r.info.get("vacuous")):
                 lines += ["", f"{r.name}:"] + [f"  {n}" for n in notes]
+        if quiet:
+            return "\n".join(lines)
         gaps = [n for r in self.results if r.name == "determinism" for n in r.notes]
-        if gaps:
-            lines += ["", "determinism (information, not failures):"] + [f"  {n}" for n in gaps[:_LIST]]
-            if len(gaps) > _LIST:
-                lines.append(f"  ... {len(gaps) - _LIST} more (see --json)")
-        warns = [n for r in self.results if r.name == "lints" for n in r.notes]
-        if warns:
-            lines += ["", "warnings:"] + [f"  {n}" for n in warns[:2 * _LIST]]
-            if len(warns) > 2 * _LIST:
-                lines.append(f"  ... {len(warns) - 2 * _LIST} more (see --json)")
+        if gaps and verbose:
+            lines += ["", "determinism (information, not failures):"] + [f"  {n}" for n in gaps]
+        elif gaps:
+            lines += ["", f"determinism: {len(gaps)} gap(s), information only (--verbose lists them)"]
+        lint = next((r for r in self.results if r.name == "lints"), None)
+        if lint is not None and lint.notes:
+            warns = lint.info.get("warnings") or [{"element": n, "text": ""} for n in lint.notes]
+            lines += ["", f"{len(lint.notes)} warning(s): {lint_summary(warns)}"
+                      + ("" if verbose else " (--verbose lists them)")]
+            if verbose:
+                lines += [f"  {n}" for n in lint.notes]
         return "\n".join(lines)
+
+
+_KINDS = (("states", "state(s) never reached"), ("edges", "edge(s) never fire"),
+          ("markers", "marker(s) never fire"), ("goals", "goal(s) never requested"))
+
+
+def lint_kind(element: str) -> str:
+    """The group of a lint by its element path: ``fsms.arm.edges.e1`` -> "edges"."""
+    parts = element.split(".")
+    if parts[0] == "tree":
+        return "tree"
+    if parts[0] == "fsms" and len(parts) >= 3 and parts[2] in ("states", "edges", "markers", "goals"):
+        return parts[2]
+    return "other"
+
+
+def lint_summary(warnings) -> str:
+    """``41 edge(s) never fire, 12 state(s) never reached`` for lint dicts (element, text),
+    most frequent kind first.
+
+    >>> lint_summary([{"element": "fsms.a.edges.x"}, {"element": "fsms.a.states.p"}, {"element": "fsms.a.edges.y"}])
+    '2 edge(s) never fire, 1 state(s) never reached'
+    """
+    from collections import Counter
+
+    names = dict(_KINDS, tree="tree warning(s)", other="other warning(s)")
+    counts = Counter(lint_kind(w["element"]) for w in warnings)
+    return ", ".join(f"{n} {names[k]}" for k, n in sorted(counts.items(), key=lambda kv: (-kv[1], kv[0])))
 
 
 def _system_text(s: dict) -> str:
@@ -105,17 +142,18 @@ def exit_code_of(results) -> int:
 
 
 def check(model, properties=None, *, max_states: "int | None" = DEFAULT_MAX_STATES, progress=None,
-          engine: str = "auto") -> Report:
+          engine: str = "auto", goal_level: str = "open") -> Report:
     """Decide ``properties`` (names; default: all of ``btfsm.verify.properties.PROPERTIES``).
     ``progress(what, states, transitions, seconds)`` is called during long explorations;
-    ``engine``: the model-level exploration engine (``btfsm.verify.explore.explore``)."""
+    ``engine``: the model-level exploration engine (``btfsm.verify.explore.explore``);
+    ``goal_level``: ``open`` or ``tree`` (``btfsm.verify.properties.goals``)."""
     names = list(PROPERTIES) if not properties else list(dict.fromkeys(properties))
     unknown = [n for n in names if n not in PROPERTIES]
     if unknown:
         raise ValueError(f"unknown propert{'y' if len(unknown) == 1 else 'ies'} {', '.join(unknown)} "
                          f"(known: {', '.join(PROPERTIES)})")
     t0 = time.perf_counter()
-    ctx = Context(model, max_states=max_states, progress=progress, engine=engine)
+    ctx = Context(model, max_states=max_states, progress=progress, engine=engine, goal_level=goal_level)
     results = [run_property(ctx, n) for n in names]
     systems = [{"kind": ts.kind, "fsm": ts.fsm, "states": ts.n_states, "transitions": ts.n_transitions,
                 "complete": ts.complete, "seconds": round(ts.seconds, 6)} for ts in ctx.systems]

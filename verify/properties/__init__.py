@@ -14,7 +14,7 @@ name                         level    meaning
 ``no-dead-states``           both     no stuck state; no non-progress cycle (FSM level)
 ``request-latency``          fsm      a retargeted request is served in the same tick
 ``invariants``               model    every invariant holds in every reachable state
-``contracts``                model    no SkillRequest replies SUCCESS with post false
+``contracts``                model    no SUCCESS with post false; no two requests on one FSM
 ``domain``                   both     no effect writes outside its variable's domain
 ``lints``                    both     warnings only (never fails)
 ===========================  =======  ==================================================

@@ -32,8 +32,10 @@ class Result:
 class Context:
     """The model under check and its explorations (each done once, on demand)."""
 
-    def __init__(self, model, *, max_states: "int | None" = DEFAULT_MAX_STATES, progress=None, engine: str = "auto"):
+    def __init__(self, model, *, max_states: "int | None" = DEFAULT_MAX_STATES, progress=None, engine: str = "auto",
+                 goal_level: str = "open"):
         self.model = model
+        self.goal_level = goal_level  # goal-reachability: "open" (each FSM alone) or "tree"
         self.max_states = max_states
         self.engine = engine
         self.progress = progress

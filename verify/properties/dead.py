@@ -4,11 +4,17 @@
    enabled option), unless it is terminal: the model's ``terminal`` expression holds, or
    every FSM declares terminal states and every token is on one. States whose every tick
    raises a domain error are left to the ``domain`` property.
-2. FSM level, for each FSM: no **non-progress cycle**, a cycle of requests of one goal in
+2. No reachable **sink**: an FSM state that is not declared terminal and has no edge and
+   no marker at all. Every request there replies FAILURE ('not applicable') and the token
+   can never leave it, so the robot is frozen although ticks still happen (a FAILURE reply
+   counts as progress below, so (3) alone would not see it). Judged in the explored model
+   (states where the model's ``terminal`` holds are excused), or in each FSM's open system
+   for a model without a tree. The counterexample is the shortest path to it.
+3. FSM level, for each FSM: no **non-progress cycle**, a cycle of requests of one goal in
    which no step makes progress. A step makes progress when the token moves, or the reply
    is SUCCESS or FAILURE, or a primitive returned RUNNING (still working; assumed to
    finish). This catches a failing primitive retried forever and a refused withdraw that
-   freezes the robot. The counterexample is a lasso: the shortest path to the nearest
+   freezes the robot (a request refused with FAILURE is progress: see sinks, 2). The counterexample is a lasso: the shortest path to the nearest
    state on such a cycle, then the shortest cycle through it.
 """
 from __future__ import annotations
@@ -22,7 +28,7 @@ from ..explore import EnumOracle
 from ..system import shortest_path
 from .base import Result, evaluate
 
-__all__ = ["check", "dead_states", "terminal_mask", "non_progress", "progress_mask"]
+__all__ = ["check", "dead_states", "terminal_mask", "non_progress", "progress_mask", "sink_states", "reachable_sinks"]
 
 RUNNING = int(Status.RUNNING)
 _SCC_LIMIT = 500_000
@@ -49,6 +55,30 @@ def dead_states(ts) -> np.ndarray:
     if ts.errors:
         keep &= ~np.isin(dead, [e.state for e in ts.errors])
     return dead[keep]
+
+
+def sink_states(f) -> tuple:
+    """States of FSM ``f`` that are not terminal and have no edge and no marker at all."""
+    busy = {e.source for e in f.edges} | {m.state for m in f.markers}
+    return tuple(st.id for st in f.states if st.id not in busy and st.id not in f.terminal)
+
+
+def reachable_sinks(ts, f) -> "tuple | None":
+    """(state index, sink id, count) of the nearest reachable state of ``ts`` whose token of
+    FSM ``f`` is on a sink (model level: unless ``terminal`` holds there), or None."""
+    sinks = sink_states(f)
+    prog = ts.model.program
+    _, ids, tok, _, _ = prog.fsm_info[prog.fsm_index[f.name]]
+    if not sinks or tok not in ts.slots:
+        return None
+    on = np.isin(ts.column(tok), [ids.index(x) for x in sinks])
+    if ts.kind == "model":
+        on &= ~terminal_mask(ts)
+    hits = np.flatnonzero(on)
+    if hits.size == 0:
+        return None
+    i = int(hits[0])
+    return i, ids[int(ts.column(tok)[i])], int(np.unique(ts.column(tok)[hits]).size)
 
 
 def progress_mask(ts) -> np.ndarray:
@@ -159,6 +189,24 @@ def check(ctx) -> Result:
         ce = path_counterexample(ts, ts.path_to(i), "no-dead-states",
                                  f"{dead.size} reachable state(s) have no successor and are not terminal", viol)
         notes.append(f"model: {dead.size} dead state(s)")
+    sinks = {}
+    for f in model.fsms:
+        sts = ts if model.tree is not None else ctx.fsm_ts(f.name)
+        found = reachable_sinks(sts, f)
+        if found is not None:
+            sinks[f.name] = (sts, *found)
+            notes.append(f"FSM {f.name}: sink state '{found[1]}' is reachable (no edge, no marker, not terminal)")
+    info["sinks"] = sorted(sinks)
+    if ce is None and sinks:
+        name = min(sinks, key=lambda k: len(sinks[k][0].path_to(sinks[k][1])))
+        sts, i, sid, _count = sinks[name]
+        viol = {"kind": "sink", "fsm": name, "state": sid,
+                "text": (f"FSM {name} is now in state '{sid}', which has no edge and no marker: every request "
+                         f"gets FAILURE ('not applicable') and the token can never leave it, so {name} is frozen "
+                         f"for good (declare '{sid}' in the FSM's terminal states if stopping there is intended, "
+                         "or add an edge out of it)")}
+        ce = path_counterexample(sts, sts.path_to(i), "no-dead-states",
+                                 f"FSM {name}: sink state '{sid}' is reachable (every request fails there forever)", viol)
     lassos = {}
     for f in model.fsms:
         fts = ctx.fsm_ts(f.name)
@@ -177,15 +225,27 @@ def check(ctx) -> Result:
         fts, prefix, cycle = lassos[name]
         f = model.fsm(name)
         gname = f.goals[int(fts.goal[cycle[0]])]
-        viol = {"kind": "non-progress", "goal": gname,
-                "text": (f"requesting '{gname}' again and again comes back to the same state with no progress: "
-                         "the token does not move, the reply stays RUNNING and no primitive reports RUNNING "
-                         "(e.g. a failing primitive retried forever, or a refused request)")}
+        viol = {"kind": "non-progress", "goal": gname}
         ce = path_counterexample(fts, prefix + cycle, "no-dead-states",
                                  f"FSM {name}: a non-progress cycle requesting '{gname}'", viol, loop=len(prefix))
+        ce.violation["text"] = _non_progress_text(f, gname, ce.steps[len(prefix):])
     if ce is not None:
         return Result("no-dead-states", False, ce, notes, info)
     return Result("no-dead-states", None if undecided else True, None, notes, info)
+
+
+def _non_progress_text(f, gname, cycle_steps) -> str:
+    """Why the cycle makes no progress, saying how the token moves within it."""
+    ids = {e.id: e for e in f.edges}
+    passed = [ids[e] for st in cycle_steps for fsm, e in st.get("fired", []) if fsm == f.name and e in ids]
+    if passed:
+        route = " -> ".join([passed[0].source] + [e.target for e in passed])
+        token = (f"the token moves ({route}) but each request ends with it back where the request started")
+    else:
+        token = "the token does not move"
+    return (f"requesting '{gname}' again and again comes back to the same state with no progress: {token}, "
+            "the reply stays RUNNING and no primitive reports RUNNING "
+            "(e.g. a failing primitive retried forever, or a refused request)")
 
 
 def _why_dead(ts, i) -> str:

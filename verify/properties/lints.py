@@ -2,7 +2,8 @@
 
 The model's own warnings (``model.warnings``: structurally unreachable states, shadowed
 or impossible edges) and the program's (``model.program.lints``), plus what exploration
-shows: FSM states the token never visits, edges and markers that never fire, and goals no
+shows: FSM states the token never visits (at the end of a tick, or passing through within
+one: the ends of a fired edge), edges and markers that never fire, and goals no
 SkillRequest requests. For a model with a tree the explored model is used when it has at
 most ``FIRE_LIMIT`` transitions (every transition is re-run once with recording on);
 otherwise, and for models without a tree, each FSM as an open system (which
@@ -59,6 +60,8 @@ def check(ctx) -> Result:
         if f.name not in visited:
             continue
         _, states, where = visited[f.name]
+        # a state the token only passes through within a tick (direct edges) is reached too
+        states = states | {x for e in f.edges if (f.name, e.id) in fired for x in (e.source, e.target)}
         for st in f.states:
             el = f"fsms.{f.name}.states.{st.id}"
             if st.id not in states and el not in seen:

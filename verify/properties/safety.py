@@ -2,7 +2,8 @@
 
 * ``invariants``: each user invariant holds in every reachable state (model level).
 * ``contracts``: no reachable tick has a SkillRequest reply SUCCESS while its ``post`` is
-  false (``Step.violations``; model level).
+  false, and none has two requests use one FSM at once (a request refused as ``busy``,
+  docs/semantics.md rule 'Conflict') (``Step.violations``; model level).
 * ``domain``: no effect writes outside its variable's domain. Model level; for a model
   without a tree (whose FSMs never step at model level) also each FSM as an open system.
 
@@ -47,16 +48,31 @@ def check_invariants(ctx) -> Result:
 
 def check_contracts(ctx) -> Result:
     ts = ctx.model_ts()
-    posts = [(t, v) for t, vs in ts.violations for v in vs if v[0] == "post"]
-    if not posts:
+    found = [(t, v) for t, vs in ts.violations for v in vs if v[0] in ("post", "busy")]
+    if not found:
         return Result("contracts", _undecided(ts), None, [] if ts.complete else ["state budget hit: not decided"])
-    t, v = min(posts, key=lambda p: (int(ts.src[p[0]]), p[0]))
-    nodes = sorted({v[1] for _, v in posts})
-    viol = {"kind": "contract", "node": v[1],
-            "text": f"'{v[1]}' replied SUCCESS in the last tick while its post-condition is false"}
-    ce = path_counterexample(ts, ts.path_to(int(ts.src[t])) + [t], "contracts",
-                             f"SkillRequest '{v[1]}' can reply SUCCESS with its post-condition false", viol)
-    return Result("contracts", False, ce, [f"{len(posts)} violating transition(s) at {', '.join(nodes)}"])
+    posts = [p for p in found if p[1][0] == "post"]
+    busy = [p for p in found if p[1][0] == "busy"]
+    t, v = min(found, key=lambda p: (int(ts.src[p[0]]), p[0]))
+    notes = []
+    if posts:
+        notes.append(f"{len(posts)} transition(s) reply SUCCESS with post false at {', '.join(sorted({v[1] for _, v in posts}))}")
+    if busy:
+        notes.append(f"{len(busy)} transition(s) with two requests using one FSM at once (refused: "
+                     f"{', '.join(sorted({v[1] for _, v in busy}))})")
+    if v[0] == "post":
+        viol = {"kind": "contract", "node": v[1],
+                "text": f"'{v[1]}' replied SUCCESS in the last tick while its post-condition is false"}
+        summary = f"SkillRequest '{v[1]}' can reply SUCCESS with its post-condition false"
+    else:
+        viol = {"kind": "conflict", "node": v[1], "fsm": v[2],
+                "text": (f"in the last tick '{v[1]}' was refused (FAILURE, 'busy'): another request used FSM "
+                         f"'{v[2]}' in the same tick while '{v[1]}' was running or the other one was; "
+                         "one FSM serves one request at a time (docs/semantics.md, rule 'Conflict'): "
+                         "put the requests in sequence, or give each its own FSM")}
+        summary = f"SkillRequest '{v[1]}' and another request use FSM '{v[2]}' at the same time"
+    ce = path_counterexample(ts, ts.path_to(int(ts.src[t])) + [t], "contracts", summary, viol)
+    return Result("contracts", False, ce, notes)
 
 
 def check_domain(ctx) -> Result:

@@ -41,8 +41,13 @@ def check(ctx) -> Result:
     ts = ctx.model_ts()
     bad = traps(ts)
     what = "workable states: " + ("every FSM token on its initial state (default)" if ctx.model.workable is None
-                                  else f"'{ctx.model.workable}'")
+                                  else f"those where `{ctx.model.workable}` holds")
     info = {"states": ts.n_states, "traps": int(bad.size)}
+    if ctx.model.tree is None:
+        what += ("; vacuous: the model has no tree, so no tick requests anything and no FSM token "
+                 "moves (only the environment runs); the FSMs are judged as open systems by "
+                 "goal-reachability and no-dead-states")
+        info["vacuous"] = True
     if bad.size == 0:
         if not ts.complete:
             return Result("workable-reachability", None, None,
