@@ -42,7 +42,7 @@ import sys
 from contextlib import contextmanager
 
 from .errors import ConformanceError, DomainError, ModelError, Terminated, UsageError
-from .validators import (finite_float, input_text, int_range, output_dir, output_file, positive_int,
+from .validators import (finite_float, input_file, input_text, int_range, output_dir, output_file, positive_int,
                          probability, seed_int)
 
 __all__ = ["main", "build_parser", "UsageError", "EXIT_OK", "EXIT_FAILED", "EXIT_INPUT", "EXIT_BUDGET",
@@ -116,7 +116,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def _args_model(sp):
-    sp.add_argument("model", type=input_text, help="model file (.yaml/.json) or built-in model name")
+    sp.add_argument("model", type=input_file, help="model file (.yaml/.json) or built-in model name")
 
 
 def _args_json(sp, what="the result"):
@@ -154,7 +154,7 @@ def _args_run(sp):
 
 
 def _args_replay(sp):
-    sp.add_argument("trace", type=input_text,
+    sp.add_argument("trace", type=input_file,
                     help="a trace (.jsonl) or a counterexample (.json from btfsm check --counterexample-dir)")
     _args_model(sp)
     sp.add_argument("--cell", action="store_true", help="also replay the counterexample's situation in the kitting cell")
@@ -256,8 +256,18 @@ def _refuse_input_as_output(args) -> None:
 
 # ---------------------------------------------------------------- errors and signals
 
+#: Characters that would break the one-line rule (what ``str.splitlines`` splits on).
+_LINE_BREAKS = {c: repr(c)[1:-1] for c in "\n\r\v\f\x1c\x1d\x1e\x85\u2028\u2029"}
+
+
 def _one_line(text) -> str:
-    return " ".join(str(text).split()) if "\n" in str(text) or "\r" in str(text) else str(text)
+    """``text`` with line breaks escaped (``\\n``), so a message stays one line.
+
+    >>> _one_line("a\\nb")
+    'a\\\\nb'
+    """
+    text = str(text)
+    return text.translate(str.maketrans(_LINE_BREAKS)) if any(c in text for c in _LINE_BREAKS) else text
 
 
 def _describe(exc: BaseException, command: str) -> dict:
@@ -294,10 +304,10 @@ def _message(info: dict) -> str:
     if info["kind"] in ("interrupted", "terminated"):
         return head + info["problem"]
     if info["kind"] == "internal":
-        return (head + f"internal error (a bug in btfsm): {info['type']}: {info['problem']}; {REPORT_HINT} "
+        return _one_line(head + f"internal error (a bug in btfsm): {info['type']}: {info['problem']}; {REPORT_HINT} "
                        f"(run with --debug for the traceback)")
     where = "".join(f"{part}: " for part in (info["file"], info["element"]) if part)
-    return head + "error: " + where + info["problem"]
+    return _one_line(head + "error: " + where + info["problem"])
 
 
 def _emit(info: dict, as_json: bool) -> None:
@@ -397,15 +407,19 @@ def _main(argv) -> int:
     # commands may accept extra options (``accepts_extra``); parse known args first to find the command
     args, rest = parser.parse_known_args(argv)
     if args.command is None:
-        if argv and not argv[0].startswith("-"):
-            raise UsageError(f"unknown command {argv[0]!r} (commands: {', '.join(COMMANDS)})")
-        parser.print_help(sys.stderr)
-        return EXIT_INPUT
+        extra = f"unrecognized arguments: {' '.join(rest)}; " if rest else ""
+        raise UsageError(f"{extra}no command given (commands: {', '.join(COMMANDS)}; see btfsm --help)")
     handler = _handler(args._spec)
     if rest and not getattr(handler, "accepts_extra", False):
         parser.parse_args(argv)  # reports the unknown option (UsageError)
     _refuse_input_as_output(args)
-    result = handler(args, rest) if getattr(handler, "accepts_extra", False) else handler(args)
+    try:
+        result = handler(args, rest) if getattr(handler, "accepts_extra", False) else handler(args)
+    except ModelError as exc:  # name the model file when the error does not (e.g. export errors)
+        model = getattr(args, "model", None)
+        if exc.file or not isinstance(model, str) or not os.path.isfile(model):
+            raise
+        raise exc.at(file=model) from None
     return int(result or 0)
 
 

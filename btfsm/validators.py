@@ -23,7 +23,7 @@ import math
 import os
 
 __all__ = ["int_range", "positive_int", "nonnegative_int", "seed_int", "finite_float", "probability",
-           "output_file", "output_dir", "input_text", "check_output_file", "check_output_dir"]
+           "output_file", "output_dir", "input_text", "input_file", "check_output_file", "check_output_dir"]
 
 #: Seeds are stored in traces and used with Python's ``random``: any integer of at most 64 bits.
 SEED_LIMIT = 2 ** 63
@@ -95,9 +95,19 @@ probability.__name__ = "probability"
 
 
 def input_text(text: str) -> str:
-    """A non-empty argument without NUL characters (a model name or an input path)."""
+    """A non-empty argument without NUL characters (a name, or a path)."""
     if not text or "\0" in text:
         _fail("expected a non-empty name without NUL characters")
+    return text
+
+
+def input_file(text: str) -> str:
+    """An input: a name (e.g. a built-in model) or a path; an existing path must be a regular
+    file or a folder (the loader explains a folder), never a device, FIFO or socket, which
+    could block or never end."""
+    input_text(text)
+    if os.path.exists(text) and not (os.path.isfile(text) or os.path.isdir(text)):
+        _fail(f"{text} is not a regular file")
     return text
 
 
