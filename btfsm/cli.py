@@ -273,13 +273,13 @@ def _one_line(text) -> str:
 def _describe(exc: BaseException, command: str) -> dict:
     """kind, exit code and the parts of the one-line message for an exception."""
     info = {"kind": "internal", "type": type(exc).__name__, "command": command, "file": None, "element": None,
-            "problem": _one_line(exc), "exit_code": EXIT_INTERNAL}
+            "problem": str(exc), "exit_code": EXIT_INTERNAL}
     if isinstance(exc, Terminated):
         info.update(kind="terminated", problem="terminated", exit_code=EXIT_TERMINATED)
     elif isinstance(exc, KeyboardInterrupt):
         info.update(kind="interrupted", problem="interrupted", exit_code=EXIT_INTERRUPTED)
     elif isinstance(exc, ModelError):
-        info.update(kind="model", file=exc.file, element=exc.element or None, problem=_one_line(exc.problem),
+        info.update(kind="model", file=exc.file, element=exc.element or None, problem=str(exc.problem),
                     exit_code=EXIT_INPUT)
     elif isinstance(exc, UsageError):
         info.update(kind="usage", exit_code=EXIT_INPUT)
@@ -294,7 +294,7 @@ def _describe(exc: BaseException, command: str) -> dict:
                             f"(install it with: pip install 'btfsm[sim]')")
     elif isinstance(exc, OSError) and not isinstance(exc, (BlockingIOError, ChildProcessError)) and (
             getattr(exc, "filename", None) is not None):
-        info.update(kind="file", file=os.fsdecode(exc.filename), problem=_one_line(exc.strerror or exc),
+        info.update(kind="file", file=os.fsdecode(exc.filename), problem=str(exc.strerror or exc),
                     exit_code=EXIT_INPUT)
     return info
 
