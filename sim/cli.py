@@ -80,7 +80,8 @@ def cli_experiment(args) -> int:
                           "results": [asdict(r) for r in results]}))
         return 1 if errors else 0
     print(format_table(summary))
-    print(f"\n{len(results)} trials ({len(finished)} reused), {sim_time:,.0f} simulated s in {wall:.1f} s wall "
+    reused_text = f" ({len(finished)} reused)" if finished else ""
+    print(f"\n{len(results)} trials{reused_text}, {sim_time:,.0f} simulated s in {wall:.1f} s wall "
           f"({sim_time / max(wall, 1e-9):,.0f}x real time on {args.workers} worker(s))")
     print(f"trials: {csv_path}, {json_path}")
     print(f"figure: {png}")
