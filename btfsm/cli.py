@@ -14,7 +14,8 @@ Exit codes
 
 Errors
     Every error is one line on stderr, ``btfsm COMMAND: error: FILE: ELEMENT: PROBLEM``
-    (the parts that apply), never a Python traceback. An internal error says that it is
+    (the parts that apply; ``violation:`` for a violation met while running, exit 1, and
+    ``incomplete:`` when memory ran out, exit 3), never a Python traceback. An internal error says that it is
     a bug, names the exception and where to report it; the global ``--debug`` flag (before
     or after the command) adds the traceback. Under ``--json`` the error is instead one JSON
     object on stdout, so stdout always holds exactly one JSON document::
@@ -307,7 +308,8 @@ def _message(info: dict) -> str:
         return _one_line(head + f"internal error (a bug in btfsm): {info['type']}: {info['problem']}; {REPORT_HINT} "
                        f"(run with --debug for the traceback)")
     where = "".join(f"{part}: " for part in (info["file"], info["element"]) if part)
-    return _one_line(head + "error: " + where + info["problem"])
+    label = {"violation": "violation: ", "budget": "incomplete: "}.get(info["kind"], "error: ")
+    return _one_line(head + label + where + info["problem"])
 
 
 def _emit(info: dict, as_json: bool) -> None:
