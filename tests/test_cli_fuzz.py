@@ -3,18 +3,23 @@
 Everything runs in-process through ``btfsm.cli.main`` (fast), and every input must end in
 an expected exit code with at most one line of error and never a traceback or exit 70.
 The number of inputs is in the test ids (``BAD_CASES``) and checked by
-``test_battery_size``; hypothesis adds ``HYPOTHESIS_EXAMPLES`` more per generated test.
+``test_battery_size``; hypothesis adds ``HYPOTHESIS_EXAMPLES`` argv lists per command group
+(``test_generated_argv``) and up to ``FLAG_EXAMPLES`` real runs per command with generated
+flag values (``test_generated_flag_values``); each prints its count and exit codes (``-s``).
+In all about 1,600 inputs in about a minute.
 """
 from __future__ import annotations
 
 import atexit
+import collections
 import json
+import math
 import os
 import shutil
 import tempfile
 
 import pytest
-from hypothesis import HealthCheck, given, settings
+from hypothesis import HealthCheck, event, given, settings
 from hypothesis import strategies as st
 
 from btfsm.cli import COMMANDS, MAX_FRAMES, MAX_SCENARIOS, MAX_SIM_TIME, MAX_STATES_LIMIT, MAX_TICKS, MAX_WORKERS, main
@@ -158,8 +163,10 @@ def assert_clean(code, out, err, allowed, argv=()):
 
 def test_battery_size():
     """The table battery alone holds this many inputs (hypothesis adds more)."""
-    print(f"CLI table battery: {len(BAD_CASES)} inputs; hypothesis: 4 x {HYPOTHESIS_EXAMPLES}")
-    assert len(BAD_CASES) >= 700
+    json_cases = len([b for b in BAD_CASES[::7] if "--" not in b.values[0]])
+    generated = 4 * HYPOTHESIS_EXAMPLES + 8 * FLAG_EXAMPLES
+    print(f"CLI battery: {len(BAD_CASES)} table inputs, {json_cases} under --json, up to {generated} generated")
+    assert len(BAD_CASES) >= 700 and len(BAD_CASES) + json_cases + generated >= 1500
 
 
 @pytest.mark.parametrize("argv", BAD_CASES)
@@ -227,8 +234,92 @@ def test_generated_argv(group, capsys, tmp_path, monkeypatch):
     def check(argv):
         argv = _guard_slow(argv, tmp_path)
         code, out, err = run_cli(argv, capsys)
+        event(f"exit {code}")
+        codes[code] += 1
         assert_clean(code, out, err, {0, 1, 2, 3}, argv)
 
+    codes = collections.Counter()
     check()
+    with capsys.disabled():
+        print(f"\n{'/'.join(group)}: {sum(codes.values())} generated argv lists, exit codes {dict(sorted(codes.items()))}")
     # atomic outputs never leave their hidden temporary files behind
+    assert [p for p in tmp_path.rglob(".*.tmp*")] == []
+
+
+# ---------------------------------------------------------------- generated flag values on real runs
+
+def _num(lo, hi, bad=("nan", "inf", "-inf", "1e400", "", "x", "-0", "1e-9")):
+    """Numbers in lo..hi (as text; edges and out-of-range values included) or bad text."""
+    ints = st.integers(math.ceil(lo), math.floor(hi)).map(str)
+    floats = st.floats(lo, hi, allow_nan=False).map(repr)
+    return st.one_of(ints, floats, st.sampled_from(bad))
+
+
+def _paths(tmp_path, *names):
+    return st.sampled_from([str(tmp_path / n) for n in names] + ["/dev/full", "/proc/x.png", A_DIR, A_FIFO, ""])
+
+
+def _flag_specs(tmp_path):
+    """command -> (models, {flag: strategy of its text value, or None for a switch})."""
+    small_time = _num(-1, 2)
+    return {
+        "validate": ([TWO, "pickplace3", "defect-trap"], {"--strict": None, "--json": None}),
+        "show": ([TWO, "pickplace3"], {"--what": st.sampled_from(["tree", "arm", "all", "nope", ""]),
+                                       "-o": _paths(tmp_path, "p.dot", "pics", "p.svg", "p.png")}),
+        "run": ([TWO, "defect-domain", "defect-dead-state", "defect-contract"],
+                {"--ticks": _num(-2, 40), "--seed": _num(-(2 ** 64), 2 ** 64), "--p-env": _num(-0.5, 1.5),
+                 "--trace": _paths(tmp_path, "t.jsonl")}),
+        "check": ([TWO, "defect-trap", "pickplace3"], {"--max-states": _num(-2, 3000), "--json": None,
+                                                       "--engine": st.sampled_from(["auto", "scalar", "traced", "x"]),
+                                                       "--counterexample-dir": _paths(tmp_path, "ce")}),
+        "skills": ([TWO, "pickplace3"], {"--max-states": _num(-2, 3000), "--json": None}),
+        "export": (["pickplace3", TWO], {"--format": st.sampled_from(["promela", "smv", "dot", "x"]),
+                                         "--fsm": st.sampled_from(["arm", "nope"]), "-o": _paths(tmp_path, "m.out")}),
+        "sim": ([ARIAC, TWO], {"--k": _num(-1, 41), "--time": small_time, "--fps": _num(-1, 101),
+                               "--max-frames": _num(-1, 4), "--render": _paths(tmp_path, "c.png", "c.gif"),
+                               "--gif": _paths(tmp_path, "r.gif", "r.png")}),
+        "conform": ([ARIAC, TWO], {"--scenarios": _num(-1, 2), "--time": small_time, "--seed": _num(-5, 5),
+                                   "--drops": None, "--json": None, "--max-states": _num(-1, 60)}),
+    }
+
+
+def _flag_argv(command, models, flags):
+    chosen = st.lists(st.sampled_from(sorted(flags)), unique=True, max_size=len(flags))
+
+    def build(model_and_names):
+        model, names = model_and_names
+        parts = [st.just([name]) if flags[name] is None else flags[name].map(lambda v, n=name: [n, v])
+                 for name in names]
+        return st.tuples(*parts).map(lambda ps: [command, model, *[w for p in ps for w in p]])
+
+    return st.tuples(st.sampled_from(models), chosen).flatmap(build)
+
+
+FLAG_EXAMPLES = 40
+
+
+@pytest.mark.parametrize("command", ["validate", "show", "run", "check", "skills", "export", "sim", "conform"])
+def test_generated_flag_values(command, capsys, tmp_path, monkeypatch):
+    """Real runs with generated flag values: out-of-range ones exit 2, the others do their work."""
+    monkeypatch.chdir(tmp_path)
+    models, flags = _flag_specs(tmp_path)[command]
+
+    @settings(max_examples=FLAG_EXAMPLES, deadline=None, derandomize=True,
+              suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow])
+    @given(_flag_argv(command, models, flags))
+    def check(argv):
+        # valid runs stay tiny: defaults that would simulate for minutes are replaced
+        tiny = {"sim": {"--time": "0.5", "--max-frames": "3"},
+                "conform": {"--time": "0.5", "--scenarios": "1", "--max-states": "40"}}.get(command, {})
+        argv = argv + [w for flag, value in tiny.items() if flag not in argv for w in (flag, value)]
+        code, out, err = run_cli(argv, capsys)
+        event(f"exit {code}")
+        codes[code] += 1
+        assert_clean(code, out, err, {0, 1, 2, 3}, argv)
+
+    codes = collections.Counter()
+    check()
+    with capsys.disabled():
+        print(f"\n{command}: {sum(codes.values())} generated inputs, exit codes {dict(sorted(codes.items()))}")
+    assert set(codes) - {2}, "every generated input was rejected: the battery never ran the command"
     assert [p for p in tmp_path.rglob(".*.tmp*")] == []
