@@ -44,6 +44,8 @@ def atomic_path(path, *, suffixes: "tuple | None" = None):
     """Yield a temporary path in ``path``'s folder (same suffix, so libraries that pick a
     format by suffix still do); on success rename it to ``path``, on failure remove it."""
     path = os.fspath(path)
+    if os.path.islink(path):  # write the file the link points to; the link stays a link
+        path = os.path.realpath(path)
     why = check_output_file(path, suffixes)
     if why:
         raise UsageError(f"cannot write {why}" if why.startswith(path) else f"cannot write {path}: {why}")
