@@ -178,3 +178,21 @@ def test_signal_ends_in_one_line(sig, code, word, tmp_path):
     assert proc.returncode == code, err
     assert err.strip().splitlines()[-1] == f"btfsm sim: {word}" and "Traceback" not in err
     assert os.listdir(tmp_path) == []  # no half-written animation
+
+
+def test_model_errors_name_the_model_file(tmp_path, capsys):
+    """An error raised after loading (here: export of a tree that is not one SkillRequest)
+    names the file it came from."""
+    import shutil
+
+    path = tmp_path / "two.yaml"
+    shutil.copy(os.path.join(os.path.dirname(__file__), "..", "models", "examples", "two_area.yaml"), path)
+    code, out, err = _run(["export", str(path), "--format", "smv"], capsys)
+    assert code == 2 and err.startswith(f"btfsm export: error: {path}: ") and len(err.splitlines()) == 1
+
+
+@pytest.mark.parametrize("argv", [["--help"], ["--version"], ["check", "--help"]])
+def test_help_and_version_exit_0(argv, capsys):
+    with pytest.raises(SystemExit) as exc:
+        cli.main(argv)
+    assert exc.value.code == 0 and capsys.readouterr().out
