@@ -16,6 +16,7 @@ which the CLI prints as one line with exit 2.
 'hello\\n'
 >>> os.listdir(folder)
 ['out.txt']
+>>> import shutil; shutil.rmtree(folder)
 """
 from __future__ import annotations
 
