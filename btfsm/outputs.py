@@ -36,6 +36,11 @@ def _umask() -> int:
     return mask
 
 
+def _reason(path: str, why: str) -> str:
+    """``why`` without the leading path it names (the message names the path once)."""
+    return why[len(path):].lstrip(": ") if why.startswith(path) else why
+
+
 def _describe(exc: OSError) -> str:
     return exc.strerror or str(exc)
 
@@ -49,7 +54,7 @@ def atomic_path(path, *, suffixes: "tuple | None" = None):
         path = os.path.realpath(path)
     why = check_output_file(path, suffixes)
     if why:
-        raise UsageError(f"cannot write {why}" if why.startswith(path) else f"cannot write {path}: {why}")
+        raise UsageError(f"cannot write {path}: {_reason(path, why)}")
     folder = os.path.dirname(os.path.abspath(path))
     base = os.path.basename(path)
     stem, ext = os.path.splitext(base)
@@ -118,7 +123,7 @@ def ensure_output_dir(path) -> str:
     path = os.fspath(path)
     why = check_output_dir(path)
     if why:
-        raise UsageError(f"cannot write into {why}" if why.startswith(path) else f"cannot write into {path}: {why}")
+        raise UsageError(f"cannot write into {path}: {_reason(path, why)}")
     try:
         os.makedirs(path, exist_ok=True)
     except OSError as exc:
