@@ -161,15 +161,18 @@ def test_conform_budget_exits_3(capsys):
 # ---------------------------------------------------------------- real signals
 
 def _spawn(*args):
-    return subprocess.Popen([sys.executable, "-c", "import sys; from btfsm.cli import main; sys.exit(main(sys.argv[1:]))",
-                             *args], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    """Start ``btfsm ARGS``; return once it has entered ``main`` (it prints 'ready' first)."""
+    code = "import sys; from btfsm.cli import main; print('ready', file=sys.stderr, flush=True); sys.exit(main(sys.argv[1:]))"
+    proc = subprocess.Popen([sys.executable, "-c", code, *args], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    assert proc.stderr.readline().strip() == "ready"
+    return proc
 
 
 @pytest.mark.parametrize("sig,code,word", [(signal.SIGINT, 130, "interrupted"), (signal.SIGTERM, 143, "terminated")])
 def test_signal_ends_in_one_line(sig, code, word, tmp_path):
     proc = _spawn("sim", "ariac-preemptive", "--time", "90000", "--gif", str(tmp_path / "run.gif"))
     try:
-        time.sleep(3.0)  # imports, model loading, then the simulation loop
+        time.sleep(1.5)  # inside main: imports, model loading, then the simulation loop
         proc.send_signal(sig)
         out, err = proc.communicate(timeout=60)
     finally:
