@@ -1,18 +1,75 @@
 """The ``btfsm`` command line.
 
-Exit codes: 0 success, 1 a property or conformance check failed, 2 bad input or usage,
-3 incomplete (a budget was hit). Errors are one line on stderr, never a traceback.
+Exit codes
+    0    success
+    1    a property, conformance or replay check failed (or ``validate --strict`` found warnings)
+    2    bad input: a malformed model, trace or flag value, an unreadable input or an
+         unwritable output path
+    3    incomplete: a budget (``--max-states``) was hit, or memory ran out, before an answer
+    70   internal error: a bug in btfsm (please report it with the command line at the
+         btfsm issue tracker)
+    130  interrupted (Ctrl-C)
+    143  terminated (SIGTERM; the handler raises ``btfsm.errors.Terminated``, a
+         ``KeyboardInterrupt``, so clean-up runs exactly as for Ctrl-C)
+
+Errors
+    Every error is one line on stderr, ``btfsm COMMAND: error: FILE: ELEMENT: PROBLEM``
+    (the parts that apply; ``violation:`` for a violation met while running, exit 1, and
+    ``incomplete:`` when memory ran out, exit 3), never a Python traceback. An internal error says that it is
+    a bug, names the exception and where to report it; the global ``--debug`` flag (before
+    or after the command) adds the traceback. Under ``--json`` the error is instead one JSON
+    object on stdout, so stdout always holds exactly one JSON document::
+
+        {"error": {"kind": "model", "type": "ModelError", "command": "validate", "file": "m.yaml",
+                   "element": "fsms.arm", "problem": "...", "message": "...", "exit_code": 2}}
+
+    ``kind`` is one of ``model``, ``usage``, ``file`` (an OSError on a user path),
+    ``violation``, ``budget``, ``internal``, ``interrupted``, ``terminated``.
+
+Flag values
+    Every flag is checked when parsed (``btfsm.validators``): numbers must be finite and in
+    range, output paths must be writable names that are not folders, devices or the input
+    model. Output files are written to a temporary name and renamed (``btfsm.outputs``), so
+    an interrupted or failed command leaves no half-written file.
 """
 from __future__ import annotations
 
 import argparse
 import importlib
+import json
 import os
+import signal
 import sys
+from contextlib import contextmanager
 
-from .errors import ModelError, UsageError
+from .errors import ConformanceError, DomainError, ModelError, Terminated, UsageError
+from .validators import (finite_float, input_file, input_text, int_range, output_dir, output_file, positive_int,
+                         probability, seed_int)
 
-__all__ = ["main", "UsageError"]
+__all__ = ["main", "build_parser", "UsageError", "EXIT_OK", "EXIT_FAILED", "EXIT_INPUT", "EXIT_BUDGET",
+           "EXIT_INTERNAL", "EXIT_INTERRUPTED", "EXIT_TERMINATED", "REPORT_HINT"]
+
+EXIT_OK, EXIT_FAILED, EXIT_INPUT, EXIT_BUDGET = 0, 1, 2, 3
+EXIT_INTERNAL, EXIT_INTERRUPTED, EXIT_TERMINATED = 70, 130, 143
+REPORT_HINT = "please report it with the command line at the btfsm issue tracker"
+
+#: Upper bounds for flag values: far above any sensible run, low enough to stay well defined.
+MAX_STATES_LIMIT = 10 ** 10
+MAX_TICKS = 10 ** 7
+MAX_SIM_TIME = 100_000.0  # simulated seconds
+MAX_WORKERS = 256
+MAX_SCENARIOS = 100_000
+MAX_FRAMES = 100_000
+
+#: Third-party modules that only some commands need (``pip install 'btfsm[sim]'``).
+OPTIONAL_MODULES = {"pymunk", "matplotlib", "PIL", "numpy", "tqdm"}
+
+
+class CliParser(argparse.ArgumentParser):
+    """An ``ArgumentParser`` whose errors are ``UsageError``s (one line, exit 2), not usage dumps."""
+
+    def error(self, message):
+        raise UsageError(message.replace("\n", " "))
 
 
 def _handler(spec: str):
@@ -23,7 +80,7 @@ def _handler(spec: str):
 
 COMMANDS = {
     # name: (handler, help)
-    "validate": ("btfsm.files:cli_validate", "check that a model file loads; print its warnings"),
+    "validate": ("btfsm.cli:cli_validate", "check that a model file loads; print its warnings"),
     "show": ("btfsm.show:cli_show", "draw the tree and each FSM (dot, svg, png)"),
     "run": ("btfsm.cli:cli_run", "run a model in the runtime with seeded random outcomes; write a trace"),
     "replay": ("btfsm.cli:cli_replay", "re-run a trace or counterexample and confirm it reproduces"),
@@ -35,59 +92,85 @@ COMMANDS = {
     "conform": ("btfsm.sim.cli:cli_conform", "run scenarios and check runtime conformance"),
 }
 
+#: Per command: the argument names that are output paths (checked against the inputs).
+OUTPUTS = {"show": ("output",), "run": ("trace",), "replay": ("render", "gif"), "check": ("counterexample_dir",),
+           "export": ("output",), "sim": ("render", "gif"), "experiment": ("out",)}
+INPUTS = {"replay": ("trace", "model")}
+
 
 def build_parser() -> argparse.ArgumentParser:
     from . import __version__
 
-    p = argparse.ArgumentParser(prog="btfsm", description="Preemptive robot skills: check BT-FSM models and run them.")
+    p = CliParser(prog="btfsm", description="Preemptive robot skills: check BT-FSM models and run them.",
+                  epilog="Exit codes: 0 ok, 1 a check failed, 2 bad input, 3 budget hit, 70 internal error "
+                         "(a bug), 130 interrupted, 143 terminated.")
     p.add_argument("--version", action="version", version=f"btfsm {__version__}")
-    sub = p.add_subparsers(dest="command", metavar="COMMAND")
+    p.add_argument("--debug", action="store_true", help="print the traceback of an internal error")
+    sub = p.add_subparsers(dest="command", metavar="COMMAND", parser_class=CliParser)
     for name, (spec, help_text) in COMMANDS.items():
         sp = sub.add_parser(name, help=help_text, description=help_text)
         sp.set_defaults(_spec=spec)
+        sp.add_argument("--debug", action="store_true", default=argparse.SUPPRESS,
+                        help="print the traceback of an internal error")
         _ARGS.get(name, lambda sp: None)(sp)
     return p
 
 
 def _args_model(sp):
-    sp.add_argument("model", help="model file (.yaml/.json) or built-in model name")
+    sp.add_argument("model", type=input_file, help="model file (.yaml/.json) or built-in model name")
+
+
+def _args_json(sp, what="the result"):
+    sp.add_argument("--json", action="store_true", help=f"print {what} (or the error) as one JSON object on stdout")
+
+
+def _args_max_states(sp, default=None):
+    sp.add_argument("--max-states", type=int_range(1, MAX_STATES_LIMIT), default=default, metavar="N",
+                    help=f"state budget, 1..{MAX_STATES_LIMIT:.0e}; hitting it exits 3")
 
 
 def _args_validate(sp):
     _args_model(sp)
     sp.add_argument("--strict", action="store_true", help="exit 1 when there are warnings")
+    _args_json(sp, "the summary and warnings")
 
 
 def _args_show(sp):
     _args_model(sp)
     sp.add_argument("--format", choices=("dot", "svg", "png"), default="dot")
-    sp.add_argument("--output", "-o", help="output file or folder (default: stdout for dot)")
-    sp.add_argument("--what", default="all", help="'tree', an FSM name, or 'all'")
+    sp.add_argument("--output", "-o", type=input_text,
+                    help="a name ending in .dot, .svg or .png is a file (one picture, matching --format); "
+                         "any other name is a folder, created if missing, with one file per picture "
+                         "(default: stdout for dot)")
+    sp.add_argument("--what", default="all", type=input_text, help="'tree', an FSM name, or 'all'")
 
 
 def _args_run(sp):
     _args_model(sp)
-    sp.add_argument("--ticks", type=int, default=100)
-    sp.add_argument("--seed", type=int, default=0)
-    sp.add_argument("--p-env", type=float, default=0.2, help="probability of each enabled environment event per tick")
-    sp.add_argument("--trace", help="write the JSON Lines trace here")
+    sp.add_argument("--ticks", type=int_range(0, MAX_TICKS), default=100, help=f"0..{MAX_TICKS:,}")
+    sp.add_argument("--seed", type=seed_int, default=0)
+    sp.add_argument("--p-env", type=probability, default=0.2,
+                    help="probability (0..1) of each enabled environment event per tick")
+    sp.add_argument("--trace", type=output_file(), help="write the JSON Lines trace here")
 
 
 def _args_replay(sp):
-    sp.add_argument("trace", help="a trace (.jsonl) or a counterexample (.json from btfsm check --counterexample-dir)")
+    sp.add_argument("trace", type=input_file,
+                    help="a trace (.jsonl) or a counterexample (.json from btfsm check --counterexample-dir)")
     _args_model(sp)
     sp.add_argument("--cell", action="store_true", help="also replay the counterexample's situation in the kitting cell")
-    sp.add_argument("--render", metavar="PNG", help="with --cell: draw the cell at the end")
-    sp.add_argument("--gif", metavar="GIF", help="with --cell: write an animation")
-    sp.add_argument("--time", type=float, default=120.0, help="with --cell: time limit (simulated s)")
+    sp.add_argument("--render", metavar="PNG", type=output_file(".png"), help="with --cell: draw the cell at the end")
+    sp.add_argument("--gif", metavar="GIF", type=output_file(".gif"), help="with --cell: write an animation")
+    sp.add_argument("--time", type=finite_float(0, MAX_SIM_TIME, lo_open=True), default=120.0,
+                    help="with --cell: time limit (simulated s)")
 
 
 def _args_check(sp):
     _args_model(sp)
-    sp.add_argument("--property", action="append", default=[], metavar="NAME")
-    sp.add_argument("--json", action="store_true")
-    sp.add_argument("--max-states", type=int, default=None)
-    sp.add_argument("--counterexample-dir", help="write each counterexample as JSON into this folder")
+    sp.add_argument("--property", action="append", default=[], metavar="NAME", type=input_text)
+    _args_json(sp, "the report")
+    _args_max_states(sp)
+    sp.add_argument("--counterexample-dir", type=output_dir, help="write each counterexample as JSON into this folder")
     sp.add_argument("--quiet", "-q", action="store_true", help="no warnings and no information lines, only verdicts and failures")
     sp.add_argument("--verbose", "-v", action="store_true", help="list every warning, determinism gap and note")
     sp.add_argument("--goal-level", choices=("open", "tree"), default="open",
@@ -101,44 +184,57 @@ def _args_check(sp):
 def _args_export(sp):
     _args_model(sp)
     sp.add_argument("--format", choices=("promela", "smv", "dot"), required=True)
-    sp.add_argument("--fsm", help="FSM to export at FSM level (default: the whole model when its tree is one "
-                                  "SkillRequest, the first FSM when there is no tree)")
-    sp.add_argument("--output", "-o")
+    sp.add_argument("--fsm", type=input_text,
+                    help="FSM to export at FSM level (default: the whole model when its tree is one "
+                         "SkillRequest, the first FSM when there is no tree)")
+    sp.add_argument("--output", "-o", type=output_file())
 
 
 def _args_skills(sp):
     _args_model(sp)
     sp.add_argument("--format", choices=("text", "dot", "json"), default="text")
-    sp.add_argument("--max-states", type=int, default=None)
+    sp.add_argument("--json", dest="format", action="store_const", const="json", help="same as --format json")
+    _args_max_states(sp)
 
 
 def _args_experiment(sp):
-    sp.add_argument("--k", type=int, action="append", default=[], help="run this k (1..40; repeatable)")
-    sp.add_argument("--trials", type=int, help="run this many k values spread evenly over 1..40")
+    sp.add_argument("--k", type=int_range(1, 40), action="append", default=[], help="run this k (1..40; repeatable)")
+    sp.add_argument("--trials", type=int_range(1, 40), help="run this many k values spread evenly over 1..40")
     sp.add_argument("--variant", action="append", choices=("preemptive", "baseline"), help="default: both")
-    sp.add_argument("--workers", type=int, default=os.cpu_count() or 1, help="parallel processes (default: all cores)")
-    sp.add_argument("--out", default="out/experiment", help="folder for trials.csv, trials.json and the figure")
+    sp.add_argument("--workers", type=int_range(1, MAX_WORKERS), default=os.cpu_count() or 1,
+                    help="parallel processes (default: all cores)")
+    sp.add_argument("--time", type=finite_float(0, MAX_SIM_TIME, lo_open=True), default=1500.0,
+                    help="time limit per trial in simulated seconds (default 1500, the paper's protocol)")
+    sp.add_argument("--out", default="out/experiment", type=output_dir,
+                    help="folder for trials.csv, trials.json, the figure and the finished trials "
+                         "(trials/*.json); a re-run with the same --out reuses finished trials")
+    sp.add_argument("--fresh", action="store_true", help="ignore finished trials saved in --out")
     sp.add_argument("--quiet", action="store_true", help="no progress bar")
+    _args_json(sp, "the summary")
 
 
 def _args_sim(sp):
     _args_model(sp)
-    sp.add_argument("--k", type=int, default=1, help="belt parts every 30 + 0.2 k s (default 1)")
-    sp.add_argument("--time", type=float, default=1500.0, help="time limit in simulated seconds")
-    sp.add_argument("--render", metavar="PNG", help="draw the cell at the end of the run")
-    sp.add_argument("--gif", metavar="GIF", help="write an animation of the run")
-    sp.add_argument("--fps", type=float, default=2.0, help="animation frames per simulated second")
-    sp.add_argument("--max-frames", type=int, default=600)
+    sp.add_argument("--k", type=int_range(1, 40), default=1, help="belt parts every 30 + 0.2 k s (1..40, default 1)")
+    sp.add_argument("--time", type=finite_float(0, MAX_SIM_TIME, lo_open=True), default=1500.0,
+                    help="time limit in simulated seconds")
+    sp.add_argument("--render", metavar="PNG", type=output_file(".png"), help="draw the cell at the end of the run")
+    sp.add_argument("--gif", metavar="GIF", type=output_file(".gif"), help="write an animation of the run")
+    sp.add_argument("--fps", type=finite_float(0.01, 100.0), default=2.0,
+                    help="animation frames per simulated second (0.01..100)")
+    sp.add_argument("--max-frames", type=int_range(1, MAX_FRAMES), default=600)
 
 
 def _args_conform(sp):
     _args_model(sp)
-    sp.add_argument("--scenarios", type=int, default=10)
-    sp.add_argument("--seed", type=int, default=0)
-    sp.add_argument("--time", type=float, default=700.0, help="time limit per scenario (simulated s)")
+    sp.add_argument("--scenarios", type=int_range(1, MAX_SCENARIOS), default=10)
+    sp.add_argument("--seed", type=seed_int, default=0)
+    sp.add_argument("--time", type=finite_float(0, MAX_SIM_TIME, lo_open=True), default=700.0,
+                    help="time limit per scenario (simulated s)")
     sp.add_argument("--drops", action="store_true", help="add faulty-gripper drop regions to some scenarios")
     sp.add_argument("--no-path", action="store_true", help="skip the path check against the explored system")
-    sp.add_argument("--max-states", type=int, default=2_000_000)
+    _args_max_states(sp, default=2_000_000)
+    _args_json(sp, "the scenarios and the verdict")
 
 
 _ARGS = {"validate": _args_validate, "show": _args_show, "run": _args_run, "replay": _args_replay,
@@ -146,35 +242,209 @@ _ARGS = {"validate": _args_validate, "show": _args_show, "run": _args_run, "repl
          "experiment": _args_experiment, "sim": _args_sim, "conform": _args_conform}
 
 
+def _refuse_input_as_output(args) -> None:
+    """An output path must not name the model or another input file (it would overwrite it)."""
+    inputs = [getattr(args, name, None) for name in INPUTS.get(args.command, ("model",))]
+    inputs = [p for p in inputs if isinstance(p, str) and os.path.isfile(p)]
+    for name in OUTPUTS.get(args.command, ()):
+        out = getattr(args, name, None)
+        if not isinstance(out, str) or not os.path.exists(out):
+            continue
+        for inp in inputs:
+            try:
+                same = os.path.samefile(out, inp)
+            except OSError:
+                same = False
+            if same:
+                raise UsageError(f"--{name.replace('_', '-')} {out}: is the input file {inp}; "
+                                 f"refusing to overwrite it")
+
+
+# ---------------------------------------------------------------- errors and signals
+
+#: Characters that would break the one-line rule (what ``str.splitlines`` splits on).
+_LINE_BREAKS = {c: repr(c)[1:-1] for c in "\n\r\v\f\x1c\x1d\x1e\x85\u2028\u2029"}
+
+
+def _one_line(text) -> str:
+    """``text`` with line breaks escaped (``\\n``), so a message stays one line.
+
+    >>> _one_line("a\\nb")
+    'a\\\\nb'
+    """
+    text = str(text)
+    return text.translate(str.maketrans(_LINE_BREAKS)) if any(c in text for c in _LINE_BREAKS) else text
+
+
+def _describe(exc: BaseException, command: str) -> dict:
+    """kind, exit code and the parts of the one-line message for an exception."""
+    info = {"kind": "internal", "type": type(exc).__name__, "command": command, "file": None, "element": None,
+            "problem": str(exc), "exit_code": EXIT_INTERNAL}
+    if isinstance(exc, Terminated):
+        info.update(kind="terminated", problem="terminated", exit_code=EXIT_TERMINATED)
+    elif isinstance(exc, KeyboardInterrupt):
+        info.update(kind="interrupted", problem="interrupted", exit_code=EXIT_INTERRUPTED)
+    elif isinstance(exc, ModelError):
+        info.update(kind="model", file=exc.file, element=exc.element or None, problem=str(exc.problem),
+                    exit_code=EXIT_INPUT)
+    elif isinstance(exc, UsageError):
+        info.update(kind="usage", exit_code=EXIT_INPUT)
+    elif isinstance(exc, (DomainError, ConformanceError)):
+        info.update(kind="violation", exit_code=EXIT_FAILED)
+    elif isinstance(exc, MemoryError):
+        info.update(kind="budget", problem="out of memory before an answer (lower --max-states)",
+                    exit_code=EXIT_BUDGET)
+    elif isinstance(exc, ImportError) and (getattr(exc, "name", None) or "").split(".")[0] in OPTIONAL_MODULES:
+        info.update(kind="usage", exit_code=EXIT_INPUT,
+                    problem=f"this command needs the Python package '{exc.name.split('.')[0]}' "
+                            f"(install it with: pip install 'btfsm[sim]')")
+    elif isinstance(exc, OSError) and not isinstance(exc, (BlockingIOError, ChildProcessError)) and (
+            getattr(exc, "filename", None) is not None):
+        info.update(kind="file", file=os.fsdecode(exc.filename), problem=str(exc.strerror or exc),
+                    exit_code=EXIT_INPUT)
+    return info
+
+
+def _message(info: dict) -> str:
+    head = f"btfsm {info['command']}: " if info["command"] else "btfsm: "
+    if info["kind"] in ("interrupted", "terminated"):
+        return head + info["problem"]
+    if info["kind"] == "internal":
+        return _one_line(head + f"internal error (a bug in btfsm): {info['type']}: {info['problem']}; {REPORT_HINT} "
+                       f"(run with --debug for the traceback)")
+    where = "".join(f"{part}: " for part in (info["file"], info["element"]) if part)
+    label = {"violation": "violation: ", "budget": "incomplete: "}.get(info["kind"], "error: ")
+    return _one_line(head + label + where + info["problem"])
+
+
+def _emit(info: dict, as_json: bool) -> None:
+    info = dict(info, message=_message(info))
+    if as_json:
+        _write(sys.stdout, json.dumps({"error": info}))
+    else:
+        _write(sys.stderr, info["message"])
+
+
+def _write(stream, line: str) -> None:
+    try:
+        stream.write(line + "\n")
+        stream.flush()
+    except UnicodeEncodeError:
+        enc = getattr(stream, "encoding", None) or "ascii"
+        stream.write(line.encode(enc, "backslashreplace").decode(enc) + "\n")
+        stream.flush()
+    except (BrokenPipeError, ValueError):  # closed stream: nothing more to say
+        pass
+
+
+def _raise_terminated(signum, frame):
+    raise Terminated()
+
+
+@contextmanager
+def _signals():
+    """SIGTERM raises ``Terminated`` (a KeyboardInterrupt) while the command runs."""
+    import threading
+
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    try:
+        previous = signal.signal(signal.SIGTERM, _raise_terminated)
+    except (ValueError, OSError):
+        yield
+        return
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+
+
+def _safe_streams() -> None:
+    """Names from a model may hold characters the terminal cannot encode: escape them."""
+    for stream in (sys.stdout, sys.stderr):
+        try:
+            stream.reconfigure(errors="backslashreplace")
+        except (AttributeError, ValueError, OSError):
+            pass
+
+
+def _prescan(argv) -> tuple:
+    """(command, --json, --debug) found in argv before parsing (parsing itself may fail)."""
+    words = [a for a in argv if isinstance(a, str)]
+    words = words[: words.index("--")] if "--" in words else words
+    command = next((a for a in words if a in COMMANDS), "")
+    return command, "--json" in words, "--debug" in words
+
+
 def main(argv=None) -> int:
+    """Run the command line; return the exit code (``--help``/``--version`` raise SystemExit(0))."""
+    argv = sys.argv[1:] if argv is None else list(argv)
+    command, as_json, debug = _prescan(argv)
+    _safe_streams()
+    with _signals():
+        try:
+            return _main(argv)
+        except SystemExit:
+            raise
+        except BrokenPipeError:
+            _silence_stdout()
+            return EXIT_OK
+        except BaseException as exc:  # noqa: BLE001 - the one place that turns everything into one line
+            info = _describe(exc, command)
+            _emit(info, as_json)
+            if debug and info["kind"] == "internal":
+                import traceback
+
+                traceback.print_exception(type(exc), exc, exc.__traceback__, file=sys.stderr)
+            return info["exit_code"]
+
+
+def _silence_stdout() -> None:
+    """After a closed pipe (``btfsm ... | head``), send further output nowhere."""
+    try:
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+    except (OSError, ValueError, AttributeError):
+        pass
+
+
+def _main(argv) -> int:
     parser = build_parser()
-    # sim commands add their own options; parse known args first to find the command
+    # commands may accept extra options (``accepts_extra``); parse known args first to find the command
     args, rest = parser.parse_known_args(argv)
     if args.command is None:
-        parser.print_help()
-        return 2
+        extra = f"unrecognized arguments: {' '.join(rest)}; " if rest else ""
+        raise UsageError(f"{extra}no command given (commands: {', '.join(COMMANDS)}; see btfsm --help)")
+    handler = _handler(args._spec)
+    if rest and not getattr(handler, "accepts_extra", False):
+        parser.parse_args(argv)  # reports the unknown option (UsageError)
+    _refuse_input_as_output(args)
     try:
-        handler = _handler(args._spec)
-        if rest and not getattr(handler, "accepts_extra", False):
-            parser.parse_args(argv)  # reports the unknown option and exits 2
-        return int(handler(args, rest) if getattr(handler, "accepts_extra", False) else handler(args) or 0)
-    except ModelError as exc:
-        print(f"btfsm {args.command}: error: {exc}", file=sys.stderr)
-        return 2
-    except UsageError as exc:
-        print(f"btfsm {args.command}: error: {exc}", file=sys.stderr)
-        return 2
-    except (ImportError, AttributeError) as exc:
-        if getattr(exc, "name", "") and str(getattr(exc, "name", "")).split(".")[0] in ("btfsm", "verify", "sim", "models"):
-            print(f"btfsm {args.command}: not available in this build ({exc})", file=sys.stderr)
-            return 2
-        raise
-    except BrokenPipeError:
-        return 0
-    except OSError as exc:  # a file that cannot be read or written
-        where = f" {exc.filename}:" if getattr(exc, "filename", None) else ""
-        print(f"btfsm {args.command}: error:{where} {exc.strerror or exc}", file=sys.stderr)
-        return 2
+        result = handler(args, rest) if getattr(handler, "accepts_extra", False) else handler(args)
+    except ModelError as exc:  # name the model file when the error does not (e.g. export errors)
+        model = getattr(args, "model", None)
+        if exc.file or not isinstance(model, str) or not os.path.isfile(model):
+            raise
+        raise exc.at(file=model) from None
+    return int(result or 0)
+
+
+def cli_validate(args) -> int:
+    """``btfsm validate MODEL [--strict] [--json]``: the text report is ``btfsm.files.cli_validate``."""
+    from .files import cli_validate as validate_text
+    from .files import load_model
+
+    if not getattr(args, "json", False):
+        return validate_text(args)
+    model = load_model(args.model)
+    warnings = [{"element": element, "text": text} for element, text in
+                list(model.warnings) + list(model.program.lints)]
+    print(json.dumps({"file": args.model, "model": model.name, "ok": True,
+                      "variables": len(model.variables), "fsms": len(model.fsms),
+                      "states": sum(len(f.states) for f in model.fsms), "tree_nodes": len(model.nodes()),
+                      "warnings": warnings}))
+    return 1 if warnings and args.strict else 0
 
 
 def cli_run(args) -> int:

@@ -1,6 +1,6 @@
 """Errors raised for bad models and bad input. Each names where the problem is."""
 
-__all__ = ["ModelError", "DomainError", "ConformanceError", "UsageError"]
+__all__ = ["ModelError", "DomainError", "ConformanceError", "UsageError", "Terminated"]
 
 
 class ModelError(ValueError):
@@ -34,3 +34,7 @@ class ConformanceError(RuntimeError):
 
 class UsageError(Exception):
     """Bad command-line input or usage: the CLI prints it as one line and exits 2."""
+
+
+class Terminated(KeyboardInterrupt):
+    """Raised by the CLI's SIGTERM handler so that clean-up runs as for Ctrl-C (exit 143)."""

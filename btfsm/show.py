@@ -251,7 +251,11 @@ def render(dot_text: str, fmt: str, timeout: float = RENDER_TIMEOUT) -> bytes:
 
 
 def cli_show(args) -> int:
-    """``btfsm show MODEL --format dot|svg|png [--output PATH] [--what tree|FSM|all]``."""
+    """``btfsm show MODEL --format dot|svg|png [--output PATH] [--what tree|FSM|all]``.
+
+    ``--output`` ending in ``.dot``, ``.svg`` or ``.png`` is one file (it must match
+    ``--format`` and the pictures must be one); any other name is a folder, created if
+    missing, with one ``NAME.FORMAT`` file per picture. Files are written atomically."""
     from .files import load_model
 
     fmt, output = args.format, args.output
@@ -267,22 +271,21 @@ def cli_show(args) -> int:
             sys.stdout.write(render(pics[0][1], fmt).decode("utf-8"))
             return 0
         raise UsageError(f"--format {fmt} needs --output (a file, or a folder for several pictures)")
-    out = Path(output)
-    as_folder = len(pics) > 1 or out.is_dir() or str(output).endswith(("/", os.sep))
-    if as_folder:
-        try:
-            out.mkdir(parents=True, exist_ok=True)
-        except OSError as exc:
-            raise UsageError(f"--output: cannot create folder {output}: {exc.strerror or exc}") from None
-        targets = [(out / f"{stem}.{fmt}", text) for stem, text in pics]
+    from .outputs import atomic_write_bytes, ensure_output_dir
+
+    # The rule: a name ending in .dot, .svg or .png is one file; any other name is a folder.
+    suffix = Path(output).suffix.lower()
+    if suffix in (".dot", ".svg", ".png"):
+        if suffix != f".{fmt}":
+            raise UsageError(f"--output {output}: a {suffix} file does not match --format {fmt}")
+        if len(pics) > 1:
+            raise UsageError(f"--output {output} names one file but --what {args.what} draws {len(pics)} pictures; "
+                             f"name a folder, or pick one picture with --what")
+        targets = [(Path(output), pics[0][1])]
     else:
-        targets = [(out, pics[0][1])]
+        ensure_output_dir(output)
+        targets = [(Path(output) / f"{stem}.{fmt}", text) for stem, text in pics]
     for path, text in targets:
-        data = text.encode("utf-8") if fmt == "dot" else render(text, fmt)
-        try:
-            path.parent.mkdir(parents=True, exist_ok=True)
-            path.write_bytes(data)
-        except OSError as exc:
-            raise UsageError(f"--output: cannot write {path}: {exc.strerror or exc}") from None
+        atomic_write_bytes(path, text.encode("utf-8") if fmt == "dot" else render(text, fmt))
         print(path)
     return 0

@@ -1,11 +1,19 @@
-"""``btfsm experiment``, ``btfsm sim`` and ``btfsm conform``."""
+"""``btfsm experiment``, ``btfsm sim`` and ``btfsm conform``.
+
+Flag values are checked by the parser in ``btfsm.cli`` (``btfsm.validators``); every file
+is written atomically (``btfsm.outputs``). ``btfsm experiment`` saves each finished trial in
+``--out/trials/`` and a re-run with the same ``--out`` reuses the finished trials whose
+spec matches (``--fresh`` ignores them), so an interrupted experiment (Ctrl-C: exit 130)
+can be re-run to completion with the same results as an uninterrupted run.
+"""
 from __future__ import annotations
 
+import json
 import os
 import sys
 import time
 
-from btfsm.cli import UsageError
+from btfsm.errors import UsageError
 
 __all__ = ["cli_experiment", "cli_sim", "cli_conform", "select_ks", "variant_of"]
 
@@ -37,29 +45,46 @@ def variant_of(model) -> str:
 
 
 def cli_experiment(args) -> int:
-    from .experiment import (VARIANTS, format_table, plot_reaction_times, run_experiment, summarize,
+    from dataclasses import asdict
+
+    from .experiment import (VARIANTS, format_table, load_finished, plot_reaction_times, run_experiment, summarize,
                              trial_specs, write_results)
+    from btfsm.outputs import ensure_output_dir
 
     ks = select_ks(args.k, args.trials)
-    variants = tuple(args.variant) if args.variant else VARIANTS
+    variants = tuple(dict.fromkeys(args.variant)) if args.variant else VARIANTS
     if args.workers < 1:
         raise UsageError("--workers must be at least 1")
-    specs = trial_specs(ks, variants)
-    print(f"experiment: {len(specs)} trials ({', '.join(variants)}; k = {_ks_text(ks)}) on {args.workers} worker(s)",
-          file=sys.stderr)
+    time_limit = getattr(args, "time", 1500.0)
+    specs = trial_specs(ks, variants, time_limit=time_limit)
+    ensure_output_dir(args.out)
+    finished = {} if getattr(args, "fresh", False) else load_finished(specs, args.out)
+    reused = f"; {len(finished)} finished trial(s) reused from {args.out}" if finished else ""
+    print(f"experiment: {len(specs)} trials ({', '.join(variants)}; k = {_ks_text(ks)}) on {args.workers} "
+          f"worker(s){reused}", file=sys.stderr)
     t0 = time.perf_counter()
-    results = run_experiment(specs, workers=args.workers, progress=not args.quiet)
+    results = run_experiment(specs, workers=args.workers, progress=not args.quiet, save_dir=args.out,
+                             finished=finished)
     wall = time.perf_counter() - t0
     csv_path, json_path = write_results(results, args.out)
     png = plot_reaction_times(results, os.path.join(args.out, "reaction_times.png"))
     summary = summarize(results)
-    print(format_table(summary))
+    errors = [r for r in results if r.conformance_error]
     sim_time = sum(r.sim_time for r in results)
-    print(f"\n{len(results)} trials, {sim_time:,.0f} simulated s in {wall:.1f} s wall "
-          f"({sim_time / wall:,.0f}x real time on {args.workers} worker(s))")
+    if getattr(args, "json", False):
+        print(json.dumps({"trials": len(results), "reused": len(finished), "time_limit": time_limit,
+                          "ks": ks, "variants": list(variants), "summary": summary, "simulated_s": sim_time,
+                          "files": {"csv": csv_path, "json": json_path, "figure": png},
+                          "conformance_errors": [{"variant": r.variant, "k": r.k, "error": r.conformance_error}
+                                                 for r in errors],
+                          "results": [asdict(r) for r in results]}))
+        return 1 if errors else 0
+    print(format_table(summary))
+    reused_text = f" ({len(finished)} reused)" if finished else ""
+    print(f"\n{len(results)} trials{reused_text}, {sim_time:,.0f} simulated s in {wall:.1f} s wall "
+          f"({sim_time / max(wall, 1e-9):,.0f}x real time on {args.workers} worker(s))")
     print(f"trials: {csv_path}, {json_path}")
     print(f"figure: {png}")
-    errors = [r for r in results if r.conformance_error]
     for r in errors[:5]:
         print(f"conformance: {r.variant} k={r.k}: {r.conformance_error}")
     return 1 if errors else 0
@@ -71,6 +96,7 @@ def _ks_text(ks) -> str:
 
 def cli_sim(args) -> int:
     from btfsm.files import load_model
+    from btfsm.outputs import atomic_path
 
     from .experiment import TrialSpec
     from .render import Recorder, render_png
@@ -80,6 +106,8 @@ def cli_sim(args) -> int:
     variant = variant_of(model)
     if not 1 <= args.k <= 40:
         raise UsageError("--k must be in 1..40")
+    if args.gif and not (args.fps > 0 and args.max_frames >= 1):
+        raise UsageError("--gif needs --fps > 0 and --max-frames >= 1")
     from .binding import CellBinding
 
     dialect = CellBinding.dialect_of(model)
@@ -105,9 +133,12 @@ def cli_sim(args) -> int:
     if r.conformance_error:
         print(f"conformance: {r.conformance_error}")
     if args.render:
-        print(f"picture: {render_png(last['cell'], args.render, title=model.name, fsm_state=last.get('text'))}")
+        with atomic_path(args.render) as tmp:
+            render_png(last["cell"], tmp, title=model.name, fsm_state=last.get("text"))
+        print(f"picture: {args.render}")
     if recorder is not None:
-        frames = recorder.write_gif(args.gif, fps=args.fps)
+        with atomic_path(args.gif) as tmp:
+            frames = recorder.write_gif(tmp, fps=args.fps)
         print(f"animation: {args.gif} ({frames} frames)")
     return 1 if r.conformance_error else 0
 
@@ -125,21 +156,37 @@ def cli_conform(args) -> int:
 
         ts = explore(model, max_states=args.max_states)
         if not ts.complete:
-            raise UsageError(f"{model.name}: exploration hit --max-states {args.max_states}; raise it or use --no-path")
+            print(f"btfsm conform: incomplete: exploring {model.name} hit --max-states {args.max_states:,}; "
+                  f"raise it or use --no-path", file=sys.stderr)
+            return 3
         monitor = PathMonitor(ts)
-        print(f"{model.name}: checked system has {len(ts.states):,} states; monitoring runtime paths against it")
+        monitor_states = len(ts.states)
+        if not getattr(args, "json", False):
+            print(f"{model.name}: checked system has {monitor_states:,} states; monitoring runtime paths against it")
     from .binding import CellBinding
 
     parts = model.var(CellBinding.dialect_of(model).tray_var).hi
     scenarios = random_scenarios(args.scenarios, args.seed, variant, parts=parts,
                                  time_limit=args.time, drops=args.drops)
     failed = 0
+    as_json = getattr(args, "json", False)
+    rows = []
     for i, sc in enumerate(scenarios):
         res = run_scenario(sc, model, monitor)
         status = "ok" if res.mismatch is None else "MISMATCH"
-        print(f"scenario {i}: seed {sc.seed}, {len(sc.detections)} belt parts, "
-              f"{'drop region ' + str(sc.drop_regions[0]) if sc.drop_regions else 'no drop region'}: "
-              f"{res.ticks} ticks, {status}" + (f"\n  first mismatch at {res.mismatch}" if res.mismatch else ""))
+        rows.append({"scenario": i, "seed": sc.seed, "belt_parts": len(sc.detections),
+                     "drop_regions": [list(d) if isinstance(d, (tuple, list)) else str(d) for d in sc.drop_regions],
+                     "ticks": res.ticks, "conforms": res.mismatch is None,
+                     "mismatch": None if res.mismatch is None else str(res.mismatch)})
+        if not as_json:
+            print(f"scenario {i}: seed {sc.seed}, {len(sc.detections)} belt parts, "
+                  f"{'drop region ' + str(sc.drop_regions[0]) if sc.drop_regions else 'no drop region'}: "
+                  f"{res.ticks} ticks, {status}" + (f"\n  first mismatch at {res.mismatch}" if res.mismatch else ""))
         failed += res.mismatch is not None
-    print(f"{len(scenarios) - failed} of {len(scenarios)} scenarios conform")
+    if as_json:
+        print(json.dumps({"model": model.name, "checked_states": None if monitor is None else monitor_states,
+                          "scenarios": rows, "conforming": len(scenarios) - failed, "total": len(scenarios)},
+                         default=str))
+    else:
+        print(f"{len(scenarios) - failed} of {len(scenarios)} scenarios conform")
     return 1 if failed else 0

@@ -7,6 +7,11 @@ off the belt within the pick window dt* = 16 s or it is lost.
 
 Every trial is seeded from (variant, k) only, so results do not depend on the number of
 worker processes or their order (``test_results_independent_of_workers``).
+
+Resuming: with ``save_dir`` each finished trial is saved at once (atomically) as
+``save_dir/trials/VARIANT-kNN.json`` holding its spec and result; ``load_finished`` reads
+back those whose spec matches, so an interrupted experiment re-run with the same folder
+runs only the missing trials and gives the same results as an uninterrupted run.
 """
 from __future__ import annotations
 
@@ -21,7 +26,11 @@ from typing import Iterable, Sequence
 from .protocol import VARIANTS, TrialResult, TrialSpec, arrival_period
 
 __all__ = ["TrialSpec", "TrialResult", "PAPER", "VARIANTS", "trial_specs", "run_experiment",
-           "summarize", "format_table", "write_results", "plot_reaction_times", "arrival_period"]
+           "summarize", "format_table", "write_results", "plot_reaction_times", "arrival_period",
+           "trial_file", "save_trial", "load_finished", "TRIAL_FILE_FORMAT"]
+
+#: Version of the per-trial files in ``OUT/trials/``; files of another version are ignored.
+TRIAL_FILE_FORMAT = 1
 
 # The paper's figures over its 80 trials, as the project brief quotes them.
 PAPER = {
@@ -42,27 +51,81 @@ def _run_one(spec: TrialSpec) -> TrialResult:
     return run_trial(spec)
 
 
-def run_experiment(specs: Sequence[TrialSpec], workers: int = 1, progress: bool = True) -> list:
+def trial_file(folder: str, spec: TrialSpec) -> str:
+    """Where a finished trial of ``spec`` is saved under ``folder``."""
+    return os.path.join(folder, "trials", f"{spec.variant}-k{spec.k:02d}.json")
+
+
+def save_trial(folder: str, spec: TrialSpec, result: TrialResult) -> str:
+    """Save a finished trial (atomically); return its path."""
+    from btfsm.outputs import atomic_write_text
+
+    path = trial_file(folder, spec)
+    atomic_write_text(path, json.dumps({"format": TRIAL_FILE_FORMAT, "spec": asdict(spec),
+                                        "result": asdict(result)}, indent=1) + "\n")
+    return path
+
+
+def load_finished(specs: Sequence[TrialSpec], folder: str) -> dict:
+    """``{index in specs: TrialResult}`` for the trials saved in ``folder`` whose spec matches
+    exactly; unreadable, foreign or outdated files are ignored (those trials run again)."""
+    found = {}
+    for i, spec in enumerate(specs):
+        try:
+            with open(trial_file(folder, spec), encoding="utf-8") as fh:
+                data = json.load(fh)
+            if (isinstance(data, dict) and data.get("format") == TRIAL_FILE_FORMAT
+                    and data.get("spec") == asdict(spec) and isinstance(data.get("result"), dict)):
+                result = TrialResult(**data["result"])
+                if (result.variant, result.k) == (spec.variant, spec.k):
+                    found[i] = result
+        except (OSError, ValueError, TypeError):
+            continue
+    return found
+
+
+def run_experiment(specs: Sequence[TrialSpec], workers: int = 1, progress: bool = True,
+                   save_dir: "str | None" = None, finished: "dict | None" = None) -> list:
     """Run trials (in ``workers`` processes); results come back in ``specs`` order.
+
+    ``finished`` (``{index: TrialResult}``, from ``load_finished``) are taken as they are;
+    with ``save_dir`` each newly finished trial is saved there as soon as it completes.
     ``progress``: a bar with an ETA on stderr (``btfsm.progress``; on a terminal only)."""
     from btfsm.progress import progress_bar
 
     specs = list(specs)
     results: list = [None] * len(specs)
+    for i, res in (finished or {}).items():
+        results[i] = res
+    todo = [(i, spec) for i, spec in enumerate(specs) if results[i] is None]
     with progress_bar(len(specs), desc="trials", unit=" trial", disable=not progress, leave=True) as bar:
-        if workers <= 1 or len(specs) <= 1:
-            for i, spec in enumerate(specs):
-                results[i] = _run_one(spec)
-                bar.update(1)
+        bar.update(len(specs) - len(todo))
+
+        def finish(i, res):
+            results[i] = res
+            if save_dir is not None:
+                save_trial(save_dir, specs[i], res)
+            bar.update(1)
+
+        if workers <= 1 or len(todo) <= 1:
+            for i, spec in todo:
+                finish(i, _run_one(spec))
         else:
             import multiprocessing as mp
 
             ctx = mp.get_context("fork" if sys.platform.startswith("linux") else "spawn")
-            with ctx.Pool(workers) as pool:
-                for i, res in pool.imap_unordered(_indexed, list(enumerate(specs))):
-                    results[i] = res
-                    bar.update(1)
+            with ctx.Pool(min(workers, len(todo)), initializer=_worker_init) as pool:
+                for i, res in pool.imap_unordered(_indexed, todo):
+                    finish(i, res)
     return results
+
+
+def _worker_init():
+    """Workers leave Ctrl-C and SIGTERM to the parent, which stops the pool (no worker tracebacks)."""
+    import signal
+
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
 
 
 def _indexed(item):
@@ -138,23 +201,21 @@ def _pct(x) -> str:
 
 
 def write_results(results: Sequence[TrialResult], out_dir: str) -> tuple:
-    """Write trials.csv and trials.json (every trial) into ``out_dir``; return the paths."""
-    os.makedirs(out_dir, exist_ok=True)
+    """Write trials.csv and trials.json (every trial) into ``out_dir`` atomically; return the paths."""
+    from btfsm.outputs import atomic_writer, ensure_output_dir
+
+    ensure_output_dir(out_dir)
     csv_path, json_path = os.path.join(out_dir, "trials.csv"), os.path.join(out_dir, "trials.json")
     fields = [f for f in TrialResult.__dataclass_fields__ if f != "reaction_times"] + ["reaction_times"]
-    tmp = csv_path + ".tmp"
-    with open(tmp, "w", newline="", encoding="utf-8") as fh:
+    with atomic_writer(csv_path, newline="") as fh:
         w = csv.writer(fh)
         w.writerow(fields)
         for r in results:
             d = asdict(r)
             d["reaction_times"] = " ".join(f"{t:.3f}" for t in r.reaction_times)
             w.writerow([d[f] for f in fields])
-    os.replace(tmp, csv_path)
-    tmp = json_path + ".tmp"
-    with open(tmp, "w", encoding="utf-8") as fh:
+    with atomic_writer(json_path) as fh:
         json.dump([asdict(r) for r in results], fh, indent=1)
-    os.replace(tmp, json_path)
     return csv_path, json_path
 
 
@@ -181,6 +242,8 @@ def plot_reaction_times(results: Sequence[TrialResult], path: str, window: float
     ax.set_title("Reaction times, preemptive vs memory baseline")
     ax.legend(fontsize=8)
     fig.tight_layout()
-    os.makedirs(os.path.dirname(os.path.abspath(path)), exist_ok=True)
-    fig.savefig(path)
+    from btfsm.outputs import atomic_path
+
+    with atomic_path(path) as tmp:
+        fig.savefig(tmp)
     return path

@@ -1,6 +1,8 @@
 """``btfsm check`` and ``btfsm export`` (handlers named in ``btfsm.cli.COMMANDS``).
 
 ``btfsm check MODEL [--property NAME]... [--json] [--max-states N] [--counterexample-dir DIR]``
+(flag values are checked by the parser in ``btfsm.cli``; files are written atomically by
+``btfsm.outputs``)
 exits 0 when every property holds, 1 when one is violated (its counterexample is printed),
 2 on bad input or usage (an unknown property name lists the known ones), 3 when the state
 budget was hit and some property is undecided. On a terminal, a progress bar (states,
@@ -17,7 +19,7 @@ __all__ = ["cli_check", "cli_export"]
 
 
 def cli_check(args) -> int:
-    from btfsm.cli import UsageError
+    from btfsm.errors import UsageError
 
     from .explore import DEFAULT_MAX_STATES
     from .properties import PROPERTIES
@@ -28,8 +30,6 @@ def cli_check(args) -> int:
     if unknown:
         raise UsageError(f"unknown property {', '.join(repr(p) for p in unknown)}; known properties: {', '.join(PROPERTIES)}")
     max_states = DEFAULT_MAX_STATES if args.max_states is None else args.max_states
-    if max_states < 1:
-        raise UsageError("--max-states must be at least 1")
     from btfsm.progress import ExplorationProgress
 
     model = _load(args.model)
@@ -62,7 +62,7 @@ def _plain(x):
 
 
 def _load(ref):
-    from btfsm.cli import UsageError
+    from btfsm.errors import UsageError
     from btfsm.files import load_model
 
     try:
@@ -72,29 +72,29 @@ def _load(ref):
 
 
 def _write_counterexamples(report, folder):
-    from btfsm.cli import UsageError
+    """Each counterexample as ``MODEL.PROPERTY.HASH.json`` in ``folder``, written atomically."""
+    from btfsm.outputs import atomic_write_text, ensure_output_dir
 
-    try:
-        os.makedirs(folder, exist_ok=True)
-        for r in report.results:
-            if r.counterexample is not None:
-                path = os.path.join(folder, r.counterexample.file_name())
-                with open(path, "w", encoding="utf-8") as fh:
-                    json.dump(r.counterexample.to_json(), fh, indent=1, default=_plain)
-                    fh.write("\n")
-    except OSError as exc:
-        raise UsageError(f"--counterexample-dir {folder}: {exc.strerror or exc}") from None
+    ensure_output_dir(folder)
+    for r in report.results:
+        if r.counterexample is not None:
+            path = os.path.join(folder, r.counterexample.file_name())
+            atomic_write_text(path, json.dumps(r.counterexample.to_json(), indent=1, default=_plain) + "\n")
 
 
 def cli_export(args) -> int:
-    from btfsm.cli import UsageError
+    from btfsm.errors import UsageError
 
     model = _load(args.model)
     if args.fsm is not None and args.fsm not in [f.name for f in model.fsms]:
         raise UsageError(f"no FSM named '{args.fsm}' in {model.name} (have: {', '.join(f.name for f in model.fsms) or 'none'})")
     from .export import export  # written separately (verify/export.py)
 
-    out = export(model, args.format, args.fsm, args.output)
-    if isinstance(out, str) and not args.output:
+    out = export(model, args.format, args.fsm)
+    if args.output:
+        from btfsm.outputs import atomic_write_text
+
+        atomic_write_text(args.output, out)
+    else:
         sys.stdout.write(out if out.endswith("\n") else out + "\n")
-    return out if isinstance(out, int) and not isinstance(out, bool) else 0
+    return 0

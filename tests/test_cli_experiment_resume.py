@@ -1,0 +1,112 @@
+"""An interrupted ``btfsm experiment`` exits 130, leaves no half-written file, and a re-run
+with the same ``--out`` finishes it with the results of an uninterrupted run."""
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+
+import pytest
+
+import btfsm.sim.experiment as experiment
+from btfsm.cli import main
+
+ARGS = ["--k", "1", "--k", "2", "--time", "30", "--quiet"]
+
+
+def _run(argv, capsys):
+    code = main([str(a) for a in argv])
+    got = capsys.readouterr()
+    return code, got.out, got.err
+
+
+def _no_temporaries(folder):
+    return [p for p in folder.rglob(".*.tmp*")] == []
+
+
+@pytest.fixture(scope="module")
+def reference(tmp_path_factory):
+    """trials.json of an uninterrupted run."""
+    out = tmp_path_factory.mktemp("ref")
+    assert main(["experiment", *ARGS, "--workers", "1", "--out", str(out)]) == 0
+    return json.loads((out / "trials.json").read_text())
+
+
+def test_interrupt_then_resume_gives_the_same_results(reference, tmp_path, capsys, monkeypatch):
+    real = experiment._run_one
+    calls = []
+
+    def interrupted_after_two(spec):
+        if len(calls) == 2:
+            raise KeyboardInterrupt
+        calls.append(spec)
+        return real(spec)
+
+    monkeypatch.setattr(experiment, "_run_one", interrupted_after_two)
+    code, out, err = _run(["experiment", *ARGS, "--workers", "1", "--out", tmp_path], capsys)
+    assert code == 130 and err.splitlines()[-1] == "btfsm experiment: interrupted" and "Traceback" not in err
+    assert sorted(os.listdir(tmp_path / "trials")) == ["preemptive-k01.json", "preemptive-k02.json"]
+    assert not (tmp_path / "trials.json").exists() and _no_temporaries(tmp_path)
+
+    monkeypatch.setattr(experiment, "_run_one", real)
+    code, out, err = _run(["experiment", *ARGS, "--workers", "1", "--out", tmp_path, "--json"], capsys)
+    data = json.loads(out)
+    assert code == 0 and data["reused"] == 2 and data["trials"] == 4 and "2 finished trial(s) reused" in err
+    assert json.loads((tmp_path / "trials.json").read_text()) == reference == data["results"]
+    assert _no_temporaries(tmp_path)
+
+
+def test_rerun_reuses_only_matching_specs(reference, tmp_path, capsys):
+    assert _run(["experiment", *ARGS, "--workers", "1", "--out", tmp_path], capsys)[0] == 0
+    # a damaged trial file and a trial of another spec are run again
+    (tmp_path / "trials" / "baseline-k01.json").write_text('{"format": 1, "spec": ')
+    code, out, _ = _run(["experiment", "--k", "1", "--k", "2", "--time", "31", "--quiet", "--workers", "1",
+                         "--out", tmp_path, "--json"], capsys)
+    assert code == 0 and json.loads(out)["reused"] == 0
+    code, out, _ = _run(["experiment", *ARGS, "--workers", "1", "--out", tmp_path, "--json"], capsys)
+    assert code == 0 and json.loads(out)["reused"] == 0  # the --time 31 run replaced the files
+    code, out, _ = _run(["experiment", *ARGS, "--workers", "1", "--out", tmp_path, "--json"], capsys)
+    assert json.loads(out)["reused"] == 4 and json.loads(out)["results"] == reference
+    code, out, _ = _run(["experiment", *ARGS, "--workers", "1", "--out", tmp_path, "--json", "--fresh"], capsys)
+    assert json.loads(out)["reused"] == 0 and json.loads(out)["results"] == reference
+
+
+def test_load_finished_ignores_foreign_files(tmp_path):
+    specs = experiment.trial_specs([3], ("baseline",), time_limit=5.0)
+    res = experiment.run_experiment(specs, progress=False, save_dir=str(tmp_path))
+    assert experiment.load_finished(specs, str(tmp_path)) == {0: res[0]}
+    other = experiment.trial_specs([3], ("baseline",), time_limit=6.0)
+    assert experiment.load_finished(other, str(tmp_path)) == {}
+    path = experiment.trial_file(str(tmp_path), specs[0])
+    for text in ("", "[]", "null", '{"format": 2}', json.dumps({"format": 1, "spec": {}, "result": {}})):
+        with open(path, "w") as fh:
+            fh.write(text)
+        assert experiment.load_finished(specs, str(tmp_path)) == {}
+
+
+def test_real_ctrl_c_with_workers_then_resume(tmp_path):
+    """SIGINT to a 2-worker experiment: exit 130, one line, no worker traceback; re-run completes."""
+    cmd = [sys.executable, "-c", "import sys; from btfsm.cli import main; sys.exit(main(sys.argv[1:]))",
+           "experiment", "--k", "1", "--k", "2", "--time", "100", "--quiet", "--workers", "2", "--out", str(tmp_path)]
+    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        deadline = time.time() + 120
+        while time.time() < deadline and not (tmp_path / "trials").is_dir():
+            time.sleep(0.05)
+        time.sleep(0.2)
+        proc.send_signal(signal.SIGINT)
+        out, err = proc.communicate(timeout=60)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    assert proc.returncode == 130, err
+    assert err.strip().splitlines()[-1] == "btfsm experiment: interrupted" and "Traceback" not in err
+    assert not (tmp_path / "trials.json").exists() and _no_temporaries(tmp_path)
+    saved = len(os.listdir(tmp_path / "trials"))
+    assert 1 <= saved < 4
+    done = subprocess.run(cmd + ["--json"], capture_output=True, text=True, timeout=300)
+    data = json.loads(done.stdout)
+    assert done.returncode == 0 and data["reused"] == saved and data["trials"] == 4
