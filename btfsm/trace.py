@@ -27,6 +27,7 @@ import os
 import stat
 
 from .clock import Clock
+from .outputs import atomic_writer
 from .errors import DomainError
 from .formats import FormatError, decode_utf8, parse_json, printable, validate
 
@@ -83,27 +84,6 @@ def tick_record(program, clock, step, last_status: dict) -> dict:
             "violations": violations}
 
 
-def _open_replacing(path) -> tuple:
-    """(text stream, temporary path or None) to write ``path``: a regular file (or a new
-    one) is written to ``.NAME.PID.tmp`` in the same folder, to be renamed over ``path``
-    when complete; a FIFO or a device is opened directly; a folder is refused."""
-    path = os.path.realpath(os.fspath(path))  # a symbolic link stays a link to the new file
-    try:
-        mode = os.stat(path).st_mode
-    except FileNotFoundError:
-        mode = None
-    if mode is not None and stat.S_ISDIR(mode):
-        raise IsADirectoryError(21, "is a directory", path)
-    if mode is not None and not stat.S_ISREG(mode):
-        return open(path, "w", encoding="utf-8"), None
-    folder, base = os.path.split(path)
-    tmp = os.path.join(folder, f".{base}.{os.getpid()}.tmp")
-    try:
-        return open(tmp, "w", encoding="utf-8"), tmp
-    except OSError as exc:
-        raise type(exc)(exc.errno, exc.strerror, path) from None
-
-
 class TraceWriter:
     """Writes a header and tick records as JSON Lines to a path or a text stream.
 
@@ -112,10 +92,11 @@ class TraceWriter:
 
     def __init__(self, target, program, initial_state):
         self._own = not hasattr(target, "write")
-        self._tmp = None
+        self._file = None
         if self._own:
             self.path = os.path.realpath(os.fspath(target))
-            self.out, self._tmp = _open_replacing(self.path)
+            self._file = atomic_writer(self.path)  # btfsm.outputs: temporary name, renamed on close
+            self.out = self._file.__enter__()
         else:
             self.path, self.out = None, target
         header = {"format": FORMAT, "model": program.model.name, "tick_rate": program.model.tick_rate,
@@ -146,34 +127,21 @@ class TraceWriter:
         if not self._own:
             self.out.flush()
             return
-        if self.out.closed:
+        if self._file is None:
             return
-        try:
-            self.out.close()
-            if self._tmp is not None:
-                os.replace(self._tmp, self.path)
-                self._tmp = None
-        except OSError as exc:
-            self.discard()
-            raise self._named(exc) from None
-        except BaseException:
-            self.discard()
-            raise
+        file, self._file = self._file, None
+        file.__exit__(None, None, None)  # renames into place; a failure leaves no temporary file
 
     def discard(self) -> None:
         """Drop a trace written to a path (its temporary file); the path keeps what it had."""
-        if not self._own:
+        if not self._own or self._file is None:
             return
-        try:
-            self.out.close()
-        except OSError:
-            pass
-        if self._tmp is not None:
-            try:
-                os.unlink(self._tmp)
-            except OSError:
-                pass
-            self._tmp = None
+        file, self._file = self._file, None
+        file.__exit__(_Discarded, _Discarded(), None)
+
+
+class _Discarded(Exception):
+    """Thrown into the atomic writer to drop the temporary file."""
 
 
 def _jsonable(d: dict) -> dict:

@@ -9,7 +9,6 @@ on its own ``FigureCanvasAgg``. GIFs are assembled with Pillow (a matplotlib dep
 """
 from __future__ import annotations
 
-import contextlib
 import math
 import os
 from typing import Iterable
@@ -17,6 +16,8 @@ from typing import Iterable
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 from matplotlib.patches import Circle, Polygon, Rectangle
+
+from btfsm.outputs import atomic_path
 
 __all__ = ["PLACE_COLOURS", "draw_snapshot", "render_png", "render_gif", "Recorder"]
 
@@ -148,7 +149,7 @@ def render_png(cell, path, title: str | None = None, fsm_state: str | None = Non
     ax = fig.add_subplot(1, 1, 1)
     draw_snapshot(ax, _as_snapshot(cell), title, fsm_state)
     fig.tight_layout()
-    with _replacing(path) as tmp:
+    with atomic_path(path) as tmp:
         fig.savefig(tmp, format="png")
     return str(path)
 
@@ -188,7 +189,7 @@ def render_gif(snapshots: Iterable[dict], path, fps: float = 10.0, title: str | 
             bar.update(1)
     if not frames:
         raise ValueError("render_gif got no snapshots")
-    with _replacing(path) as tmp:
+    with atomic_path(path) as tmp:
         frames[0].save(tmp, format="GIF", save_all=True, append_images=frames[1:], loop=0,
                        duration=max(1, round(1000.0 / fps)))
     return len(frames)
@@ -198,31 +199,6 @@ def _writable_target(path) -> None:
     """Refuse a folder as the output file (an IsADirectoryError naming it)."""
     if os.path.isdir(path):
         raise IsADirectoryError(21, "is a directory", str(path))
-
-
-@contextlib.contextmanager
-def _replacing(path):
-    """Yield the name to write ``path`` under: a temporary file in the same folder that
-    replaces ``path`` once written (nothing half-written is left when writing fails); a
-    FIFO or a device is written directly. (A local copy of the atomic-writing rule; see
-    btfsm.trace's writer.)"""
-    _writable_target(path)
-    path = os.path.realpath(os.fspath(path))
-    if os.path.exists(path) and not os.path.isfile(path):
-        yield path
-        return
-    folder, base = os.path.split(path)
-    os.makedirs(folder, exist_ok=True)
-    tmp = os.path.join(folder, f".{base}.{os.getpid()}.tmp")
-    try:
-        yield tmp
-        os.replace(tmp, path)
-    except BaseException as exc:
-        with contextlib.suppress(OSError):
-            os.unlink(tmp)
-        if isinstance(exc, OSError) and exc.errno is not None:  # name the file asked for
-            raise type(exc)(exc.errno, exc.strerror, path) from None
-        raise
 
 
 class Recorder:

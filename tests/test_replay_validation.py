@@ -514,8 +514,8 @@ def test_run_trace_is_replaced_only_when_complete(tmp_path, capsys, monkeypatch)
 
     real_tick = Runtime.tick
     monkeypatch.setattr(Runtime, "tick", broken)
-    with pytest.raises(RuntimeError):
-        cli.main(["run", "two-area", "--ticks", "10", "--trace", str(trace)])
+    assert cli.main(["run", "two-area", "--ticks", "10", "--trace", str(trace)]) == 70  # an internal error
+    assert "internal error" in capsys.readouterr().err
     assert trace.read_text() == "old\n" and [p.name for p in tmp_path.iterdir()] == ["t.jsonl"]
     monkeypatch.setattr(Runtime, "tick", real_tick)
     assert _main(["run", "two-area", "--ticks", "10", "--trace", str(trace)]) == 0
@@ -523,19 +523,27 @@ def test_run_trace_is_replaced_only_when_complete(tmp_path, capsys, monkeypatch)
     capsys.readouterr()
 
 
-@pytest.mark.parametrize("target", ["model", "folder", "missing-folder"])
+@pytest.mark.parametrize("target", ["model", "folder"])
 def test_run_refuses_trace_targets(target, tmp_path, capsys):
     model = tmp_path / "m.yaml"
     from btfsm.files import dump_model, load_model
 
     dump_model(load_model("two-area"), str(model))
     before = model.read_bytes()
-    path = {"model": model, "folder": tmp_path, "missing-folder": tmp_path / "no" / "t.jsonl"}[target]
+    path = {"model": model, "folder": tmp_path}[target]
     assert _main(["run", str(model), "--ticks", "3", "--trace", str(path)]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and str(path) in err
     assert model.read_bytes() == before
     assert sorted(p.name for p in tmp_path.iterdir()) == ["m.yaml"]
+
+
+def test_run_trace_into_a_missing_folder_creates_it(tmp_path, capsys):
+    """The rule of every output file (btfsm.outputs): missing parent folders are created."""
+    path = tmp_path / "no" / "t.jsonl"
+    assert _main(["run", "two-area", "--ticks", "3", "--trace", str(path)]) == 0
+    assert len(read_trace(str(path))[1]) == 3 and sorted(p.name for p in path.parent.iterdir()) == ["t.jsonl"]
+    capsys.readouterr()
 
 
 def test_run_trace_to_a_full_device(capsys):
