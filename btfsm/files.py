@@ -31,6 +31,7 @@ import json
 import math
 import os
 import re
+import stat
 from pathlib import Path
 
 import yaml
@@ -47,10 +48,11 @@ from .world import Bool, Enum, Int, Var
 __all__ = [
     "FORMATS", "load_model", "loads_model", "load_data", "loads_data", "expand_templates",
     "model_from_data", "model_to_data", "dump_model", "dumps_model", "builtin_models",
-    "format_of", "cli_validate",
+    "format_of", "cli_validate", "read_model_bytes", "MAX_FILE_BYTES", "MAX_NODES",
 ]
 
 FORMATS = {".yaml": "yaml", ".yml": "yaml", ".json": "json"}
+MAX_FILE_BYTES = 8 * 1024 * 1024  # size of a model file
 MAX_NODES = 200_000  # YAML/JSON values in one document, aliases expanded
 MAX_DEPTH = 100  # nesting of YAML/JSON values
 MAX_TEMPLATE_DEPTH = 16
@@ -172,12 +174,42 @@ def load_data(path, fmt: "str | None" = None, file_name: "str | None" = None):
     """Read a model file into plain data; ``fmt`` defaults to the extension's."""
     name = file_name or str(path)
     fmt = format_of(path, fmt)
+    return loads_data(read_model_bytes(path, name), fmt, name)
+
+
+def read_model_bytes(path, name: "str | None" = None) -> bytes:
+    """The bytes of a model file: only a regular file, at most ``MAX_FILE_BYTES``.
+
+    The file is opened without blocking and checked with ``fstat`` before anything is
+    read, so a FIFO, a device or a folder is refused at once instead of hanging the loader.
+    """
+    name = name or str(path)
     try:
-        with open(path, "rb") as fh:
-            raw = fh.read()
+        fd = os.open(path, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0) | getattr(os, "O_NOCTTY", 0))
     except (OSError, ValueError) as exc:  # ValueError: a NUL in the path
         raise _err("", f"cannot read: {getattr(exc, 'strerror', None) or exc}", name) from None
-    return loads_data(raw, fmt, name)
+    try:
+        st = os.fstat(fd)
+        if not stat.S_ISREG(st.st_mode):
+            what = "a folder" if stat.S_ISDIR(st.st_mode) else "a FIFO" if stat.S_ISFIFO(st.st_mode) else \
+                "a device" if stat.S_ISCHR(st.st_mode) or stat.S_ISBLK(st.st_mode) else "a socket" if stat.S_ISSOCK(st.st_mode) else "not a file"
+            raise _err("", f"is {what}, not a regular model file", name)
+        if st.st_size > MAX_FILE_BYTES:
+            raise _err("", f"is {st.st_size} bytes; model files are at most {MAX_FILE_BYTES} bytes", name)
+        chunks, total = [], 0
+        while True:
+            chunk = os.read(fd, 1 << 20)
+            if not chunk:
+                break
+            total += len(chunk)
+            if total > MAX_FILE_BYTES:  # grew while being read
+                raise _err("", f"is more than {MAX_FILE_BYTES} bytes; model files are at most {MAX_FILE_BYTES} bytes", name)
+            chunks.append(chunk)
+        return b"".join(chunks)
+    except OSError as exc:
+        raise _err("", f"cannot read: {exc.strerror or exc}", name) from None
+    finally:
+        os.close(fd)
 
 
 def _parse_json(text: str, file: str):
@@ -372,7 +404,7 @@ class _Expander:
     """Expands ``use`` entries (see docs/model-files.md, "Templates")."""
 
     def __init__(self, file):
-        self.file, self.templates, self.produced = file, {}, 0
+        self.file, self.templates, self.produced, self.copied = file, {}, 0, 0
 
     def fail(self, path, problem, obj=None, key=None):
         return _err(path, problem + _where(obj, key), self.file)
@@ -559,7 +591,14 @@ class _Expander:
             out.append(binding)
         return out
 
+    def _count(self, path):
+        """Count one value produced by a template; refuse past ``MAX_NODES`` (structure bombs)."""
+        self.copied += 1
+        if self.copied > MAX_NODES:
+            raise self.fail(path, f"templates produce more than {MAX_NODES} values")
+
     def _subst(self, obj, binding, origin, chain, path):
+        self._count(path)
         if isinstance(obj, str):
             return self._text(obj, binding, path)
         if isinstance(obj, dict):
@@ -586,7 +625,7 @@ class _Expander:
     def _text(self, s, binding, path):
         whole = _PLACEHOLDER.fullmatch(s)
         if whole:  # a lone placeholder takes the value itself (a list, a number...)
-            return _plain_copy(binding[whole.group(1)])
+            return self._copy(binding[whole.group(1)], path)
 
         def rep(m):
             val = binding[m.group(1)]
@@ -597,17 +636,20 @@ class _Expander:
             raise self.fail(path, f"parameter {m.group(1)} is {_kind(val)}; only a lone '${{{m.group(1)}}}' can stand for it")
         return _PLACEHOLDER.sub(rep, s)
 
-
-def _plain_copy(x):
-    if isinstance(x, dict):
-        out = _Map((k, _plain_copy(v)) for k, v in x.items())
-        out.line, out.lines = getattr(x, "line", None), dict(getattr(x, "lines", None) or {})
-        return out
-    if isinstance(x, list):
-        out = _Seq(_plain_copy(v) for v in x)
-        out.line, out.lines = getattr(x, "line", None), dict(getattr(x, "lines", None) or {})
-        return out
-    return x
+    def _copy(self, x, path, depth=0):
+        """A fresh copy of a parameter value (counted like every produced value)."""
+        self._count(path)
+        if depth > MAX_DEPTH:
+            raise self.fail(path, f"a parameter value is nested more than {MAX_DEPTH} levels deep")
+        if isinstance(x, dict):
+            out = _Map((k, self._copy(v, path, depth + 1)) for k, v in x.items())
+            out.line, out.lines = getattr(x, "line", None), dict(getattr(x, "lines", None) or {})
+            return out
+        if isinstance(x, list):
+            out = _Seq(self._copy(v, path, depth + 1) for v in x)
+            out.line, out.lines = getattr(x, "line", None), dict(getattr(x, "lines", None) or {})
+            return out
+        return x
 
 
 def _short(x) -> str:
@@ -662,6 +704,7 @@ def expand_templates(data, file: "str | None" = None):
     """
     if not isinstance(data, dict):
         raise _err("", f"expected a mapping with the model, got {_kind(data)}", file)
+    _check_size(data, file)  # data built in Python may share sub-values (an alias bomb)
     data = copy.deepcopy(data)
     ex = _Expander(file)
     ex.define(data.pop("templates", None))

@@ -17,6 +17,7 @@ import re
 from dataclasses import dataclass, field
 
 from .errors import ModelError
+from .expr import INT_LIMIT
 
 __all__ = ["Var", "Bool", "Enum", "Int", "check_name", "RESERVED_NAMES"]
 
@@ -92,6 +93,8 @@ class Var:
                     raise ModelError(element, f"enum {self.name} value {v!r} is not a non-empty string")
         if self.kind == "int" and not (isinstance(self.lo, int) and isinstance(self.hi, int) and self.lo <= self.hi):
             raise ModelError(element, f"int {self.name} needs integer bounds lo <= hi, got {self.lo}..{self.hi}")
+        if self.kind == "int" and not (-INT_LIMIT <= self.lo and self.hi <= INT_LIMIT):
+            raise ModelError(element, f"int {self.name} has bounds {self.lo}..{self.hi}: int values must stay within -2**53..2**53")
         try:
             self.encode(self.init)
         except ValueError as exc:
