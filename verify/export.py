@@ -72,7 +72,21 @@ def _explore_small(model, fsm):
 
 
 def _dot_id(text: str) -> str:
-    return '"' + str(text).replace("\\", "\\\\").replace('"', '\\"').replace("\n", "\\n") + '"'
+    """A dot double-quoted string: backslashes and quotes escaped, newlines as ``\\n``
+    line breaks, other non-printable characters (controls, lone surrogates) as ``\\uXXXX`` text."""
+    out = []
+    for c in str(text):
+        if c == "\\":
+            out.append("\\\\")
+        elif c == '"':
+            out.append('\\"')
+        elif c == "\n":
+            out.append("\\n")
+        elif not c.isprintable():
+            out.append(f"\\\\u{ord(c):04x}")
+        else:
+            out.append(c)
+    return '"' + "".join(out) + '"'
 
 
 def to_dot(ts, max_states: int = DOT_MAX_STATES) -> str:
