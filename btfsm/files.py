@@ -2,7 +2,7 @@
 
 One data model for both formats (docs/model-files.md is the reference; the JSON Schema is
 ``btfsm/schema/model.schema.json``). Loading never executes code: YAML is composed with a
-safe loader (YAML 1.2 core scalars, so ``on:`` stays the string ``on``) and turned into
+safe loader (YAML 1.2 core scalars: ``yes``, ``no``, ``on``, ``off`` stay strings) and turned into
 plain dicts, lists and scalars by this module; templates are text substitution of
 declared ``${PARAM}`` placeholders; expressions are parsed by ``btfsm.expr.parse``. Every
 problem raises one ``ModelError`` naming the file, the element path in the file (such as
@@ -153,8 +153,8 @@ def format_of(path, fmt: "str | None" = None) -> str:
 def loads_data(text, fmt: str = "yaml", file_name: str = "<string>"):
     """Parse model-file text into plain data (dicts, lists, scalars); no templates expanded.
 
-    >>> loads_data("edges: [{from: a, to: b, on: failure}]")
-    {'edges': [{'from': 'a', 'to': 'b', 'on': 'failure'}]}
+    >>> loads_data("edges: [{from: a, to: b, when: failure, on: off}]")
+    {'edges': [{'from': 'a', 'to': 'b', 'when': 'failure', 'on': 'off'}]}
     """
     fmt = format_of(file_name, fmt)
     if isinstance(text, bytes):
@@ -732,6 +732,7 @@ _NODE_FIELDS = {
 _NODE_REQUIRED = {"Guard": ("condition", "child"), "Condition": ("expr",), "SkillRequest": ("fsm", "goal"),
                   "Inverter": ("child",), "ForceSuccess": ("child",), "ForceFailure": ("child",),
                   "Retry": ("child",), "Repeat": ("child",), "Effects": ("child",)}
+TRIGGER_KEYS = ("when", "on", True)  # "on" and True (YAML 1.1's reading of on:) are older spellings
 TOP_FIELDS = ("name", "description", "tick_rate", "variables", "primitives", "fsms", "tree",
               "environment", "invariants", "workable", "terminal")
 FSM_FIELDS = ("goals", "states", "initial", "edges", "markers", "params", "retarget", "withdraw_goal", "terminal")
@@ -1056,13 +1057,26 @@ class _Reader:
         return State(sid, **kw)
 
     def trigger(self, obj, path):
-        on = obj.get("on", "success")
+        """The trigger of an edge or marker: ``when:`` (or the older ``on:``, also as the
+        boolean key ``true`` that YAML 1.1 readers make of it)."""
+        given = [k for k in obj if k is True or (isinstance(k, str) and k in TRIGGER_KEYS)]
+        if len(given) > 1:
+            raise self.fail(path, f"give the trigger once (as 'when'; got {', '.join(str(k) for k in given)})", obj)
+        key = given[0] if given else None
+        on = obj[key] if given else "success"
         if on not in _STATUS + ("direct",):
-            raise self.fail(f"{path}.on", f"expected success, failure, running or direct, got {on!r}", obj, "on")
+            shown = "on" if key is True else key
+            raise self.fail(f"{path}.{shown}", f"expected success, failure, running or direct, got {on!r}", obj, key)
         return {"direct": True} if on == "direct" else {"on": Status.parse(on)}
 
+    def trigger_fields(self, obj, path, allowed, required, what):
+        """Check the fields of an edge or marker, accepting the trigger's old spellings."""
+        if isinstance(obj, dict) and any(k is True for k in obj):
+            obj = {("on" if k is True else k): v for k, v in obj.items() if not (k is True and "on" in obj)}
+        self.fields(obj, path, allowed, required, what)
+
     def edge(self, obj, path, parent, key):
-        self.fields(obj, path, ("from", "to", "goals", "on", "guard", "effects", "id"), ("from", "to"), "an edge {from: A, to: B, ...}")
+        self.trigger_fields(obj, path, ("from", "to", "goals", "when", "on", "guard", "effects", "id"), ("from", "to"), "an edge {from: A, to: B, ...}")
         kw = self.trigger(obj, path)
         if "goals" in obj:
             kw["goals"] = self.names(obj["goals"], f"{path}.goals", obj, "goals", "goals", allow_all=True)
@@ -1074,7 +1088,7 @@ class _Reader:
         return e, (path, parent, key)
 
     def marker(self, obj, path, parent, key):
-        self.fields(obj, path, ("state", "goals", "on", "outcome", "guard", "id"), ("state",), "a marker {state: S, ...}")
+        self.trigger_fields(obj, path, ("state", "goals", "when", "on", "outcome", "guard", "id"), ("state",), "a marker {state: S, ...}")
         kw = self.trigger(obj, path)
         if "goals" in obj:
             kw["goals"] = self.names(obj["goals"], f"{path}.goals", obj, "goals", "goals", allow_all=True)
@@ -1357,7 +1371,7 @@ def _fsm_data(f: FSM) -> dict:
     for e, write_id in zip(f.edges, _ids_to_write(f.edges, lambda e: f"{e.source}->{e.target}")):
         d = {"from": e.source, "to": e.target, "goals": list(e.goals)}
         if _trigger(e) != "success":
-            d["on"] = _trigger(e)
+            d["when"] = _trigger(e)
         if e.guard is not None:
             d["guard"] = _expr_data(e.guard)
         if e.effects:
@@ -1371,7 +1385,7 @@ def _fsm_data(f: FSM) -> dict:
     for m, write_id in zip(f.markers, _ids_to_write(f.markers, lambda m: f"{m.state}:{'direct' if m.direct else m.on.name.lower()}")):
         d = {"state": m.state, "goals": list(m.goals)}
         if _trigger(m) != "success":
-            d["on"] = _trigger(m)
+            d["when"] = _trigger(m)
         if m.outcome != Status.SUCCESS:
             d["outcome"] = m.outcome.name.lower()
         if m.guard is not None:

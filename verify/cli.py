@@ -110,10 +110,10 @@ def cli_export(args) -> int:
 
     model = _load(args.model)
     if args.fsm is not None and args.fsm not in [f.name for f in model.fsms]:
-        raise UsageError(f"no FSM named '{args.fsm}' in {model.name} (have: {', '.join(f.name for f in model.fsms) or 'none'})")
+        raise UsageError(f"{args.model}: --fsm: no FSM named '{args.fsm}' in {model.name} (have: {', '.join(f.name for f in model.fsms) or 'none'})")
     from .export import export  # written separately (verify/export.py)
 
-    out = export(model, args.format, args.fsm, args.output)
+    out = export(model, args.format, args.fsm, args.output, source=str(args.model))
     if isinstance(out, str) and not args.output:
         sys.stdout.write(out if out.endswith("\n") else out + "\n")
     return out if isinstance(out, int) and not isinstance(out, bool) else 0

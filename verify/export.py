@@ -28,8 +28,21 @@ DOT_MAX_STATES = 2000
 # ---------------------------------------------------------------------- export
 
 
-def export(model, fmt: str, fsm: "str | None" = None, output: "str | None" = None) -> str:
-    """The model in format ``fmt`` (promela, smv or dot); also written to ``output``."""
+def export(model, fmt: str, fsm: "str | None" = None, output: "str | None" = None, *, source: "str | None" = None) -> str:
+    """The model in format ``fmt`` (promela, smv or dot); also written to ``output``.
+
+    Every error is a ModelError naming ``source`` (the model file or built-in name the
+    model came from; the model's name when not given) and the element."""
+    try:
+        return _export(model, fmt, fsm, output)
+    except ModelError as exc:
+        if exc.file:
+            raise
+        shown = source if source is not None else getattr(model, "name", None)
+        raise exc.at("", shown) from None
+
+
+def _export(model, fmt, fsm, output) -> str:
     if fmt not in FORMATS:
         raise ModelError("format", f"unknown export format '{fmt}' (expected one of {', '.join(FORMATS)})")
     if fmt == "dot":
