@@ -89,16 +89,21 @@ class Model:
 
     # ------------------------------------------------------------------ lookups
     def fsm(self, name: str) -> FSM:
-        for f in self.fsms:
-            if f.name == name:
-                return f
-        raise KeyError(name)
+        return self._index("_fsm_index", self.fsms)[name]
 
     def var(self, name: str) -> Var:
-        for x in self.variables:
-            if x.name == name:
-                return x
-        raise KeyError(name)
+        return self._index("_var_index", self.variables)[name]
+
+    def _index(self, attr: str, items) -> dict:
+        """name -> item (the first with that name), built once: lookups stay O(1), so
+        building a model with many variables is linear, not quadratic."""
+        idx = self.__dict__.get(attr)
+        if idx is None:
+            idx = {}
+            for x in items:
+                idx.setdefault(x.name, x)
+            object.__setattr__(self, attr, idx)
+        return idx
 
     def all_primitives(self) -> dict:
         """Every primitive by name: declared ones plus those declared inline."""
