@@ -31,7 +31,7 @@ __all__ = [
     "E", "v", "parse", "as_expr", "to_text", "names_in",
     "Type", "BOOL", "INT", "Slot", "Scope", "check", "check_effects",
     "compile_fn", "compile_effects", "to_python_source", "to_numpy_source", "to_z3",
-    "TRUE", "FALSE", "is_true", "MAX_DEPTH", "MAX_LENGTH", "INT_LIMIT", "depth", "int_range",
+    "TRUE", "FALSE", "is_true", "MAX_DEPTH", "MAX_LENGTH", "INT_LIMIT", "depth", "int_range", "int_text",
 ]
 
 MAX_DEPTH = 64  # nesting of an expression (operators inside operators)
@@ -243,6 +243,13 @@ def parse(text: str) -> Expr:
     return e
 
 
+def int_text(n: int) -> str:
+    """``n`` for a message: its digits, or its size when it is very long."""
+    if abs(n).bit_length() <= 128:
+        return str(n)
+    return f"{'-' if n < 0 else ''}(a number of about {int(abs(n).bit_length() * 0.30103) + 1} digits)"
+
+
 def _shown(text: str, limit: int = 60) -> str:
     """``text`` quoted for an error message: one line, at most ``limit`` characters."""
     t = repr(text if len(text) <= limit else text[:limit - 3] + "...")
@@ -352,7 +359,8 @@ def _text(e: Expr) -> tuple[str, int]:
             return ("true" if e.value else "false"), _PREC["atom"]
         if isinstance(e.value, str):
             return repr(e.value), _PREC["atom"]
-        return str(e.value), (_PREC["atom"] if e.value >= 0 else _PREC["neg"])
+        text = str(e.value) if abs(e.value).bit_length() < 4000 else hex(e.value)  # str() refuses > 4300 digits
+        return text, (_PREC["atom"] if e.value >= 0 else _PREC["neg"])
     if isinstance(e, Name):
         return e.id, _PREC["atom"]
     if isinstance(e, Unary):
@@ -507,7 +515,8 @@ def _ranges(e: Expr, scope, t: "Type | None"):
             _ranges(k, scope, None)
         return None
     if r[0] < -INT_LIMIT or r[1] > INT_LIMIT:
-        what = f"constant {e.value}" if isinstance(e, Const) else f"'{_shown(to_text(e))[1:-1]}' can reach {r[0] if r[0] < -INT_LIMIT else r[1]}"
+        far = r[0] if r[0] < -INT_LIMIT else r[1]
+        what = f"constant {int_text(far)}" if isinstance(e, Const) else f"'{_shown(to_text(e))[1:-1]}' can reach {int_text(far)}"
         raise _SyntaxProblem(f"{what}: int values must stay within -2**53..2**53")
     return r
 
@@ -588,7 +597,7 @@ def _check_in_domain(var_side: Expr, const_side: Expr, scope) -> None:
     if isinstance(var_side, Name) and isinstance(const_side, Const) and type(const_side.value) is int:
         slot = scope[var_side.id]
         if slot.type == INT and not slot.lo <= const_side.value <= slot.hi:
-            raise _SyntaxProblem(f"constant {const_side.value} is outside the domain of {var_side.id} ({slot.lo}..{slot.hi})")
+            raise _SyntaxProblem(f"constant {int_text(const_side.value)} is outside the domain of {var_side.id} ({slot.lo}..{slot.hi})")
 
 
 def check_effects(effects, scope: Mapping[str, Slot], element: str) -> None:
@@ -608,7 +617,7 @@ def check_effects(effects, scope: Mapping[str, Slot], element: str) -> None:
         if got != slot.type:
             raise ModelError(where, f"assigns {got} to {name}, which is {slot.type}")
         if isinstance(value, Const) and type(value.value) is int and slot.type == INT and not slot.lo <= value.value <= slot.hi:
-            raise ModelError(where, f"constant {value.value} is outside the domain of {name} ({slot.lo}..{slot.hi})")
+            raise ModelError(where, f"constant {int_text(value.value)} is outside the domain of {name} ({slot.lo}..{slot.hi})")
 
 
 # --------------------------------------------------------------------------- translations

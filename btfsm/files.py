@@ -56,6 +56,7 @@ MAX_FILE_BYTES = 8 * 1024 * 1024  # size of a model file
 MAX_NODES = 200_000  # YAML/JSON values in one document, aliases expanded
 MAX_DEPTH = 100  # nesting of YAML/JSON values
 MAX_TEMPLATE_DEPTH = 16
+MAX_INT = 2 ** 63  # integers in a model file lie within -MAX_INT..MAX_INT
 MAX_EXPANDED = 100_000  # items produced by templates
 
 
@@ -239,18 +240,23 @@ def _parse_json(text: str, file: str):
 
 
 def _check_size(data, file):
-    count, stack = 0, [(data, 0)]
+    """Refuse data with more than ``MAX_NODES`` values (shared values counted each time
+    they appear), nested deeper than ``MAX_DEPTH`` or holding an integer beyond ``MAX_INT``."""
+    count, stack = 0, [(data, 0, "")]
     while stack:
-        x, depth = stack.pop()
+        x, depth, path = stack.pop()
         count += 1
         if depth > MAX_DEPTH:
-            raise _err("", f"values nested more than {MAX_DEPTH} levels deep", file)
+            raise _err(path, f"values nested more than {MAX_DEPTH} levels deep", file)
         if count > MAX_NODES:
-            raise _err("", f"more than {MAX_NODES} values in one file", file)
+            raise _err(path, f"more than {MAX_NODES} values in one file", file)
+        if isinstance(x, int) and not isinstance(x, bool) and not -MAX_INT <= x <= MAX_INT:
+            raise _err(path, f"an integer of about {int(x.bit_length() * 0.30103) + 1} digits is too large "
+                             "(integers lie within -2**63..2**63)", file)
         if isinstance(x, dict):
-            stack.extend((v, depth + 1) for v in x.values())
+            stack.extend((v, depth + 1, _join(path, k)) for k, v in x.items())
         elif isinstance(x, list):
-            stack.extend((v, depth + 1) for v in x)
+            stack.extend((v, depth + 1, f"{path}[{i}]") for i, v in enumerate(x))
 
 
 def _parse_yaml(text: str, file: str):
@@ -333,9 +339,12 @@ class _Builder:
         if tag == _INT:
             try:
                 t = text.lower()
-                return int(t, 16) if t.startswith("0x") else int(t, 8) if t.startswith("0o") else int(t, 10)
+                value = int(t, 16) if t.startswith("0x") else int(t, 8) if t.startswith("0o") else int(t, 10)
             except ValueError:
                 raise self.fail(node, f"'{text[:40]}' is not an integer (or has too many digits)", path) from None
+            if not -MAX_INT <= value <= MAX_INT:
+                raise self.fail(node, f"'{text[:40]}...' is too large (integers lie within -2**63..2**63)", path)
+            return value
         if tag == _FLOAT:
             t = text.lower()
             if t.lstrip("+-") == ".inf":
@@ -838,6 +847,11 @@ class _Reader:
     def constant(self, v, path, parent, key, depth=0):
         if isinstance(v, float) and not math.isfinite(v):
             raise self.fail(path, "numbers must be finite", parent, key)
+        if isinstance(v, str):
+            try:
+                v.encode("utf-8")
+            except UnicodeEncodeError:
+                raise self.fail(path, "holds a lone surrogate, which is not valid text", parent, key) from None
         if v is None or isinstance(v, (str, int, float, bool)):
             return v
         if isinstance(v, list) and depth < 8:

@@ -17,7 +17,7 @@ import re
 from dataclasses import dataclass, field
 
 from .errors import ModelError
-from .expr import INT_LIMIT
+from .expr import INT_LIMIT, int_text
 
 __all__ = ["Var", "Bool", "Enum", "Int", "check_name", "check_label", "check_text", "RESERVED_NAMES", "MAX_LABEL"]
 
@@ -134,14 +134,18 @@ class Var:
                     raise ModelError(element, f"enum {self.name} value {v!r} is not a non-empty string")
                 check_label(v, element, f"enum {self.name} value")
         if self.kind == "int" and not (isinstance(self.lo, int) and isinstance(self.hi, int) and self.lo <= self.hi):
-            raise ModelError(element, f"int {self.name} needs integer bounds lo <= hi, got {self.lo}..{self.hi}")
+            raise ModelError(element, f"int {self.name} needs integer bounds lo <= hi, got {_bound(self.lo)}..{_bound(self.hi)}")
         if self.kind == "int" and not (-INT_LIMIT <= self.lo and self.hi <= INT_LIMIT):
-            raise ModelError(element, f"int {self.name} has bounds {self.lo}..{self.hi}: int values must stay within -2**53..2**53")
+            raise ModelError(element, f"int {self.name} has bounds {int_text(self.lo)}..{int_text(self.hi)}: int values must stay within -2**53..2**53")
         try:
             self.encode(self.init)
         except ValueError as exc:
             raise ModelError(element, f"initial value: {exc}") from None
         return self
+
+
+def _bound(x) -> str:
+    return int_text(x) if isinstance(x, int) else repr(x)[:40]
 
 
 def Bool(name: str, init: bool = False) -> Var:
