@@ -277,7 +277,7 @@ def _kids(e) -> tuple:
     if isinstance(e, Unary):
         return (e.arg,)
     if isinstance(e, (BoolOp, Call)):
-        return tuple(e.args)
+        return tuple(e.args) if isinstance(e.args, (tuple, list)) else ()
     if isinstance(e, (Compare, BinOp)):
         return (e.left, e.right)
     if isinstance(e, IfElse):
@@ -441,12 +441,45 @@ def check(e: Expr, scope: Mapping[str, Slot], element: str, expected: "Type | No
         raise ModelError(element, f"not an expression: {type(e).__name__}")
     if depth(e) > MAX_DEPTH:
         raise ModelError(element, f"expression nested too deeply (limit {MAX_DEPTH})")
+    bad = _malformed(e)
+    if bad:
+        raise ModelError(element, f"malformed expression: {bad}")
     try:
         t = _check(e, scope, expected)
         _ranges(e, scope, t)
         return t
     except _SyntaxProblem as exc:
         raise ModelError(element, f"{exc} in {_shown(to_text(e))}") from None
+
+
+_OPS = {Unary: ("not", "-"), BoolOp: ("and", "or"), Compare: tuple(_CMP.values()), BinOp: tuple(_ARITH.values())}
+
+
+def _malformed(e: Expr) -> "str | None":
+    """What is wrong with a tree built by hand (an unknown operator, a wrong arity, a
+    constant that is not bool/int/str...), or None. Parser-made trees are well formed."""
+    stack = [e]
+    while stack:
+        x = stack.pop()
+        if type(x) in _OPS and x.op not in _OPS[type(x)]:
+            return f"unknown {type(x).__name__} operator {str(x.op)[:20]!r}"
+        if isinstance(x, Const) and not isinstance(x.value, (bool, int, str)):
+            return f"constant of type {type(x.value).__name__}"
+        if isinstance(x, Name) and not isinstance(x.id, str):
+            return f"name of type {type(x.id).__name__}"
+        if isinstance(x, (BoolOp, Call)) and not isinstance(x.args, tuple):
+            return f"{type(x).__name__} arguments are not a tuple"
+        if isinstance(x, BoolOp) and len(x.args) < 1:
+            return "'and'/'or' without operands"
+        if isinstance(x, Call) and (x.fn not in _FUNCS or len(x.args) != _FUNCS[x.fn]):
+            return f"unknown call {str(x.fn)[:20]!r} with {len(x.args)} argument(s)"
+        if not isinstance(x, (Const, Name, Unary, BoolOp, Compare, BinOp, Call, IfElse)):
+            return f"{type(x).__name__} is not an expression node"
+        kids = _kids(x)
+        if not all(isinstance(k, Expr) for k in kids):
+            return f"an operand of {type(x).__name__} is not an expression"
+        stack.extend(kids)
+    return None
 
 
 def int_range(e: Expr, scope: Mapping[str, Slot]) -> "tuple[int, int]":

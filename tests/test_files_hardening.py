@@ -522,3 +522,103 @@ def test_trigger_given_twice_or_wrong():
         model_from_data(data)
     assert list(VALIDATOR.iter_errors({"name": "m", "fsms": {"f": {"goals": ["g"], "states": ["a"],
                                                                    "edges": [{"from": "a", "to": "a", "when": "direct", "on": "direct"}]}}}))
+
+
+# ---------------------------------------------------------------- 1. the parser and compiler never crash
+
+from btfsm.expr import (BinOp, BoolOp, Call, Compare, Const, IfElse, Name, Unary, names_in,  # noqa: E402
+                        to_numpy_source, to_text)
+
+_EXPR_SCOPE_VARS = [Bool("p"), Int("n", -3, 4), Int("big", -(2 ** 40), 2 ** 40), Int("m", 0, 5)]
+_EXPR_SCOPE = Scope.of(_EXPR_SCOPE_VARS)
+_TOKENS = ["n", "m", "p", "big", "q", "(", ")", " and ", " or ", "not ", " + ", " - ", " * ", " // ", " % ", " == ",
+           " < ", " >= ", " != ", "min(", "max(", "abs(", ", ", " if ", " else ", " in ", "('a', 'b')", "true",
+           "false", "0", "1", "3", "-", str(2 ** 53), str(2 ** 63), "99999999999999999999", "'x'", "arm.state",
+           "**", "lambda", "[", "]", "{", "}", "@", ":", ";", "\n", "\\", "\x00", "\ud800", "é", "#", "f'", "'", '"']
+
+
+def _try_compile(e, expected=None):
+    """check + every translation: a value, or a ModelError; never another exception."""
+    try:
+        t = check(e, _EXPR_SCOPE, "x", expected)
+    except ModelError as exc:
+        assert "\n" not in str(exc)
+        return None
+    fn = compile_fn(e, _EXPR_SCOPE, "x", t)
+    src = to_numpy_source(e, _EXPR_SCOPE, expected=t)
+    to_text(e)
+    names_in(e)
+    return t, fn, src
+
+
+@settings(max_examples=300, deadline=None, suppress_health_check=list(HealthCheck))
+@given(st.lists(st.sampled_from(_TOKENS), max_size=30).map("".join) | st.text(max_size=60))
+def test_random_strings_parse_or_fail_cleanly(text):
+    try:
+        e = parse(text)
+    except ModelError as exc:
+        assert "\n" not in str(exc) and len(str(exc)) < 400
+        return
+    _try_compile(e)
+
+
+_NAMES = st.sampled_from(["n", "m", "p", "big", "nope", "arm.state", ""])
+_CONSTS = st.one_of(st.booleans(), st.integers(-(2 ** 70), 2 ** 70), st.sampled_from(["a", "x", ""]),
+                    st.sampled_from([None, 1.5, b"n", (1,)]))
+
+
+def _asts():
+    leaves = st.one_of(_CONSTS.map(Const), _NAMES.map(Name))
+    ops = st.sampled_from(["not", "-", "and", "or", "==", "<", "+", "*", "//", "%", "**", "", "min"])
+    return st.recursive(leaves, lambda kids: st.one_of(
+        st.builds(Unary, ops, kids),
+        st.builds(BoolOp, ops, st.lists(kids, max_size=3).map(tuple)),
+        st.builds(Compare, ops, kids, kids),
+        st.builds(BinOp, ops, kids, kids),
+        st.builds(Call, st.sampled_from(["min", "max", "abs", "pow", "eval"]), st.lists(kids, max_size=3).map(tuple)),
+        st.builds(IfElse, kids, kids, kids),
+    ), max_leaves=25)
+
+
+@settings(max_examples=400, deadline=None, suppress_health_check=list(HealthCheck))
+@given(_asts(), st.sampled_from([None, "bool", "int"]),
+       st.tuples(st.integers(0, 1), st.integers(-3, 4), st.sampled_from([-(2 ** 40), 0, 2 ** 40]), st.integers(0, 5)))
+def test_random_asts_compile_or_fail_cleanly(e, kind, state):
+    """Hand-built trees (unknown operators, wrong arities, odd constants): a ModelError or
+    a closure whose value the numpy translation reproduces exactly on int64 columns."""
+    import numpy as np
+
+    from btfsm.expr import BOOL, INT
+
+    got = _try_compile(e, {"bool": BOOL, "int": INT}.get(kind))
+    if got is None:
+        return
+    t, fn, src = got
+    value = fn(list(state))
+    cols = np.array([state], dtype=np.int64).T
+    vec = np.asarray(eval(src, {"np": np, "c": cols}))  # noqa: S307 - generated from a checked AST
+    vec = np.broadcast_to(vec, (1,)).item()
+    if t == BOOL:
+        assert bool(vec) == bool(value)
+    else:
+        assert int(vec) == int(value), (to_text(e), vec, value)  # no int64 overflow
+
+
+@settings(max_examples=300, deadline=None, suppress_health_check=list(HealthCheck))
+@given(st.data())
+def test_well_typed_expressions_over_big_bounds_are_exact_or_refused(data):
+    """With variables near 2**40, products leave int64 unless refused: a checked
+    expression gives the same value in Python (exact) and numpy (int64)."""
+    import numpy as np
+
+    from core_strategies import expr_env, typed_exprs
+
+    e, t = data.draw(typed_exprs(expr_env(_EXPR_SCOPE_VARS), max_depth=4))
+    state = data.draw(st.tuples(st.integers(0, 1), st.integers(-3, 4), st.sampled_from([-(2 ** 40), -1, 2 ** 40]), st.integers(0, 5)))
+    got = _try_compile(e, t)
+    if got is None:
+        return
+    _, fn, src = got
+    value = fn(list(state))
+    vec = np.broadcast_to(np.asarray(eval(src, {"np": np, "c": np.array([state], dtype=np.int64).T})), (1,)).item()  # noqa: S307
+    assert (bool(vec) == bool(value)) if t.kind == "bool" else (int(vec) == int(value)), to_text(e)
