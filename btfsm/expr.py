@@ -21,6 +21,7 @@ True
 from __future__ import annotations
 
 import ast
+import warnings
 from dataclasses import dataclass
 from typing import Iterable, Mapping, Union
 
@@ -223,7 +224,9 @@ def parse(text: str) -> Expr:
         raise ModelError("", f"expression {_shown(text)} is {len(text)} characters long (limit {MAX_LENGTH})")
     too_deep = ModelError("", f"expression {_shown(text)} is nested too deeply (limit {MAX_DEPTH})")
     try:
-        tree = ast.parse(text.strip(), mode="eval")
+        with warnings.catch_warnings():  # "invalid escape sequence" and the like: not ours to print
+            warnings.simplefilter("ignore")
+            tree = ast.parse(text.strip(), mode="eval")
     except SyntaxError as exc:
         if "nested" in str(exc.msg) or "too many" in str(exc.msg):
             raise too_deep from None

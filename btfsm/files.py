@@ -70,9 +70,20 @@ def _printable(text: str) -> str:
     return text.translate(_CONTROL)
 
 
+_LONG_QUOTE = re.compile(r"'([^'\n]{100,})'")
+MAX_MESSAGE = 1000  # characters of an error's problem text
+
+
+def _clip(text: str) -> str:
+    """A message with long quoted values (a 20,000-character name) shortened."""
+    text = _LONG_QUOTE.sub(lambda m: f"'{m.group(1)[:60]}...' ({len(m.group(1))} characters)", text)
+    return text if len(text) <= MAX_MESSAGE else text[:MAX_MESSAGE - 3] + "..."
+
+
 def _err(element, problem: str, file=None) -> ModelError:
-    """A ModelError whose text is one line (control characters in names are escaped)."""
-    clean = (lambda t: _printable(t) if isinstance(t, str) else t)
+    """A ModelError whose text is one line (control characters in names are escaped) and
+    of reasonable length (long quoted values are shortened)."""
+    clean = (lambda t: _clip(_printable(t)) if isinstance(t, str) else t)
     return ModelError(clean(element), clean(problem), clean(file))
 
 

@@ -145,9 +145,9 @@ def _mutate(draw, data):
     return kind
 
 
-def _as_text(data, fmt):
+def _as_text(data, fmt, ascii_only=False):
     if fmt == "json":
-        return json.dumps(data, ensure_ascii=bool(hash(str(data)) % 2))
+        return json.dumps(data, ensure_ascii=ascii_only)
     return yaml.safe_dump(data, allow_unicode=True, sort_keys=False)
 
 
@@ -169,7 +169,7 @@ def _data_battery(sources, n_examples, label):
             _check_load(lambda: model_from_data(doc, name), counter)
             return
         try:
-            text = _as_text(doc, route)
+            text = _as_text(doc, route, data.draw(st.booleans()))
         except (ValueError, yaml.YAMLError, RecursionError, OverflowError):
             counter.n += 1  # not representable in that format: the data route covers it
             _check_load(lambda: model_from_data(doc, name), counter)
