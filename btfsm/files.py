@@ -1232,13 +1232,20 @@ def load_model(ref, *, file_name: "str | None" = None) -> Model:
     suffix = Path(text).suffix.lower()
     registry = {} if suffix in FORMATS or os.sep in text or "/" in text else builtin_models()
     if text in registry:
-        return _load_builtin(text, registry[text], file_name)
+        return _with_source(_load_builtin(text, registry[text], file_name), file_name or text)
     if suffix in FORMATS or os.path.exists(text):
         if os.path.isdir(text):
             raise _err("", "is a folder, not a model file", file_name or text)
-        return model_from_data(load_data(text, file_name=file_name), file_name or text)
+        return _with_source(model_from_data(load_data(text, file_name=file_name), file_name or text), file_name or text)
     names = ", ".join(sorted(builtin_models())) or "none installed"
     raise _err("", f"no such file or built-in model '{text}' (model files end in .yaml, .yml or .json; built-in models: {names})")
+
+
+def _with_source(model: Model, shown: str) -> Model:
+    """Record where the model came from (``model.source``: the file or built-in name that
+    messages show; not part of the model's value), so that later errors can name it."""
+    object.__setattr__(model, "source", shown)
+    return model
 
 
 def _load_builtin(name, entry, file_name):

@@ -113,7 +113,7 @@ def cli_export(args) -> int:
         raise UsageError(f"{args.model}: --fsm: no FSM named '{args.fsm}' in {model.name} (have: {', '.join(f.name for f in model.fsms) or 'none'})")
     from .export import export  # written separately (verify/export.py)
 
-    out = export(model, args.format, args.fsm, args.output, source=str(args.model))
+    out = export(model, args.format, args.fsm, args.output)
     if isinstance(out, str) and not args.output:
         sys.stdout.write(out if out.endswith("\n") else out + "\n")
     return out if isinstance(out, int) and not isinstance(out, bool) else 0

@@ -31,14 +31,14 @@ DOT_MAX_STATES = 2000
 def export(model, fmt: str, fsm: "str | None" = None, output: "str | None" = None, *, source: "str | None" = None) -> str:
     """The model in format ``fmt`` (promela, smv or dot); also written to ``output``.
 
-    Every error is a ModelError naming ``source`` (the model file or built-in name the
-    model came from; the model's name when not given) and the element."""
+    Every error is a ModelError naming ``source`` (default: the file or built-in name
+    ``btfsm.files.load_model`` read the model from, else the model's name) and the element."""
     try:
         return _export(model, fmt, fsm, output)
     except ModelError as exc:
         if exc.file:
             raise
-        shown = source if source is not None else getattr(model, "name", None)
+        shown = source if source is not None else getattr(model, "source", None) or getattr(model, "name", None)
         raise exc.at("", shown) from None
 
 
