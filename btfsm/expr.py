@@ -21,6 +21,7 @@ True
 from __future__ import annotations
 
 import ast
+import warnings
 from dataclasses import dataclass
 from typing import Iterable, Mapping, Union
 
@@ -31,8 +32,12 @@ __all__ = [
     "E", "v", "parse", "as_expr", "to_text", "names_in",
     "Type", "BOOL", "INT", "Slot", "Scope", "check", "check_effects",
     "compile_fn", "compile_effects", "to_python_source", "to_numpy_source", "to_z3",
-    "TRUE", "FALSE", "is_true",
+    "TRUE", "FALSE", "is_true", "MAX_DEPTH", "MAX_LENGTH", "INT_LIMIT", "depth", "int_range", "int_text",
 ]
+
+MAX_DEPTH = 64  # nesting of an expression (operators inside operators)
+MAX_LENGTH = 10_000  # characters of an expression in the string syntax
+INT_LIMIT = 2 ** 53  # every int constant, bound and intermediate value lies in -INT_LIMIT..INT_LIMIT
 
 
 # --------------------------------------------------------------------------- AST
@@ -215,18 +220,72 @@ def parse(text: str) -> Expr:
     """
     if not isinstance(text, str):
         raise ModelError("", f"expected an expression string, got {type(text).__name__}")
+    if len(text) > MAX_LENGTH:
+        raise ModelError("", f"expression {_shown(text)} is {len(text)} characters long (limit {MAX_LENGTH})")
+    too_deep = ModelError("", f"expression {_shown(text)} is nested too deeply (limit {MAX_DEPTH})")
     try:
-        tree = ast.parse(text.strip(), mode="eval")
+        with warnings.catch_warnings():  # "invalid escape sequence" and the like: not ours to print
+            warnings.simplefilter("ignore")
+            tree = ast.parse(text.strip(), mode="eval")
     except SyntaxError as exc:
-        raise ModelError("", f"syntax error in {text!r} at column {exc.offset}: {exc.msg}") from None
-    except (ValueError, RecursionError, MemoryError) as exc:
-        raise ModelError("", f"cannot parse {text!r}: {exc.__class__.__name__}") from None
+        if "nested" in str(exc.msg) or "too many" in str(exc.msg):
+            raise too_deep from None
+        raise ModelError("", f"syntax error in {_shown(text)} at column {exc.offset}: {exc.msg}") from None
+    except (RecursionError, MemoryError):
+        raise too_deep from None
+    except ValueError as exc:
+        raise ModelError("", f"cannot parse {_shown(text)}: {exc}") from None
     try:
-        return _from_py(tree.body)
+        e = _from_py(tree.body)
     except _SyntaxProblem as exc:
-        raise ModelError("", f"in {text!r}: {exc}") from None
+        raise ModelError("", f"in {_shown(text)}: {exc}") from None
     except RecursionError:
-        raise ModelError("", f"expression {text[:40]!r}... is nested too deeply") from None
+        raise too_deep from None
+    if depth(e) > MAX_DEPTH:
+        raise too_deep
+    return e
+
+
+def int_text(n: int) -> str:
+    """``n`` for a message: its digits, or its size when it is very long."""
+    if abs(n).bit_length() <= 128:
+        return str(n)
+    return f"{'-' if n < 0 else ''}(a number of about {int(abs(n).bit_length() * 0.30103) + 1} digits)"
+
+
+def _shown(text: str, limit: int = 60) -> str:
+    """``text`` quoted for an error message: one line, at most ``limit`` characters."""
+    t = repr(text if len(text) <= limit else text[:limit - 3] + "...")
+    return t
+
+
+def depth(e: Expr, limit: int = MAX_DEPTH) -> int:
+    """The nesting depth of ``e`` (a constant or a name is 1), counted without recursion
+    and at most ``limit + 1`` (enough to tell that ``e`` is too deep).
+
+    >>> depth(parse("a and (b or not c)"))
+    4
+    """
+    best, stack = 0, [(e, 1)]
+    while stack:
+        x, d = stack.pop()
+        best = max(best, d)
+        if d > limit:
+            return d
+        stack.extend((k, d + 1) for k in _kids(x))
+    return best
+
+
+def _kids(e) -> tuple:
+    if isinstance(e, Unary):
+        return (e.arg,)
+    if isinstance(e, (BoolOp, Call)):
+        return tuple(e.args) if isinstance(e.args, (tuple, list)) else ()
+    if isinstance(e, (Compare, BinOp)):
+        return (e.left, e.right)
+    if isinstance(e, IfElse):
+        return (e.cond, e.then, e.other)
+    return ()
 
 
 def _from_py(n: ast.AST) -> Expr:
@@ -250,6 +309,8 @@ def _from_py(n: ast.AST) -> Expr:
             if isinstance(op, (ast.In, ast.NotIn)):
                 if not isinstance(right_node, (ast.Tuple, ast.List, ast.Set)) or not right_node.elts:
                     raise _SyntaxProblem("'in' needs a literal tuple such as ('a', 'b')")
+                if left is None:
+                    raise _SyntaxProblem("'in' cannot be chained")
                 alts = [Compare("==", left, _from_py(x)) for x in right_node.elts]
                 part = _flat("or", *alts)
                 parts.append(Unary("not", part) if isinstance(op, ast.NotIn) else part)
@@ -301,7 +362,8 @@ def _text(e: Expr) -> tuple[str, int]:
             return ("true" if e.value else "false"), _PREC["atom"]
         if isinstance(e.value, str):
             return repr(e.value), _PREC["atom"]
-        return str(e.value), (_PREC["atom"] if e.value >= 0 else _PREC["neg"])
+        text = str(e.value) if abs(e.value).bit_length() < 4000 else hex(e.value)  # str() refuses > 4300 digits
+        return text, (_PREC["atom"] if e.value >= 0 else _PREC["neg"])
     if isinstance(e, Name):
         return e.id, _PREC["atom"]
     if isinstance(e, Unary):
@@ -328,23 +390,14 @@ def names_in(e: "Expr | None") -> frozenset:
     """The variable names ``e`` reads."""
     if e is None:
         return frozenset()
-    if isinstance(e, Name):
-        return frozenset((e.id,))
-    if isinstance(e, Const):
-        return frozenset()
-    kids: Iterable[Expr]
-    if isinstance(e, Unary):
-        kids = (e.arg,)
-    elif isinstance(e, (BoolOp, Call)):
-        kids = e.args
-    elif isinstance(e, (Compare, BinOp)):
-        kids = (e.left, e.right)
-    else:
-        kids = (e.cond, e.then, e.other)
-    out: frozenset = frozenset()
-    for k in kids:
-        out |= names_in(k)
-    return out
+    out, stack = set(), [e]
+    while stack:
+        x = stack.pop()
+        if isinstance(x, Name):
+            out.add(x.id)
+        else:
+            stack.extend(_kids(x))
+    return frozenset(out)
 
 
 # --------------------------------------------------------------------------- types and scopes
@@ -387,10 +440,121 @@ class Scope(dict):
 def check(e: Expr, scope: Mapping[str, Slot], element: str, expected: "Type | None" = None) -> Type:
     """Type-check ``e``; return its type. Unknown names, type errors and out-of-domain
     constants raise ModelError naming ``element``."""
+    if not isinstance(e, Expr):
+        raise ModelError(element, f"not an expression: {type(e).__name__}")
+    if depth(e) > MAX_DEPTH:
+        raise ModelError(element, f"expression nested too deeply (limit {MAX_DEPTH})")
+    bad = _malformed(e)
+    if bad:
+        raise ModelError(element, f"malformed expression: {bad}")
     try:
-        return _check(e, scope, expected)
+        t = _check(e, scope, expected)
+        _ranges(e, scope, t)
+        return t
     except _SyntaxProblem as exc:
-        raise ModelError(element, f"{exc} in '{to_text(e)}'") from None
+        raise ModelError(element, f"{exc} in {_shown(to_text(e))}") from None
+
+
+_OPS = {Unary: ("not", "-"), BoolOp: ("and", "or"), Compare: tuple(_CMP.values()), BinOp: tuple(_ARITH.values())}
+
+
+def _malformed(e: Expr) -> "str | None":
+    """What is wrong with a tree built by hand (an unknown operator, a wrong arity, a
+    constant that is not bool/int/str...), or None. Parser-made trees are well formed."""
+    stack = [e]
+    while stack:
+        x = stack.pop()
+        if type(x) in _OPS and x.op not in _OPS[type(x)]:
+            return f"unknown {type(x).__name__} operator {str(x.op)[:20]!r}"
+        if isinstance(x, Const) and not isinstance(x.value, (bool, int, str)):
+            return f"constant of type {type(x.value).__name__}"
+        if isinstance(x, Name) and not isinstance(x.id, str):
+            return f"name of type {type(x.id).__name__}"
+        if isinstance(x, (BoolOp, Call)) and not isinstance(x.args, tuple):
+            return f"{type(x).__name__} arguments are not a tuple"
+        if isinstance(x, BoolOp) and len(x.args) < 1:
+            return "'and'/'or' without operands"
+        if isinstance(x, Call) and (x.fn not in _FUNCS or len(x.args) != _FUNCS[x.fn]):
+            return f"unknown call {str(x.fn)[:20]!r} with {len(x.args)} argument(s)"
+        if not isinstance(x, (Const, Name, Unary, BoolOp, Compare, BinOp, Call, IfElse)):
+            return f"{type(x).__name__} is not an expression node"
+        kids = _kids(x)
+        if not all(isinstance(k, Expr) for k in kids):
+            return f"an operand of {type(x).__name__} is not an expression"
+        stack.extend(kids)
+    return None
+
+
+def int_range(e: Expr, scope: Mapping[str, Slot]) -> "tuple[int, int]":
+    """The values a checked int expression can take, by interval arithmetic over the
+    bounds of its variables (a superset of the exact range).
+
+    >>> from btfsm.world import Int
+    >>> int_range(parse("n * 3 - 1"), Scope.of([Int("n", 0, 4)]))
+    (-1, 11)
+    """
+    return _ranges(e, scope, INT)
+
+
+def _ranges(e: Expr, scope, t: "Type | None"):
+    """(lo, hi) of an int expression (None for others); raise _SyntaxProblem when a
+    constant, a bound or an intermediate value may leave -INT_LIMIT..INT_LIMIT."""
+    if isinstance(e, Const):
+        if type(e.value) is int:
+            r = (e.value, e.value)
+        else:
+            return None
+    elif isinstance(e, Name):
+        slot = scope.get(e.id)
+        if slot is None or slot.type != INT:
+            return None
+        r = (slot.lo, slot.hi)
+    elif isinstance(e, Unary):
+        a = _ranges(e.arg, scope, None)
+        if e.op == "not" or a is None:
+            return None
+        r = (-a[1], -a[0])
+    elif isinstance(e, BinOp):
+        a, b = _ranges(e.left, scope, INT), _ranges(e.right, scope, INT)
+        if a is None or b is None:
+            return None
+        if e.op == "+":
+            r = (a[0] + b[0], a[1] + b[1])
+        elif e.op == "-":
+            r = (a[0] - b[1], a[1] - b[0])
+        elif e.op == "*":
+            p = (a[0] * b[0], a[0] * b[1], a[1] * b[0], a[1] * b[1])
+            r = (min(p), max(p))
+        elif e.op == "//":  # checked: a positive constant divisor
+            r = (a[0] // b[0], a[1] // b[0])
+        else:
+            r = (0, b[0] - 1)
+    elif isinstance(e, Call):
+        rs = [_ranges(x, scope, INT) for x in e.args]
+        if any(x is None for x in rs):
+            return None
+        if e.fn == "abs":
+            lo, hi = rs[0]
+            r = (lo, hi) if lo >= 0 else (-hi, -lo) if hi <= 0 else (0, max(-lo, hi))
+        elif e.fn == "min":
+            r = (min(rs[0][0], rs[1][0]), min(rs[0][1], rs[1][1]))
+        else:
+            r = (max(rs[0][0], rs[1][0]), max(rs[0][1], rs[1][1]))
+    elif isinstance(e, IfElse):
+        _ranges(e.cond, scope, BOOL)
+        a, b = _ranges(e.then, scope, None), _ranges(e.other, scope, None)
+        if a is None or b is None:
+            return None
+        r = (min(a[0], b[0]), max(a[1], b[1]))
+    else:
+        for k in _kids(e):
+            _ranges(k, scope, None)
+        return None
+    if r[0] < -INT_LIMIT or r[1] > INT_LIMIT:
+        far = r[0] if r[0] < -INT_LIMIT else r[1]
+        what = f"constant {int_text(far)}" if isinstance(e, Const) else f"'{_shown(to_text(e))[1:-1]}' can reach {int_text(far)}"
+        raise _SyntaxProblem(f"{what}: int values must stay within -2**53..2**53")
+    return r
 
 
 def _check(e: Expr, scope, expected: "Type | None") -> Type:
@@ -469,7 +633,7 @@ def _check_in_domain(var_side: Expr, const_side: Expr, scope) -> None:
     if isinstance(var_side, Name) and isinstance(const_side, Const) and type(const_side.value) is int:
         slot = scope[var_side.id]
         if slot.type == INT and not slot.lo <= const_side.value <= slot.hi:
-            raise _SyntaxProblem(f"constant {const_side.value} is outside the domain of {var_side.id} ({slot.lo}..{slot.hi})")
+            raise _SyntaxProblem(f"constant {int_text(const_side.value)} is outside the domain of {var_side.id} ({slot.lo}..{slot.hi})")
 
 
 def check_effects(effects, scope: Mapping[str, Slot], element: str) -> None:
@@ -489,7 +653,7 @@ def check_effects(effects, scope: Mapping[str, Slot], element: str) -> None:
         if got != slot.type:
             raise ModelError(where, f"assigns {got} to {name}, which is {slot.type}")
         if isinstance(value, Const) and type(value.value) is int and slot.type == INT and not slot.lo <= value.value <= slot.hi:
-            raise ModelError(where, f"constant {value.value} is outside the domain of {name} ({slot.lo}..{slot.hi})")
+            raise ModelError(where, f"constant {int_text(value.value)} is outside the domain of {name} ({slot.lo}..{slot.hi})")
 
 
 # --------------------------------------------------------------------------- translations

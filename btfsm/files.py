@@ -2,7 +2,7 @@
 
 One data model for both formats (docs/model-files.md is the reference; the JSON Schema is
 ``btfsm/schema/model.schema.json``). Loading never executes code: YAML is composed with a
-safe loader (YAML 1.2 core scalars, so ``on:`` stays the string ``on``) and turned into
+safe loader (YAML 1.2 core scalars: ``yes``, ``no``, ``on``, ``off`` stay strings) and turned into
 plain dicts, lists and scalars by this module; templates are text substitution of
 declared ``${PARAM}`` placeholders; expressions are parsed by ``btfsm.expr.parse``. Every
 problem raises one ``ModelError`` naming the file, the element path in the file (such as
@@ -31,6 +31,7 @@ import json
 import math
 import os
 import re
+import stat
 from pathlib import Path
 
 import yaml
@@ -47,13 +48,15 @@ from .world import Bool, Enum, Int, Var
 __all__ = [
     "FORMATS", "load_model", "loads_model", "load_data", "loads_data", "expand_templates",
     "model_from_data", "model_to_data", "dump_model", "dumps_model", "builtin_models",
-    "format_of", "cli_validate",
+    "format_of", "cli_validate", "read_model_bytes", "MAX_FILE_BYTES", "MAX_NODES",
 ]
 
 FORMATS = {".yaml": "yaml", ".yml": "yaml", ".json": "json"}
+MAX_FILE_BYTES = 8 * 1024 * 1024  # size of a model file
 MAX_NODES = 200_000  # YAML/JSON values in one document, aliases expanded
 MAX_DEPTH = 100  # nesting of YAML/JSON values
 MAX_TEMPLATE_DEPTH = 16
+MAX_INT = 2 ** 63  # integers in a model file lie within -MAX_INT..MAX_INT
 MAX_EXPANDED = 100_000  # items produced by templates
 
 
@@ -67,9 +70,20 @@ def _printable(text: str) -> str:
     return text.translate(_CONTROL)
 
 
+_LONG_QUOTE = re.compile(r"'([^'\n]{100,})'")
+MAX_MESSAGE = 1000  # characters of an error's problem text
+
+
+def _clip(text: str) -> str:
+    """A message with long quoted values (a 20,000-character name) shortened."""
+    text = _LONG_QUOTE.sub(lambda m: f"'{m.group(1)[:60]}...' ({len(m.group(1))} characters)", text)
+    return text if len(text) <= MAX_MESSAGE else text[:MAX_MESSAGE - 3] + "..."
+
+
 def _err(element, problem: str, file=None) -> ModelError:
-    """A ModelError whose text is one line (control characters in names are escaped)."""
-    clean = (lambda t: _printable(t) if isinstance(t, str) else t)
+    """A ModelError whose text is one line (control characters in names are escaped) and
+    of reasonable length (long quoted values are shortened)."""
+    clean = (lambda t: _clip(_printable(t)) if isinstance(t, str) else t)
     return ModelError(clean(element), clean(problem), clean(file))
 
 
@@ -151,8 +165,8 @@ def format_of(path, fmt: "str | None" = None) -> str:
 def loads_data(text, fmt: str = "yaml", file_name: str = "<string>"):
     """Parse model-file text into plain data (dicts, lists, scalars); no templates expanded.
 
-    >>> loads_data("edges: [{from: a, to: b, on: failure}]")
-    {'edges': [{'from': 'a', 'to': 'b', 'on': 'failure'}]}
+    >>> loads_data("edges: [{from: a, to: b, when: failure, on: off}]")
+    {'edges': [{'from': 'a', 'to': 'b', 'when': 'failure', 'on': 'off'}]}
     """
     fmt = format_of(file_name, fmt)
     if isinstance(text, bytes):
@@ -172,12 +186,42 @@ def load_data(path, fmt: "str | None" = None, file_name: "str | None" = None):
     """Read a model file into plain data; ``fmt`` defaults to the extension's."""
     name = file_name or str(path)
     fmt = format_of(path, fmt)
+    return loads_data(read_model_bytes(path, name), fmt, name)
+
+
+def read_model_bytes(path, name: "str | None" = None) -> bytes:
+    """The bytes of a model file: only a regular file, at most ``MAX_FILE_BYTES``.
+
+    The file is opened without blocking and checked with ``fstat`` before anything is
+    read, so a FIFO, a device or a folder is refused at once instead of hanging the loader.
+    """
+    name = name or str(path)
     try:
-        with open(path, "rb") as fh:
-            raw = fh.read()
+        fd = os.open(path, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0) | getattr(os, "O_NOCTTY", 0))
     except (OSError, ValueError) as exc:  # ValueError: a NUL in the path
         raise _err("", f"cannot read: {getattr(exc, 'strerror', None) or exc}", name) from None
-    return loads_data(raw, fmt, name)
+    try:
+        st = os.fstat(fd)
+        if not stat.S_ISREG(st.st_mode):
+            what = "a folder" if stat.S_ISDIR(st.st_mode) else "a FIFO" if stat.S_ISFIFO(st.st_mode) else \
+                "a device" if stat.S_ISCHR(st.st_mode) or stat.S_ISBLK(st.st_mode) else "a socket" if stat.S_ISSOCK(st.st_mode) else "not a file"
+            raise _err("", f"is {what}, not a regular model file", name)
+        if st.st_size > MAX_FILE_BYTES:
+            raise _err("", f"is {st.st_size} bytes; model files are at most {MAX_FILE_BYTES} bytes", name)
+        chunks, total = [], 0
+        while True:
+            chunk = os.read(fd, 1 << 20)
+            if not chunk:
+                break
+            total += len(chunk)
+            if total > MAX_FILE_BYTES:  # grew while being read
+                raise _err("", f"is more than {MAX_FILE_BYTES} bytes; model files are at most {MAX_FILE_BYTES} bytes", name)
+            chunks.append(chunk)
+        return b"".join(chunks)
+    except OSError as exc:
+        raise _err("", f"cannot read: {exc.strerror or exc}", name) from None
+    finally:
+        os.close(fd)
 
 
 def _parse_json(text: str, file: str):
@@ -207,18 +251,23 @@ def _parse_json(text: str, file: str):
 
 
 def _check_size(data, file):
-    count, stack = 0, [(data, 0)]
+    """Refuse data with more than ``MAX_NODES`` values (shared values counted each time
+    they appear), nested deeper than ``MAX_DEPTH`` or holding an integer beyond ``MAX_INT``."""
+    count, stack = 0, [(data, 0, "")]
     while stack:
-        x, depth = stack.pop()
+        x, depth, path = stack.pop()
         count += 1
         if depth > MAX_DEPTH:
-            raise _err("", f"values nested more than {MAX_DEPTH} levels deep", file)
+            raise _err(path, f"values nested more than {MAX_DEPTH} levels deep", file)
         if count > MAX_NODES:
-            raise _err("", f"more than {MAX_NODES} values in one file", file)
+            raise _err(path, f"more than {MAX_NODES} values in one file", file)
+        if isinstance(x, int) and not isinstance(x, bool) and not -MAX_INT <= x <= MAX_INT:
+            raise _err(path, f"an integer of about {int(x.bit_length() * 0.30103) + 1} digits is too large "
+                             "(integers lie within -2**63..2**63)", file)
         if isinstance(x, dict):
-            stack.extend((v, depth + 1) for v in x.values())
+            stack.extend((v, depth + 1, _join(path, k)) for k, v in x.items())
         elif isinstance(x, list):
-            stack.extend((v, depth + 1) for v in x)
+            stack.extend((v, depth + 1, f"{path}[{i}]") for i, v in enumerate(x))
 
 
 def _parse_yaml(text: str, file: str):
@@ -301,9 +350,12 @@ class _Builder:
         if tag == _INT:
             try:
                 t = text.lower()
-                return int(t, 16) if t.startswith("0x") else int(t, 8) if t.startswith("0o") else int(t, 10)
+                value = int(t, 16) if t.startswith("0x") else int(t, 8) if t.startswith("0o") else int(t, 10)
             except ValueError:
                 raise self.fail(node, f"'{text[:40]}' is not an integer (or has too many digits)", path) from None
+            if not -MAX_INT <= value <= MAX_INT:
+                raise self.fail(node, f"'{text[:40]}...' is too large (integers lie within -2**63..2**63)", path)
+            return value
         if tag == _FLOAT:
             t = text.lower()
             if t.lstrip("+-") == ".inf":
@@ -372,7 +424,7 @@ class _Expander:
     """Expands ``use`` entries (see docs/model-files.md, "Templates")."""
 
     def __init__(self, file):
-        self.file, self.templates, self.produced = file, {}, 0
+        self.file, self.templates, self.produced, self.copied = file, {}, 0, 0
 
     def fail(self, path, problem, obj=None, key=None):
         return _err(path, problem + _where(obj, key), self.file)
@@ -559,7 +611,14 @@ class _Expander:
             out.append(binding)
         return out
 
+    def _count(self, path):
+        """Count one value produced by a template; refuse past ``MAX_NODES`` (structure bombs)."""
+        self.copied += 1
+        if self.copied > MAX_NODES:
+            raise self.fail(path, f"templates produce more than {MAX_NODES} values")
+
     def _subst(self, obj, binding, origin, chain, path):
+        self._count(path)
         if isinstance(obj, str):
             return self._text(obj, binding, path)
         if isinstance(obj, dict):
@@ -586,7 +645,7 @@ class _Expander:
     def _text(self, s, binding, path):
         whole = _PLACEHOLDER.fullmatch(s)
         if whole:  # a lone placeholder takes the value itself (a list, a number...)
-            return _plain_copy(binding[whole.group(1)])
+            return self._copy(binding[whole.group(1)], path)
 
         def rep(m):
             val = binding[m.group(1)]
@@ -597,17 +656,20 @@ class _Expander:
             raise self.fail(path, f"parameter {m.group(1)} is {_kind(val)}; only a lone '${{{m.group(1)}}}' can stand for it")
         return _PLACEHOLDER.sub(rep, s)
 
-
-def _plain_copy(x):
-    if isinstance(x, dict):
-        out = _Map((k, _plain_copy(v)) for k, v in x.items())
-        out.line, out.lines = getattr(x, "line", None), dict(getattr(x, "lines", None) or {})
-        return out
-    if isinstance(x, list):
-        out = _Seq(_plain_copy(v) for v in x)
-        out.line, out.lines = getattr(x, "line", None), dict(getattr(x, "lines", None) or {})
-        return out
-    return x
+    def _copy(self, x, path, depth=0):
+        """A fresh copy of a parameter value (counted like every produced value)."""
+        self._count(path)
+        if depth > MAX_DEPTH:
+            raise self.fail(path, f"a parameter value is nested more than {MAX_DEPTH} levels deep")
+        if isinstance(x, dict):
+            out = _Map((k, self._copy(v, path, depth + 1)) for k, v in x.items())
+            out.line, out.lines = getattr(x, "line", None), dict(getattr(x, "lines", None) or {})
+            return out
+        if isinstance(x, list):
+            out = _Seq(self._copy(v, path, depth + 1) for v in x)
+            out.line, out.lines = getattr(x, "line", None), dict(getattr(x, "lines", None) or {})
+            return out
+        return x
 
 
 def _short(x) -> str:
@@ -662,6 +724,7 @@ def expand_templates(data, file: "str | None" = None):
     """
     if not isinstance(data, dict):
         raise _err("", f"expected a mapping with the model, got {_kind(data)}", file)
+    _check_size(data, file)  # data built in Python may share sub-values (an alias bomb)
     data = copy.deepcopy(data)
     ex = _Expander(file)
     ex.define(data.pop("templates", None))
@@ -689,6 +752,7 @@ _NODE_FIELDS = {
 _NODE_REQUIRED = {"Guard": ("condition", "child"), "Condition": ("expr",), "SkillRequest": ("fsm", "goal"),
                   "Inverter": ("child",), "ForceSuccess": ("child",), "ForceFailure": ("child",),
                   "Retry": ("child",), "Repeat": ("child",), "Effects": ("child",)}
+TRIGGER_KEYS = ("when", "on", True)  # "on" and True (YAML 1.1's reading of on:) are older spellings
 TOP_FIELDS = ("name", "description", "tick_rate", "variables", "primitives", "fsms", "tree",
               "environment", "invariants", "workable", "terminal")
 FSM_FIELDS = ("goals", "states", "initial", "edges", "markers", "params", "retarget", "withdraw_goal", "terminal")
@@ -794,6 +858,11 @@ class _Reader:
     def constant(self, v, path, parent, key, depth=0):
         if isinstance(v, float) and not math.isfinite(v):
             raise self.fail(path, "numbers must be finite", parent, key)
+        if isinstance(v, str):
+            try:
+                v.encode("utf-8")
+            except UnicodeEncodeError:
+                raise self.fail(path, "holds a lone surrogate, which is not valid text", parent, key) from None
         if v is None or isinstance(v, (str, int, float, bool)):
             return v
         if isinstance(v, list) and depth < 8:
@@ -1013,13 +1082,26 @@ class _Reader:
         return State(sid, **kw)
 
     def trigger(self, obj, path):
-        on = obj.get("on", "success")
+        """The trigger of an edge or marker: ``when:`` (or the older ``on:``, also as the
+        boolean key ``true`` that YAML 1.1 readers make of it)."""
+        given = [k for k in obj if k is True or (isinstance(k, str) and k in TRIGGER_KEYS)]
+        if len(given) > 1:
+            raise self.fail(path, f"give the trigger once (as 'when'; got {', '.join(str(k) for k in given)})", obj)
+        key = given[0] if given else None
+        on = obj[key] if given else "success"
         if on not in _STATUS + ("direct",):
-            raise self.fail(f"{path}.on", f"expected success, failure, running or direct, got {on!r}", obj, "on")
+            shown = "on" if key is True else key
+            raise self.fail(f"{path}.{shown}", f"expected success, failure, running or direct, got {on!r}", obj, key)
         return {"direct": True} if on == "direct" else {"on": Status.parse(on)}
 
+    def trigger_fields(self, obj, path, allowed, required, what):
+        """Check the fields of an edge or marker, accepting the trigger's old spellings."""
+        if isinstance(obj, dict) and any(k is True for k in obj):
+            obj = {("on" if k is True else k): v for k, v in obj.items() if not (k is True and "on" in obj)}
+        self.fields(obj, path, allowed, required, what)
+
     def edge(self, obj, path, parent, key):
-        self.fields(obj, path, ("from", "to", "goals", "on", "guard", "effects", "id"), ("from", "to"), "an edge {from: A, to: B, ...}")
+        self.trigger_fields(obj, path, ("from", "to", "goals", "when", "on", "guard", "effects", "id"), ("from", "to"), "an edge {from: A, to: B, ...}")
         kw = self.trigger(obj, path)
         if "goals" in obj:
             kw["goals"] = self.names(obj["goals"], f"{path}.goals", obj, "goals", "goals", allow_all=True)
@@ -1031,7 +1113,7 @@ class _Reader:
         return e, (path, parent, key)
 
     def marker(self, obj, path, parent, key):
-        self.fields(obj, path, ("state", "goals", "on", "outcome", "guard", "id"), ("state",), "a marker {state: S, ...}")
+        self.trigger_fields(obj, path, ("state", "goals", "when", "on", "outcome", "guard", "id"), ("state",), "a marker {state: S, ...}")
         kw = self.trigger(obj, path)
         if "goals" in obj:
             kw["goals"] = self.names(obj["goals"], f"{path}.goals", obj, "goals", "goals", allow_all=True)
@@ -1150,13 +1232,20 @@ def load_model(ref, *, file_name: "str | None" = None) -> Model:
     suffix = Path(text).suffix.lower()
     registry = {} if suffix in FORMATS or os.sep in text or "/" in text else builtin_models()
     if text in registry:
-        return _load_builtin(text, registry[text], file_name)
+        return _with_source(_load_builtin(text, registry[text], file_name), file_name or text)
     if suffix in FORMATS or os.path.exists(text):
         if os.path.isdir(text):
             raise _err("", "is a folder, not a model file", file_name or text)
-        return model_from_data(load_data(text, file_name=file_name), file_name or text)
+        return _with_source(model_from_data(load_data(text, file_name=file_name), file_name or text), file_name or text)
     names = ", ".join(sorted(builtin_models())) or "none installed"
     raise _err("", f"no such file or built-in model '{text}' (model files end in .yaml, .yml or .json; built-in models: {names})")
+
+
+def _with_source(model: Model, shown: str) -> Model:
+    """Record where the model came from (``model.source``: the file or built-in name that
+    messages show; not part of the model's value), so that later errors can name it."""
+    object.__setattr__(model, "source", shown)
+    return model
 
 
 def _load_builtin(name, entry, file_name):
@@ -1314,7 +1403,7 @@ def _fsm_data(f: FSM) -> dict:
     for e, write_id in zip(f.edges, _ids_to_write(f.edges, lambda e: f"{e.source}->{e.target}")):
         d = {"from": e.source, "to": e.target, "goals": list(e.goals)}
         if _trigger(e) != "success":
-            d["on"] = _trigger(e)
+            d["when"] = _trigger(e)
         if e.guard is not None:
             d["guard"] = _expr_data(e.guard)
         if e.effects:
@@ -1328,7 +1417,7 @@ def _fsm_data(f: FSM) -> dict:
     for m, write_id in zip(f.markers, _ids_to_write(f.markers, lambda m: f"{m.state}:{'direct' if m.direct else m.on.name.lower()}")):
         d = {"state": m.state, "goals": list(m.goals)}
         if _trigger(m) != "success":
-            d["on"] = _trigger(m)
+            d["when"] = _trigger(m)
         if m.outcome != Status.SUCCESS:
             d["outcome"] = m.outcome.name.lower()
         if m.guard is not None:

@@ -24,7 +24,7 @@ from .errors import ModelError
 from .expr import Expr, as_expr, is_true, to_text
 from .primitives import Outcome, effects_of
 from .status import Status
-from .world import Var, check_name
+from .world import Var, check_label, check_name
 
 __all__ = ["State", "Edge", "Marker", "FSM", "ALL_GOALS", "RETARGET_MODES"]
 
@@ -155,6 +155,8 @@ class FSM:
         ids = [s.id for s in self.states]
         if not ids:
             raise ModelError(where, "has no states")
+        for i, sid in enumerate(ids):
+            check_label(sid, f"{where}.states[{i}]", "state id")
         _no_dups(ids, f"{where}.states", "state")
         for i, st in enumerate(self.states):
             if not isinstance(st.id, str) or not st.id:
@@ -168,6 +170,7 @@ class FSM:
         for g in self.goals:
             if not isinstance(g, str) or not g or g == ALL_GOALS:
                 raise ModelError(f"{where}.goals", f"goal {g!r} must be a non-empty string other than '*'")
+            check_label(g, f"{where}.goals", "goal")
         _no_dups(self.goals, f"{where}.goals", "goal")
         for i, p in enumerate(self.params):
             if not isinstance(p, Var):
@@ -181,6 +184,9 @@ class FSM:
         for t in self.terminal:
             if t not in ids:
                 raise ModelError(f"{where}.terminal", f"unknown state '{t}'")
+        for kind, items in (("edge", self.edges), ("marker", self.markers)):
+            for i, el in enumerate(items):
+                check_label(el.id, f"{where}.{kind}s[{i}]", f"{kind} id", limit=None)
         _no_dups([e.id for e in self.edges], f"{where}.edges", "edge id")
         _no_dups([m.id for m in self.markers], f"{where}.markers", "marker id")
         known = set(ids)

@@ -24,7 +24,7 @@ from .errors import ModelError
 from .expr import Expr, as_expr
 from .fsm import FSM
 from .primitives import PASS, Primitive, effects_of
-from .world import Var, check_name
+from .world import Var, check_label, check_name, check_text
 
 __all__ = ["EnvEvent", "EnvChoice", "Model"]
 
@@ -89,16 +89,21 @@ class Model:
 
     # ------------------------------------------------------------------ lookups
     def fsm(self, name: str) -> FSM:
-        for f in self.fsms:
-            if f.name == name:
-                return f
-        raise KeyError(name)
+        return self._index("_fsm_index", self.fsms)[name]
 
     def var(self, name: str) -> Var:
-        for x in self.variables:
-            if x.name == name:
-                return x
-        raise KeyError(name)
+        return self._index("_var_index", self.variables)[name]
+
+    def _index(self, attr: str, items) -> dict:
+        """name -> item (the first with that name), built once: lookups stay O(1), so
+        building a model with many variables is linear, not quadratic."""
+        idx = self.__dict__.get(attr)
+        if idx is None:
+            idx = {}
+            for x in items:
+                idx.setdefault(x.name, x)
+            object.__setattr__(self, attr, idx)
+        return idx
 
     def all_primitives(self) -> dict:
         """Every primitive by name: declared ones plus those declared inline."""
@@ -140,6 +145,8 @@ class Model:
     def _validate(self) -> list:
         if not isinstance(self.name, str) or not self.name:
             raise ModelError("name", "a model needs a non-empty name")
+        check_label(self.name, "name", "model name")
+        check_text(self.description, "description", "the description")
         names = set()
         for i, var in enumerate(self.variables):
             if not isinstance(var, Var):
@@ -157,6 +164,7 @@ class Model:
         for p in self.primitives:
             if not isinstance(p.name, str) or not p.name:
                 raise ModelError("primitives", "a primitive needs a non-empty name")
+            check_label(p.name, "primitives", "primitive name")
             if p.name in declared:
                 raise ModelError(f"primitives.{p.name}", f"duplicate primitive '{p.name}'")
             declared.add(p.name)
@@ -190,6 +198,8 @@ class Model:
                     check_name(opt.name, f"environment.{ev.name}.options[{k}]", "option name")
                     env_names.append(opt.name)
         _no_dup_names(env_names, "environment")
+        for k, _ in self.invariants:
+            check_label(k, "invariants", "invariant name")
         _no_dup_names([k for k, _ in self.invariants], "invariants")
         if not isinstance(self.tick_rate, (int, float)) or not 0 < self.tick_rate < float("inf"):
             raise ModelError("tick_rate", "must be a positive number of ticks per second")
@@ -230,6 +240,7 @@ class Model:
                 where = f"{path}.{node.name}" if isinstance(node.name, str) else path
                 if not isinstance(node.name, str) or not node.name:
                     raise ModelError(path, "every node needs a non-empty name")
+                check_label(node.name, path, "node name")
                 if node.name in seen:
                     raise ModelError(where, f"duplicate node name '{node.name}' (node names are trace ids)")
                 seen[node.name] = where
@@ -261,6 +272,8 @@ class Model:
 
 
 def _unique_outcomes(outcomes, where):
+    for o in outcomes:
+        check_label(o.name, f"{where}.outcomes", "outcome name")
     _no_dup_names([o.name for o in outcomes], f"{where}.outcomes")
 
 

@@ -47,9 +47,25 @@ class GraphvizError(UsageError):
 
 
 def _q(text) -> str:
-    """A dot double-quoted string; newlines become centred line breaks."""
-    s = str(text).replace("\\", "\\\\").replace('"', '\\"')
-    return '"' + s.replace("\r", "").replace("\n", "\\n") + '"'
+    """A dot double-quoted string; newlines become centred line breaks, other
+    non-printable characters (controls, lone surrogates) are shown as ``\\uXXXX`` text.
+
+    >>> print(_q('a"b\\\\c\\nd\\x00'))
+    "a\\"b\\\\c\\nd\\\\u0000"
+    """
+    out = []
+    for c in str(text).replace("\r\n", "\n"):
+        if c == "\\":
+            out.append("\\\\")
+        elif c == '"':
+            out.append('\\"')
+        elif c == "\n":
+            out.append("\\n")
+        elif not c.isprintable():
+            out.append(f"\\\\u{ord(c):04x}")
+        else:
+            out.append(c)
+    return '"' + "".join(out) + '"'
 
 
 def _attrs(**kw) -> str:

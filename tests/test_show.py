@@ -153,7 +153,7 @@ def test_random_models_give_valid_dot(model):
 
 
 def test_odd_names_are_escaped():
-    ids = ['quote"d', "back\\slash", "new\nline", "{brace}", "a->b"]
+    ids = ['quote"d', "back\\slash", "end\\", "{brace}", "a->b", "*/ x /*"]  # labels are printable: no newline
     f = FSM("f", [State(i) for i in ids], ids[0], ["g"], [Edge(ids[k], ids[k + 1]) for k in range(len(ids) - 1)])
     m = Model("m", fsms=[f], tree=Condition('c"x', "true"))
     _check_dot(fsm_to_dot(m, "f"))

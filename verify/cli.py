@@ -87,7 +87,7 @@ def cli_export(args) -> int:
 
     model = _load(args.model)
     if args.fsm is not None and args.fsm not in [f.name for f in model.fsms]:
-        raise UsageError(f"no FSM named '{args.fsm}' in {model.name} (have: {', '.join(f.name for f in model.fsms) or 'none'})")
+        raise UsageError(f"{args.model}: --fsm: no FSM named '{args.fsm}' in {model.name} (have: {', '.join(f.name for f in model.fsms) or 'none'})")
     from .export import export  # written separately (verify/export.py)
 
     out = export(model, args.format, args.fsm)

@@ -28,8 +28,21 @@ DOT_MAX_STATES = 2000
 # ---------------------------------------------------------------------- export
 
 
-def export(model, fmt: str, fsm: "str | None" = None, output: "str | None" = None) -> str:
-    """The model in format ``fmt`` (promela, smv or dot); also written to ``output``."""
+def export(model, fmt: str, fsm: "str | None" = None, output: "str | None" = None, *, source: "str | None" = None) -> str:
+    """The model in format ``fmt`` (promela, smv or dot); also written to ``output``.
+
+    Every error is a ModelError naming ``source`` (default: the file or built-in name
+    ``btfsm.files.load_model`` read the model from, else the model's name) and the element."""
+    try:
+        return _export(model, fmt, fsm, output)
+    except ModelError as exc:
+        if exc.file:
+            raise
+        shown = source if source is not None else getattr(model, "source", None) or getattr(model, "name", None)
+        raise exc.at("", shown) from None
+
+
+def _export(model, fmt, fsm, output) -> str:
     if fmt not in FORMATS:
         raise ModelError("format", f"unknown export format '{fmt}' (expected one of {', '.join(FORMATS)})")
     if fmt == "dot":
@@ -72,7 +85,21 @@ def _explore_small(model, fsm):
 
 
 def _dot_id(text: str) -> str:
-    return '"' + str(text).replace("\\", "\\\\").replace('"', '\\"').replace("\n", "\\n") + '"'
+    """A dot double-quoted string: backslashes and quotes escaped, newlines as ``\\n``
+    line breaks, other non-printable characters (controls, lone surrogates) as ``\\uXXXX`` text."""
+    out = []
+    for c in str(text):
+        if c == "\\":
+            out.append("\\\\")
+        elif c == '"':
+            out.append('\\"')
+        elif c == "\n":
+            out.append("\\n")
+        elif not c.isprintable():
+            out.append(f"\\\\u{ord(c):04x}")
+        else:
+            out.append(c)
+    return '"' + "".join(out) + '"'
 
 
 def to_dot(ts, max_states: int = DOT_MAX_STATES) -> str:

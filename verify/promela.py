@@ -48,7 +48,7 @@ from btfsm.model import EnvChoice
 
 from .stepspec import StepSpec, int_bounds, terminal_expr
 
-__all__ = ["to_promela", "spin_available", "run_spin", "compile_pan", "run_pan", "parse_pan", "SpinResult", "MAX_OPTIONS", "Namer",
+__all__ = ["comment_text", "to_promela", "spin_available", "run_spin", "compile_pan", "run_pan", "parse_pan", "SpinResult", "MAX_OPTIONS", "Namer",
            "PROMELA_RESERVED"]
 
 MAX_OPTIONS = 20_000
@@ -65,6 +65,26 @@ RUNNING SUCCESS FAILURE
 """.split())
 
 _STATUS_NAMES = ("RUNNING", "SUCCESS", "FAILURE")
+
+
+def comment_text(text: object) -> str:
+    """``text`` made safe inside a generated comment (Promela ``/* */``, SMV ``--``,
+    anything line-based): printable ASCII on one line (other characters as ``\\xNN`` /
+    ``\\uNNNN`` escapes) with no comment delimiter (``/*`` and ``*/`` are broken apart).
+    Names in generated text reach the code only through ``Namer``; everything else a user
+    wrote is shown only through this function.
+
+    >>> comment_text('x */ c_code { system("touch X") } /* y\\nz')
+    'x * / c_code { system("touch X") } / * y\\\\x0az'
+    """
+    t = str(text).encode("ascii", "backslashreplace").decode("ascii")
+    t = "".join(c if c.isprintable() else f"\\x{ord(c):02x}" for c in t)
+    while "/*" in t or "*/" in t:
+        t = t.replace("/*", "/ *").replace("*/", "* /")
+    return t
+
+
+_c = comment_text
 
 
 class Namer:
@@ -243,7 +263,7 @@ class _Gen:
             out.append(f"{ind}_t{k} = {self.x(value, scope, ref, slot.type, slot.index)};")
             risky = self.risky(value, slot)
             if risky:
-                out.append(f"{ind}assert({slot.lo} <= _t{k} && _t{k} <= {slot.hi}); /* {what}: {name} in {slot.lo}..{slot.hi} */")
+                out.append(f"{ind}assert({slot.lo} <= _t{k} && _t{k} <= {slot.hi}); /* {_c(what)}: {_c(name)} in {slot.lo}..{slot.hi} */")
             targets.append((slot, risky))
         for k, (slot, risky) in enumerate(targets):
             value = f"(_t{k} < {_lit(slot.lo)} -> {_lit(slot.lo)} : (_t{k} > {slot.hi} -> {slot.hi} : _t{k}))" if risky else f"_t{k}"
@@ -279,12 +299,12 @@ class _Gen:
 
         def move(payload, out, ind):
             target, effects, eid = payload
-            out.append(f"{ind}{tok} = {self.x.literal(spec.token, target)}; /* edge {eid} */")
+            out.append(f"{ind}{tok} = {self.x.literal(spec.token, target)}; /* edge {_c(eid)} */")
             self.assign(effects, ref, out, ind, f"edge {eid}")
 
         direct = [(s, rows[s][g].dedges) for s in range(len(ids)) if rows[s][g].dedges]
         if direct:
-            out.append(f"{ind}do /* 1. direct edges for goal {fsm.goals[g]} */")
+            out.append(f"{ind}do /* 1. direct edges for goal {_c(fsm.goals[g])} */")
             for s, dedges in direct:
                 out.append(f"{ind}:: {tok} == {self.x.literal(spec.token, s)} ->")
                 self.cascade([(gd, (t, eff, eid)) for gd, t, eff, eid in dedges], ref, out, ind + "     ", move,
@@ -307,7 +327,7 @@ class _Gen:
                 return
             k = min(K, len(row.outcomes) - 1)
             status, effects, oname = row.outcomes[k]
-            out.append(f"{ind}/* 4. run {row.site}: outcome {oname} ({_STATUS_NAMES[status]}) */")
+            out.append(f"{ind}/* 4. run {_c(row.site)}: outcome {_c(oname)} ({_STATUS_NAMES[status]}) */")
             self.assign(effects, ref, out, ind, f"outcome {row.site}:{oname}")
             self.cascade([(gd, o) for gd, o, _ in row.markers[status]], ref, out, ind, reply(None),
                          default=lambda out, ind: out.append(f"{ind}_reply = RUNNING;"))
@@ -417,7 +437,7 @@ class _Gen:
         if K:
             what.append(f"outcome {K}")
         ind = "       "
-        out = [f"  :: d_step {{ /* {', '.join(what) or 'no choice'} */", f"{ind}{' && '.join(conds) or 'true'} ->"]
+        out = [f"  :: d_step {{ /* {_c(', '.join(what)) or 'no choice'} */", f"{ind}{' && '.join(conds) or 'true'} ->"]
         for label, _, effects in decisions:
             if label is not None and effects:
                 self.assign(effects, ref, out, ind, f"environment {label}")
@@ -427,7 +447,7 @@ class _Gen:
             self.request(K, ref, out, ind)
         after = self.var_ref()  # free inputs are reset after the step
         for name, inv in spec.model.invariants:
-            out.append(f"{ind}assert({self.cond(inv, self.scope, after)}); /* invariant {name} */")
+            out.append(f"{ind}assert({self.cond(inv, self.scope, after)}); /* invariant {_c(name)} */")
         out.append("     }")
         return out
 
@@ -443,7 +463,7 @@ class _Gen:
             info = scope[self.prog.slots[slot].name]
             body.append(f"{ind}_p{j} = {self.x(expr, scope, ref, info.type, slot)};")
             if self.risky(expr, info):
-                body.append(f"{ind}assert({info.lo} <= _p{j} && _p{j} <= {info.hi}); /* parameter {self.prog.slots[slot].name} in domain */")
+                body.append(f"{ind}assert({info.lo} <= _p{j} && _p{j} <= {info.hi}); /* parameter {_c(self.prog.slots[slot].name)} in domain */")
                 body.append(f"{ind}_p{j} = (_p{j} < {_lit(info.lo)} -> {_lit(info.lo)} : (_p{j} > {info.hi} -> {info.hi} : _p{j}));")
             pvals.append(f"_p{j}")
         self.params_needed = max(getattr(self, "params_needed", 0), len(spec.params))
@@ -462,7 +482,7 @@ class _Gen:
             out.extend("     " + line for line in body)
             out.append(f"{ind}fi;")
         if node.post is not None:
-            out.append(f"{ind}assert(_reply != SUCCESS || {self.cond(node.post, scope, ref)}); /* post of {node.name} */")
+            out.append(f"{ind}assert(_reply != SUCCESS || {self.cond(node.post, scope, ref)}); /* post of {_c(node.name)} */")
         out.append(f"{ind}{flag} = (_reply == RUNNING);")
 
     # ------------------------------------------------------------ the document
@@ -470,7 +490,7 @@ class _Gen:
         spec, prog, names = self.spec, self.prog, self.names
         model = spec.model
         level = f"FSM {spec.fsm} as an open system" if spec.kind == "fsm" else f"the whole model (tree: SkillRequest {spec.request.name})"
-        head = [f"/* btfsm model '{model.name}': {level}.",
+        head = [f"/* btfsm model '{_c(model.name)}': {_c(level)}.",
                 " * Generated by btfsm.verify.export (btfsm); one d_step = one "
                 + ("request of the FSM." if spec.kind == "fsm" else "BT tick."),
                 " * Verify: spin -o2 -a FILE.pml && gcc -O2 -DSAFETY -DNOCLAIM -o pan pan.c && ./pan -m100000",
@@ -478,18 +498,18 @@ class _Gen:
                 " * Terminal states (if any) stutter instead of carrying an end label. */", ""]
         head += ["#define RUNNING 0", "#define SUCCESS 1", "#define FAILURE 2"]
         for (k, i), cname in names.const.items():
-            head.append(f"#define {cname} {i} /* {prog.slots[k].name} = {SlotNames.values_of(prog, k)[i]} */")
+            head.append(f"#define {cname} {i} /* {_c(prog.slots[k].name)} = {_c(SlotNames.values_of(prog, k)[i])} */")
         head.append("")
         init = prog.initial
         for k in spec.stored:
             info = prog.slots[k]
-            head.append(f"{_ptype(prog, info)} {names.var[k]} = {self.x.literal(k, init[k]) if (k, init[k]) in names.const else init[k]}; /* {info.name} ({info.kind}) */")
+            head.append(f"{_ptype(prog, info)} {names.var[k]} = {self.x.literal(k, init[k]) if (k, init[k]) in names.const else init[k]}; /* {_c(info.name)} ({info.kind}) */")
         fixed = [f"{prog.slots[k].name} = {v}" for k, v in self.fixed.items() if k not in dict(spec.inputs)]
         if fixed:
-            head.append(f"/* not stored (constant at their initial value): {', '.join(fixed)} */")
+            head.append(f"/* not stored (constant at their initial value): {_c(', '.join(fixed))} */")
         if spec.inputs:
             head.append("/* free inputs (a value chosen per step, then reset): "
-                        + ", ".join(f"{prog.slots[s].name} in {min(v)}..{max(v)}" for s, v in spec.inputs) + " */")
+                        + _c(", ".join(f"{prog.slots[s].name} in {min(v)}..{max(v)}" for s, v in spec.inputs)) + " */")
         head.append("hidden byte _reply;")
         if self.temps:
             head.append("hidden int " + ", ".join(f"_t{k}" for k in range(self.temps)) + ";")
@@ -503,7 +523,7 @@ class _Gen:
             proc.append("  /* the initial state violates an invariant */")
             for name, inv in model.invariants:
                 if name in bad0:
-                    proc.append(f"  assert({self.cond(inv, self.scope, ref)}); /* invariant {name} */")
+                    proc.append(f"  assert({self.cond(inv, self.scope, ref)}); /* invariant {_c(name)} */")
         proc.append("  do")
         for opt in options:
             proc.extend(opt)
