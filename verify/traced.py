@@ -42,7 +42,9 @@ import numpy as np
 
 from btfsm.errors import DomainError
 
-from .explore import DEFAULT_MAX_STATES, EnumOracle, _codec, _decode, _readable
+from .codec import codec, decode
+from .labels import readable
+from .search import DEFAULT_MAX_STATES, EnumOracle
 from .system import DomainViolation, TransitionSystem
 
 __all__ = ["search", "Untraceable", "CHUNK", "DENSE_LIMIT"]
@@ -279,7 +281,7 @@ class _Engine:
         self.prog, self.run, self.op = prog, run, op
         self.width = len(prog.slots)
         self.kept, self.base = frozenset(kept), tuple(base)
-        self.mults, self.offset, self.total = _codec(prog, tuple(kept))
+        self.mults, self.offset, self.total = codec(prog, tuple(kept))
         if self.total >= 1 << 62:
             raise Untraceable("the state space does not fit one int64 code")
         self.sizes = [max(s.size, 1) for s in prog.slots]
@@ -300,7 +302,7 @@ class _Engine:
         """(label, requested goal index or -1) of a transition's picks."""
         got = self.names.get(picks)
         if got is None:
-            got = self.names[picks] = _readable(self.prog, picks, self.op)
+            got = self.names[picks] = readable(self.prog, picks, self.op)
         return got
 
     def trace(self, state, script):
@@ -539,7 +541,7 @@ def search(model, kind, fsm, kept, run, s0, max_states, progress, op) -> Transit
             progress(n, nt, time.perf_counter() - t0)
     if expanded is None:
         expanded = head
-    states = _decode(prog, tuple(kept), codes[:n] + offset, offset, mults)
+    states = decode(prog, tuple(kept), codes[:n] + offset, offset, mults)
     seconds = time.perf_counter() - t0
     if progress is not None:
         progress(n, nt, seconds)
@@ -597,7 +599,7 @@ def _errors(eng, prog, bad, codes, head, ords, cut_at):
         try:
             eng.run(eng.state_of(int(codes[r])), o)
         except DomainError as exc:
-            out.append(DomainViolation(head + r, tuple(o.taken), _readable(prog, tuple(o.picks), eng.op)[0],
+            out.append(DomainViolation(head + r, tuple(o.taken), readable(prog, tuple(o.picks), eng.op)[0],
                                        exc.var, exc.value, exc.where, str(exc)))
         else:
             raise Untraceable("a traced domain error did not happen again")

@@ -891,7 +891,9 @@ def _domain_errors(model, spec, eng, codes, states, goals=None) -> tuple:
     one (re-run with the generic step function: errors are rare and need scripts)."""
     if not len(states):
         return ()
-    from .explore import EnumOracle, _readable, open_fsm
+    from .explore import open_fsm
+    from .labels import readable
+    from .search import EnumOracle
 
     prog = model.program
     op = open_fsm(model, spec.fsm, goals) if spec.kind == "fsm" else None
@@ -909,7 +911,7 @@ def _domain_errors(model, spec, eng, codes, states, goals=None) -> tuple:
             try:
                 run(tuple(s), o)
             except DomainError as exc:
-                out.append(DomainViolation(int(i), tuple(o.taken), _readable(prog, tuple(o.picks), op)[0],
+                out.append(DomainViolation(int(i), tuple(o.taken), readable(prog, tuple(o.picks), op)[0],
                                            exc.var, exc.value, exc.where, str(exc)))
             for k in range(len(script), len(o.arities)):
                 for c in range(1, o.arities[k]):
