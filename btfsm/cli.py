@@ -87,6 +87,7 @@ def _args_check(sp):
     sp.add_argument("--property", action="append", default=[], metavar="NAME")
     sp.add_argument("--json", action="store_true")
     sp.add_argument("--max-states", type=int, default=None)
+    _args_budgets(sp)
     sp.add_argument("--counterexample-dir", help="write each counterexample as JSON into this folder")
     sp.add_argument("--engine", choices=("auto", "traced", "scalar"), default="auto",
                     help="model-level exploration engine (default auto: traced, scalar where it cannot trace); "
@@ -99,12 +100,20 @@ def _args_export(sp):
     sp.add_argument("--fsm", help="FSM to export at FSM level (default: the whole model when its tree is one "
                                   "SkillRequest, the first FSM when there is no tree)")
     sp.add_argument("--output", "-o")
+    sp.add_argument("--max-states", type=int, default=None, help="with --format dot: state budget of the exploration")
+    _args_budgets(sp)
 
 
 def _args_skills(sp):
     _args_model(sp)
     sp.add_argument("--format", choices=("text", "dot", "json"), default="text")
     sp.add_argument("--max-states", type=int, default=None)
+    _args_budgets(sp)
+
+
+def _args_budgets(sp):
+    sp.add_argument("--max-transitions", type=int, default=None, help="stop exploring after this many transitions (exit 3)")
+    sp.add_argument("--max-seconds", type=float, default=None, help="stop exploring after this many seconds (exit 3)")
 
 
 def _args_experiment(sp):

@@ -41,7 +41,7 @@ class _Progress:
 def cli_check(args) -> int:
     from btfsm.cli import UsageError
 
-    from .explore import DEFAULT_MAX_STATES
+    from .search import DEFAULT_MAX_STATES, DEFAULT_MAX_TRANSITIONS, describe_hit
     from .properties import PROPERTIES
     from .report import check
 
@@ -52,10 +52,12 @@ def cli_check(args) -> int:
     max_states = DEFAULT_MAX_STATES if args.max_states is None else args.max_states
     if max_states < 1:
         raise UsageError("--max-states must be at least 1")
+    max_transitions, max_seconds = _budgets(args, DEFAULT_MAX_TRANSITIONS)
     model = _load(args.model)
     progress = _Progress()
     try:
-        report = check(model, props or None, max_states=max_states, progress=progress, engine=args.engine)
+        report = check(model, props or None, max_states=max_states, max_transitions=max_transitions,
+                       max_seconds=max_seconds, progress=progress, engine=args.engine)
     except MemoryError:
         progress.done()
         print(f"btfsm check: out of memory while exploring {model.name}; lower --max-states", file=sys.stderr)
@@ -68,8 +70,24 @@ def cli_check(args) -> int:
     else:
         print(report.format_text())
         if not report.complete:
-            print(f"(state budget of {max_states:,} states hit: raise --max-states to decide the rest)")
+            hit = sorted({describe_hit(s.get("budget"), max_states, max_transitions, max_seconds) or "budget"
+                          for s in report.systems if not s["complete"]})
+            print(f"({' and '.join(hit)} hit: explored {report.states:,} states, {report.transitions:,} transitions "
+                  f"in {report.seconds:.2f} s; raise it to decide the rest)")
     return report.exit_code
+
+
+def _budgets(args, default_transitions=None):
+    """(max_transitions, max_seconds) from ``--max-transitions`` and ``--max-seconds``."""
+    from btfsm.cli import UsageError
+
+    max_transitions = getattr(args, "max_transitions", None)
+    max_seconds = getattr(args, "max_seconds", None)
+    if max_transitions is not None and max_transitions < 1:
+        raise UsageError("--max-transitions must be at least 1")
+    if max_seconds is not None and not (max_seconds > 0 and max_seconds != float("inf")):
+        raise UsageError("--max-seconds must be a positive finite number")
+    return (default_transitions if max_transitions is None else max_transitions), max_seconds
 
 
 def _plain(x):
@@ -112,8 +130,18 @@ def cli_export(args) -> int:
     if args.fsm is not None and args.fsm not in [f.name for f in model.fsms]:
         raise UsageError(f"no FSM named '{args.fsm}' in {model.name} (have: {', '.join(f.name for f in model.fsms) or 'none'})")
     from .export import export  # written separately (verify/export.py)
+    from .search import BudgetExceeded
 
-    out = export(model, args.format, args.fsm, args.output)
+    max_transitions, max_seconds = _budgets(args)
+    max_states = getattr(args, "max_states", None)
+    if max_states is not None and max_states < 1:
+        raise UsageError("--max-states must be at least 1")
+    try:
+        out = export(model, args.format, args.fsm, args.output, max_states=max_states,
+                     max_transitions=max_transitions, max_seconds=max_seconds)
+    except BudgetExceeded as exc:
+        print(f"btfsm export: {exc}", file=sys.stderr)
+        return 3
     if isinstance(out, str) and not args.output:
         sys.stdout.write(out if out.endswith("\n") else out + "\n")
     return out if isinstance(out, int) and not isinstance(out, bool) else 0

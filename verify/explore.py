@@ -28,11 +28,12 @@ from btfsm.oracles import all_choices
 
 from . import scalar, traced
 from .labels import readable
-from .search import DEFAULT_MAX_STATES, EnumOracle, run_environment
+from .search import DEFAULT_MAX_STATES, DEFAULT_MAX_TRANSITIONS, Budget, EnumOracle, run_environment
 from .system import TransitionSystem
 
 __all__ = ["explore", "explore_fsm", "OpenFSM", "open_fsm", "requests_of", "EnumOracle", "run_environment",
-           "successor_scripts", "run_script", "script_of", "DEFAULT_MAX_STATES"]
+           "successor_scripts", "run_script", "script_of", "DEFAULT_MAX_STATES",
+           "DEFAULT_MAX_TRANSITIONS", "Budget"]
 
 # ---------------------------------------------------------------------- FSM open system
 
@@ -282,10 +283,18 @@ def _env_footprint(ev, scope) -> tuple:
 # ---------------------------------------------------------------------- the search
 
 
-def explore(model, *, max_states=None, progress=None, start=None, engine: str = "auto") -> TransitionSystem:
+def explore(model, *, max_states=None, max_transitions=None, max_seconds=None, progress=None, start=None,
+            engine: str = "auto") -> TransitionSystem:
     """Explore the whole model: one transition per BT tick. ``start``: a state tuple to
     start from instead of ``model.program.initial``. ``progress(states, transitions,
     seconds)`` is called every few thousand expanded states.
+
+    Budgets (None: unbounded): ``max_states`` states numbered, ``max_transitions``
+    transitions kept, ``max_seconds`` of wall time (a monotonic clock, read by the engine
+    only). The first one hit stops the search: the system comes back with ``complete``
+    False and ``stopped`` naming the budget (``btfsm.verify.search.Budget``). Without a time
+    budget the result does not depend on the clock; state and transition budgets cut
+    both engines at the same transition.
 
     ``engine``: ``"traced"`` runs ``btfsm.verify.traced`` (the step function traced once per
     path, then applied to whole batches with numpy); ``"scalar"`` runs the step once per
@@ -299,32 +308,36 @@ def explore(model, *, max_states=None, progress=None, start=None, engine: str = 
     prog = model.program
     kept = tuple(range(len(prog.slots)))
     init = tuple(start) if start is not None else prog.initial
-    return _explore_with(engine, model, "model", None, kept, prog.step, init, max_states, progress, None)
+    budget = Budget(max_states, max_transitions, max_seconds)
+    return _explore_with(engine, model, "model", None, kept, prog.step, init, budget, progress, None)
 
 
-def explore_fsm(model, fsm, *, goals=None, max_states=None, progress=None, start=None,
-                engine: str = "auto") -> TransitionSystem:
+def explore_fsm(model, fsm, *, goals=None, max_states=None, max_transitions=None, max_seconds=None, progress=None,
+                start=None, engine: str = "auto") -> TransitionSystem:
     """Explore one FSM as an open system (``open_fsm``): one transition per request.
-    ``engine`` as for ``explore``."""
+    ``engine`` and the budgets as for ``explore``."""
     op = open_fsm(model, fsm, goals)
     prog = model.program
     init = tuple(start) if start is not None else prog.initial
     init = tuple(prog.initial[k] if k in dict(op.inputs) else v for k, v in enumerate(init))
-    return _explore_with(engine, model, "fsm", op.fsm, op.kept, op.run, init, max_states, progress, op)
+    budget = Budget(max_states, max_transitions, max_seconds)
+    return _explore_with(engine, model, "fsm", op.fsm, op.kept, op.run, init, budget, progress, op)
 
 
-def _explore_with(engine, model, kind, fsm, kept, run, init, max_states, progress, op) -> TransitionSystem:
-    """One system, explored by the engine asked for (see ``explore``)."""
+def _explore_with(engine, model, kind, fsm, kept, run, init, budget, progress, op) -> TransitionSystem:
+    """One system, explored by the engine asked for (see ``explore``). With ``auto``, a
+    traced search whose paths multiply (``TooManyPaths``) goes on with the scalar engine
+    under the same budget (its clock included); ``traced`` then stops at a "paths" budget."""
     if engine not in ("auto", "traced", "scalar"):
         raise ValueError(f"engine must be auto, traced or scalar, not {engine!r}")
     if engine != "scalar":
         try:
-            return traced.search(model, kind, fsm, kept, run, init, max_states, progress, op)
+            return traced.search(model, kind, fsm, kept, run, init, budget, progress, op, fallback=engine == "auto")
         except traced.Untraceable:
             if engine == "traced":
                 raise
     split = scalar.TreeCache(model) if kind == "model" and model.environment and model.tree is not None else None
-    return scalar.search(model, kind, fsm, kept, run, init, max_states, progress, op, split)
+    return scalar.search(model, kind, fsm, kept, run, init, budget, progress, op, split)
 
 
 # ---------------------------------------------------------------------- re-running transitions

@@ -23,12 +23,13 @@ from btfsm.errors import DomainError
 
 from .codec import codec, decode, rows
 from .labels import readable
-from .search import DEFAULT_MAX_STATES, EnumOracle, run_environment
+from .search import DEFAULT_MAX_STATES, Budget, EnumOracle, run_environment
 from .system import DomainViolation, TransitionSystem
 
 __all__ = ["search", "TreeCache"]
 
 _PROGRESS_EVERY = 4096
+_CLOCK_EVERY = 256  # step runs between two reads of the clock (with a time budget)
 
 
 class TreeCache:
@@ -109,16 +110,22 @@ class TreeCache:
         self.cache[post] = res
 
 
-def search(model, kind, fsm, kept, run, initial, max_states, progress, op, split=None) -> TransitionSystem:
+def search(model, kind, fsm, kept, run, initial, budget, progress, op, split=None) -> TransitionSystem:
     """Explore one system breadth-first from ``initial``: ``run(state, oracle)`` is one
     transition (``Program.step``, or ``OpenFSM.run`` with ``op`` at FSM level), states are
     coded over the ``kept`` slots; ``split``: a ``TreeCache`` (model level with an
-    environment)."""
+    environment). ``budget``: a ``btfsm.verify.search.Budget`` (None: unbounded); the search
+    stops at the first bound hit and records which in ``budget.hit``."""
     t0 = time.perf_counter()
     prog = model.program
     mults, offset, total = codec(prog, kept)
     small = total < (1 << 62)
-    budget = DEFAULT_MAX_STATES * 1000 if max_states is None else max(int(max_states), 1)
+    if budget is None:
+        budget = Budget()
+    smax = DEFAULT_MAX_STATES * 1000 if budget.max_states is None else budget.max_states
+    tmax = (1 << 62) if budget.max_transitions is None else budget.max_transitions
+    timed = budget.max_seconds is not None
+    runs, check_at = 0, _CLOCK_EVERY  # step runs, and when to read the clock next
     visited: dict = {}
     codes = array("q") if small else []
     tuples = None if small else []
@@ -166,6 +173,13 @@ def search(model, kind, fsm, kept, run, initial, max_states, progress, op, split
         if split is not None:  # environment answers here, tree results from the cache
             env = split.env
             while stack:
+                if timed:
+                    runs += 1
+                    if runs >= check_at:
+                        check_at = runs + _CLOCK_EVERY
+                        if budget.out_of_time():
+                            complete, budget.hit = False, "seconds"
+                            break
                 script = stack.pop()
                 o = Oracle(script)
                 post = list(s)
@@ -198,10 +212,13 @@ def search(model, kind, fsm, kept, run, initial, max_states, progress, op, split
                     li = row.get(tid)
                     if li is None:
                         li = row[tid] = label_of(ekey + split.tree_keys[tid])
+                    if nt >= tmax:
+                        complete, budget.hit = False, "transitions"
+                        break
                     j = vget(c)
                     if j is None:
-                        if n >= budget:
-                            complete = False
+                        if n >= smax:
+                            complete, budget.hit = False, "states"
                             break
                         j = n
                         n += 1
@@ -220,6 +237,13 @@ def search(model, kind, fsm, kept, run, initial, max_states, progress, op, split
                     break
         else:
             while stack:
+                if timed:
+                    runs += 1
+                    if runs >= check_at:
+                        check_at = runs + _CLOCK_EVERY
+                        if budget.out_of_time():
+                            complete, budget.hit = False, "seconds"
+                            break
                 script = stack.pop()
                 o = Oracle(script)
                 try:
@@ -246,10 +270,13 @@ def search(model, kind, fsm, kept, run, initial, max_states, progress, op, split
                 if li is None:
                     li = label_ids[key] = label_of(key)
                 c = sum(map(mul, ns, mults)) if small else tuple(ns[k] for k in kept)
+                if nt >= tmax:
+                    complete, budget.hit = False, "transitions"
+                    break
                 j = vget(c)
                 if j is None:
-                    if n >= budget:
-                        complete = False
+                    if n >= smax:
+                        complete, budget.hit = False, "states"
                         break
                     j = n
                     n += 1
@@ -281,4 +308,5 @@ def search(model, kind, fsm, kept, run, initial, max_states, progress, op, split
     return TransitionSystem(model=model, kind=kind, fsm=fsm, slots=tuple(kept), states=states, src=src_a, dst=dst_a,
                             label=lab_a, labels=tuple(labels), parent=np.frombuffer(parent, dtype=np.int64),
                             complete=complete, seconds=seconds, status=stat_a, goal=goal_a, expanded=expanded,
-                            errors=tuple(errors), violations=tuple(violations), open=op)
+                            errors=tuple(errors), violations=tuple(violations), open=op,
+                            stopped=None if complete else budget.hit)
