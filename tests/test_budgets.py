@@ -11,7 +11,7 @@ import pytest
 
 import btfsm.verify.cli as vcli
 import btfsm.verify.skills as vskills
-from btfsm import Action, Bool, EnvEvent, Int, Model, success
+from btfsm import FSM, Action, Bool, Edge, EnvEvent, Int, Marker, Model, State, running, success
 from btfsm.cli import main
 from btfsm.models.pickplace import pickplace
 from btfsm.verify import vector
@@ -91,12 +91,27 @@ def test_without_a_time_budget_the_result_does_not_depend_on_the_clock():
     assert np.array_equal(a.states, b.states) and np.array_equal(a.dst, b.dst) and a.labels == b.labels
 
 
-def test_fsm_level_budgets():
-    m = free_inputs(12)
-    f = m.fsms[0].name
-    for engine in ENGINES:
-        ts = explore_fsm(m, f, engine=engine, max_transitions=50)
-        assert ts.n_transitions <= 50
+def fsm_free_inputs(n: int = N_FREE) -> Model:
+    """An FSM whose edge reads ``n`` booleans nothing writes: at FSM level they are free
+    inputs, chosen every possible way before every request (2**n per state)."""
+    arm = FSM("arm", [State("home"), State("go", outcomes=[running(), success(done=True)])], "home", ["fetch", "rest"],
+              [Edge("home", "go", ["fetch"], guard=" or ".join(f"in{i}" for i in range(n))),
+               Edge("go", "home", ["rest"], direct=True)],
+              [Marker("go", ["fetch"]), Marker("home", ["rest"], direct=True)])
+    return Model("fsm-free-inputs", [Bool("done")] + [Bool(f"in{i}") for i in range(n)], fsms=[arm])
+
+
+FSM_BOOM = fsm_free_inputs()
+
+
+@pytest.mark.parametrize("engine", ENGINES)
+@pytest.mark.parametrize("budget,limit", [("transitions", 700), ("seconds", 0.5)])
+def test_fsm_level_free_inputs_stop_at_every_budget(engine, budget, limit):
+    t = time.monotonic()
+    ts = explore_fsm(FSM_BOOM, "arm", engine=engine, **{f"max_{budget}": limit})
+    assert not ts.complete and ts.stopped in (budget, "paths" if engine == "traced" else budget)
+    assert ts.n_transitions <= (limit if budget == "transitions" else 10**9)
+    assert time.monotonic() - t < (limit if budget == "seconds" else 0) + SLACK + 4
 
 
 VECTOR = free_inputs(8)  # 2**8 environment answers per state, times pickplace's own

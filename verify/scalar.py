@@ -26,10 +26,14 @@ from .labels import readable
 from .search import DEFAULT_MAX_STATES, Budget, EnumOracle, run_environment
 from .system import DomainViolation, TransitionSystem
 
-__all__ = ["search", "TreeCache"]
+__all__ = ["search", "TreeCache", "OutOfTime"]
 
 _PROGRESS_EVERY = 4096
 _CLOCK_EVERY = 256  # step runs between two reads of the clock (with a time budget)
+
+
+class OutOfTime(Exception):
+    """The time budget ran out inside ``TreeCache.results``."""
 
 
 class TreeCache:
@@ -59,8 +63,9 @@ class TreeCache:
         self.tree_keys: list = []
         self.hits = self.misses = 0
 
-    def results(self, post, mults, small, kept):
-        """``[(tree key id, code, state, status, violations, taken, error)]`` of ``post``."""
+    def results(self, post, mults, small, kept, budget=None):
+        """``[(tree key id, code, state, status, violations, taken, error)]`` of ``post``.
+        Raises ``OutOfTime`` when ``budget``'s time runs out while enumerating."""
         res = self.cache.get(post)
         if res is not None:
             self.hits += 1
@@ -74,7 +79,10 @@ class TreeCache:
         res = []
         stack = [()]
         step = self.tree.step
+        timed = budget is not None and budget.max_seconds is not None
         while stack:
+            if timed and len(res) % _CLOCK_EVERY == _CLOCK_EVERY - 1 and budget.out_of_time():
+                raise OutOfTime()
             script = stack.pop()
             o = EnumOracle(script)
             err = st = None
@@ -203,7 +211,12 @@ def search(model, kind, fsm, kept, run, initial, budget, progress, op, split=Non
                 row = env_ids.get(ekey)
                 if row is None:
                     row = env_ids[ekey] = {}
-                for tid, c, ns, status, viol, ttaken, err in split.results(tuple(post), mults, small, kept):
+                try:
+                    results = split.results(tuple(post), mults, small, kept, budget)
+                except OutOfTime:
+                    complete, budget.hit = False, "seconds"
+                    break
+                for tid, c, ns, status, viol, ttaken, err in results:
                     if err is not None:
                         full = ekey + split.tree_keys[tid]
                         errors.append(DomainViolation(i, tuple(o.taken) + ttaken, readable(prog, full, op)[0],
