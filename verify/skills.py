@@ -230,12 +230,13 @@ def derive(model, *, max_states: "int | None" = None, max_transitions: "int | No
     parent = [(-1, ())]
     order = [start]
     cache: dict = {}
-    i = 0
+    i = met = 0  # met: model states whose successors were enumerated (at least in part)
     while i < len(order) and d.complete:
         state, last = order[i]
         succ = cache.get(state)
         fresh = succ is None
         if fresh:
+            met += 1
             succ = _expand(prog, tracker, state, d, budget)
             for fi, slot in goal_slots:
                 g = state[slot]
@@ -299,7 +300,7 @@ def derive(model, *, max_states: "int | None" = None, max_transitions: "int | No
         i += 1
         if progress is not None and i % 5000 == 0:
             progress(len(order), time.perf_counter() - t0)
-    d.states, d.model_states = len(order), len(cache)
+    d.states, d.model_states = len(order), met
     d.seconds = time.perf_counter() - t0
     return d
 
