@@ -170,6 +170,7 @@ def _args_check(sp):
     sp.add_argument("--property", action="append", default=[], metavar="NAME", type=input_text)
     _args_json(sp, "the report")
     _args_max_states(sp)
+    _args_budgets(sp)
     sp.add_argument("--counterexample-dir", type=output_dir, help="write each counterexample as JSON into this folder")
     sp.add_argument("--quiet", "-q", action="store_true", help="no warnings and no information lines, only verdicts and failures")
     sp.add_argument("--verbose", "-v", action="store_true", help="list every warning, determinism gap and note")
@@ -188,6 +189,8 @@ def _args_export(sp):
                     help="FSM to export at FSM level (default: the whole model when its tree is one "
                          "SkillRequest, the first FSM when there is no tree)")
     sp.add_argument("--output", "-o", type=output_file())
+    _args_max_states(sp)
+    _args_budgets(sp)
 
 
 def _args_skills(sp):
@@ -195,6 +198,14 @@ def _args_skills(sp):
     sp.add_argument("--format", choices=("text", "dot", "json"), default="text")
     sp.add_argument("--json", dest="format", action="store_const", const="json", help="same as --format json")
     _args_max_states(sp)
+    _args_budgets(sp)
+
+
+def _args_budgets(sp):
+    sp.add_argument("--max-transitions", type=int_range(1, None), default=None, metavar="N",
+                    help="stop exploring after this many transitions (exit 3)")
+    sp.add_argument("--max-seconds", type=finite_float(0, None, lo_open=True), default=None, metavar="S",
+                    help="stop exploring after this many seconds of checker time (exit 3)")
 
 
 def _args_experiment(sp):

@@ -75,19 +75,13 @@ def test_the_walk_sees_the_known_edges():
     assert len(MODULES) > 50
 
 
-# Still to untie (issue 13, point 4): the exploration engines share explore's codec and labels.
-KNOWN_CYCLE = {("btfsm.verify.traced", "btfsm.verify.explore")}
-KNOWN_PRIVATE = {"_readable", "_codec", "_decode"}
-
-
 def test_no_import_cycles():
     g = nx.DiGraph()
-    g.add_edges_from((a, b) for a, b, _ in import_edges() if (a, b) not in KNOWN_CYCLE)
+    g.add_edges_from((a, b) for a, b, _ in import_edges())
     cycles = [sorted(c) for c in nx.strongly_connected_components(g) if len(c) > 1]
     assert cycles == []
 
 
 def test_no_private_names_imported_across_modules():
-    bad = [(a, b, n) for a, b, names in import_edges() for n in names if n.startswith("_") and n != "__version__"
-           and not (b == "btfsm.verify.explore" and n in KNOWN_PRIVATE)]
+    bad = [(a, b, n) for a, b, names in import_edges() for n in names if n.startswith("_") and n != "__version__"]
     assert bad == []

@@ -21,7 +21,7 @@ __all__ = ["cli_check", "cli_export"]
 def cli_check(args) -> int:
     from btfsm.errors import UsageError
 
-    from .explore import DEFAULT_MAX_STATES
+    from .search import DEFAULT_MAX_STATES, DEFAULT_MAX_TRANSITIONS, describe_hit
     from .properties import PROPERTIES
     from .report import check
 
@@ -30,12 +30,14 @@ def cli_check(args) -> int:
     if unknown:
         raise UsageError(f"unknown property {', '.join(repr(p) for p in unknown)}; known properties: {', '.join(PROPERTIES)}")
     max_states = DEFAULT_MAX_STATES if args.max_states is None else args.max_states
+    max_transitions, max_seconds = _budgets(args, DEFAULT_MAX_TRANSITIONS)
     from btfsm.progress import ExplorationProgress
 
     model = _load(args.model)
     progress = ExplorationProgress()
     try:
-        report = check(model, props or None, max_states=max_states, progress=progress, engine=args.engine,
+        report = check(model, props or None, max_states=max_states, max_transitions=max_transitions,
+                       max_seconds=max_seconds, progress=progress, engine=args.engine,
                        goal_level=getattr(args, "goal_level", "open"))
     except MemoryError:
         progress.done()
@@ -49,8 +51,19 @@ def cli_check(args) -> int:
     else:
         print(report.format_text(quiet=getattr(args, "quiet", False), verbose=getattr(args, "verbose", False)))
         if not report.complete:
-            print(f"(state budget of {max_states:,} states hit: raise --max-states to decide the rest)")
+            hit = sorted({describe_hit(s.get("budget"), max_states, max_transitions, max_seconds) or "budget"
+                          for s in report.systems if not s["complete"]})
+            print(f"({' and '.join(hit)} hit: explored {report.states:,} states, {report.transitions:,} transitions "
+                  f"in {report.seconds:.2f} s; raise it to decide the rest)")
     return report.exit_code
+
+
+def _budgets(args, default_transitions=None):
+    """(max_transitions, max_seconds) from ``--max-transitions`` and ``--max-seconds``
+    (their ranges are checked by the parser in ``btfsm.cli``)."""
+    max_transitions = getattr(args, "max_transitions", None)
+    max_seconds = getattr(args, "max_seconds", None)
+    return (default_transitions if max_transitions is None else max_transitions), max_seconds
 
 
 def _plain(x):
@@ -89,8 +102,15 @@ def cli_export(args) -> int:
     if args.fsm is not None and args.fsm not in [f.name for f in model.fsms]:
         raise UsageError(f"{args.model}: --fsm: no FSM named '{args.fsm}' in {model.name} (have: {', '.join(f.name for f in model.fsms) or 'none'})")
     from .export import export  # written separately (verify/export.py)
+    from .search import BudgetExceeded
 
-    out = export(model, args.format, args.fsm)
+    max_transitions, max_seconds = _budgets(args)
+    try:
+        out = export(model, args.format, args.fsm, max_states=getattr(args, "max_states", None),
+                     max_transitions=max_transitions, max_seconds=max_seconds)
+    except BudgetExceeded as exc:
+        print(f"btfsm export: {exc}", file=sys.stderr)
+        return 3
     if args.output:
         from btfsm.outputs import atomic_write_text
 

@@ -23,7 +23,9 @@ from btfsm.errors import ConformanceError, DomainError
 from btfsm.formats import FormatError, decode_utf8, json_path, parse_json, printable, validate
 from btfsm.status import Status
 
-from .explore import EnumOracle, _readable, run_script, script_of
+from .explore import run_script, script_of
+from .labels import readable
+from .search import EnumOracle
 
 __all__ = ["Counterexample", "path_counterexample", "static_counterexample", "replay_counterexample",
            "load_counterexample", "FORMAT"]
@@ -188,7 +190,7 @@ def _decode_full(prog, state, keep=None) -> dict:
 
 def _step_record(ts, k, before, script, step, oracle, error=None) -> dict:
     prog = ts.model.program
-    label = _readable(prog, tuple(oracle.picks), ts.open)[0]
+    label = readable(prog, tuple(oracle.picks), ts.open)[0]
     rec = {"tick": k, "script": list(script), "choices": _jsonable(label)}
     if ts.kind == "fsm":
         req = {"goal": None, "params": {}, "inputs": {}}

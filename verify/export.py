@@ -19,22 +19,27 @@ from btfsm.errors import ModelError
 
 from .stepspec import Row, StepSpec, step_spec, terminal_expr
 
-__all__ = ["export", "step_spec", "StepSpec", "Row", "to_dot", "FORMATS", "DOT_MAX_STATES", "terminal_expr"]
+__all__ = ["export", "step_spec", "StepSpec", "Row", "to_dot", "FORMATS", "DOT_MAX_STATES", "DOT_MAX_TRANSITIONS", "terminal_expr"]
 
 FORMATS = ("promela", "smv", "dot")
 DOT_MAX_STATES = 2000
+DOT_MAX_TRANSITIONS = 100_000
 
 
 # ---------------------------------------------------------------------- export
 
 
-def export(model, fmt: str, fsm: "str | None" = None, output: "str | None" = None, *, source: "str | None" = None) -> str:
-    """The model in format ``fmt`` (promela, smv or dot); also written to ``output``.
+def export(model, fmt: str, fsm: "str | None" = None, output: "str | None" = None, *, source: "str | None" = None,
+           max_states=None, max_transitions=None, max_seconds=None) -> str:
+    """The model in format ``fmt`` (promela, smv or dot); also written to ``output``
+    (atomically, ``btfsm.outputs``).
 
     Every error is a ModelError naming ``source`` (default: the file or built-in name
-    ``btfsm.files.load_model`` read the model from, else the model's name) and the element."""
+    ``btfsm.files.load_model`` read the model from, else the model's name) and the element.
+    The budgets bound the exploration behind ``dot`` (``btfsm.verify.search.Budget``);
+    hitting one raises ``BudgetExceeded``."""
     try:
-        return _export(model, fmt, fsm, output)
+        return _export(model, fmt, fsm, output, max_states, max_transitions, max_seconds)
     except ModelError as exc:
         if exc.file:
             raise
@@ -42,11 +47,11 @@ def export(model, fmt: str, fsm: "str | None" = None, output: "str | None" = Non
         raise exc.at("", shown) from None
 
 
-def _export(model, fmt, fsm, output) -> str:
+def _export(model, fmt, fsm, output, max_states, max_transitions, max_seconds) -> str:
     if fmt not in FORMATS:
         raise ModelError("format", f"unknown export format '{fmt}' (expected one of {', '.join(FORMATS)})")
     if fmt == "dot":
-        text = to_dot(_explore_small(model, fsm))
+        text = to_dot(_explore_small(model, fsm, max_states, max_transitions, max_seconds))
     else:
         if fsm is None and model.tree is None:
             if not model.fsms:
@@ -62,21 +67,32 @@ def _export(model, fmt, fsm, output) -> str:
 
             text = to_smv(spec)
     if output:
-        try:
-            with open(output, "w", encoding="utf-8") as fh:
-                fh.write(text)
-        except OSError as exc:
-            raise ModelError("output", f"cannot write {output}: {exc.strerror or exc}") from None
+        from btfsm.outputs import atomic_write_text
+
+        atomic_write_text(output, text)
     return text
 
 
-def _explore_small(model, fsm):
+def _explore_small(model, fsm, max_states=None, max_transitions=None, max_seconds=None):
     from .explore import explore, explore_fsm
+    from .search import BudgetExceeded, describe_hit
 
     if fsm is not None and fsm not in model.program.fsm_index:
         raise ModelError(f"fsms.{fsm}", f"no FSM named '{fsm}'")
-    budget = DOT_MAX_STATES + 1
-    ts = explore(model, max_states=budget) if fsm is None else explore_fsm(model, fsm, max_states=budget)
+    states = DOT_MAX_STATES + 1 if max_states is None else min(max_states, DOT_MAX_STATES + 1)
+    trans = DOT_MAX_TRANSITIONS + 1 if max_transitions is None else min(max_transitions, DOT_MAX_TRANSITIONS + 1)
+    kw = dict(max_states=states, max_transitions=trans, max_seconds=max_seconds)
+    ts = explore(model, **kw) if fsm is None else explore_fsm(model, fsm, **kw)
+    own = {"states": max_states is None or max_states > DOT_MAX_STATES,
+           "transitions": max_transitions is None or max_transitions > DOT_MAX_TRANSITIONS}
+    if not ts.complete and not own.get(ts.stopped, False):
+        raise BudgetExceeded(ts.stopped, f"{describe_hit(ts.stopped, max_states, max_transitions, max_seconds)} hit "
+                                         f"after {ts.n_states:,} states, {ts.n_transitions:,} transitions, "
+                                         f"{ts.seconds:.2f} s; nothing written")
+    if ts.stopped == "transitions" or ts.n_transitions > DOT_MAX_TRANSITIONS:
+        what = "the model" if fsm is None else f"FSM {fsm}"
+        raise ModelError("format", f"dot export draws at most {DOT_MAX_TRANSITIONS} transitions; {what} has more "
+                                   f"(use promela or smv, or `btfsm show` for the FSM's structure)")
     if not ts.complete or ts.n_states > DOT_MAX_STATES:
         what = "the model" if fsm is None else f"FSM {fsm}"
         raise ModelError("format", f"dot export draws at most {DOT_MAX_STATES} states; {what} has more "

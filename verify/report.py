@@ -16,7 +16,7 @@ from __future__ import annotations
 import time
 from dataclasses import dataclass, field
 
-from .explore import DEFAULT_MAX_STATES
+from .search import DEFAULT_MAX_STATES, DEFAULT_MAX_TRANSITIONS, HIT_WORDS, describe_hit
 from .properties import PROPERTIES, Context, run_property
 
 __all__ = ["Report", "check", "exit_code_of", "lint_kind", "lint_summary"]
@@ -65,7 +65,8 @@ class Report:
         explored = "; ".join(_system_text(s) for s in self.systems) or "nothing to explore"
         lines = [f"model {self.model}: {explored} ({self.seconds:.2f} s)"]
         if not self.complete:
-            lines.append("INCOMPLETE: the state budget (--max-states) was hit; undecided properties say so")
+            hit = sorted({describe_hit(s.get("budget")) or "a budget" for s in self.systems if not s["complete"]})
+            lines.append(f"INCOMPLETE: the {' and the '.join(hit)} was hit; undecided properties say so")
         width = max((len(r.name) for r in self.results), default=0)
         for r in self.results:
             verdict = {True: "holds", False: "VIOLATED", None: "undecided"}[r.holds]
@@ -128,7 +129,7 @@ def lint_summary(warnings) -> str:
 
 def _system_text(s: dict) -> str:
     what = "model" if s["kind"] == "model" else f"FSM {s['fsm']}"
-    inc = "" if s["complete"] else ", incomplete"
+    inc = "" if s["complete"] else f", incomplete ({HIT_WORDS.get(s.get('budget'), 'a')} budget hit)"
     return f"{what} {s['states']} states, {s['transitions']} transitions{inc}"
 
 
@@ -141,20 +142,26 @@ def exit_code_of(results) -> int:
     return 0
 
 
-def check(model, properties=None, *, max_states: "int | None" = DEFAULT_MAX_STATES, progress=None,
+def check(model, properties=None, *, max_states: "int | None" = DEFAULT_MAX_STATES,
+          max_transitions: "int | None" = DEFAULT_MAX_TRANSITIONS, max_seconds: "float | None" = None, progress=None,
           engine: str = "auto", goal_level: str = "open") -> Report:
     """Decide ``properties`` (names; default: all of ``btfsm.verify.properties.PROPERTIES``).
     ``progress(what, states, transitions, seconds)`` is called during long explorations;
     ``engine``: the model-level exploration engine (``btfsm.verify.explore.explore``);
-    ``goal_level``: ``open`` or ``tree`` (``btfsm.verify.properties.goals``)."""
+    ``goal_level``: ``open`` or ``tree`` (``btfsm.verify.properties.goals``).
+    Budgets: ``max_states`` and ``max_transitions`` per explored system, ``max_seconds``
+    for the whole check (``btfsm.verify.search.Budget``); a system that hits one is
+    incomplete and the properties it leaves undecided say so (exit code 3)."""
     names = list(PROPERTIES) if not properties else list(dict.fromkeys(properties))
     unknown = [n for n in names if n not in PROPERTIES]
     if unknown:
         raise ValueError(f"unknown propert{'y' if len(unknown) == 1 else 'ies'} {', '.join(unknown)} "
                          f"(known: {', '.join(PROPERTIES)})")
     t0 = time.perf_counter()
-    ctx = Context(model, max_states=max_states, progress=progress, engine=engine, goal_level=goal_level)
+    ctx = Context(model, max_states=max_states, max_transitions=max_transitions, max_seconds=max_seconds,
+                  progress=progress, engine=engine, goal_level=goal_level)
     results = [run_property(ctx, n) for n in names]
     systems = [{"kind": ts.kind, "fsm": ts.fsm, "states": ts.n_states, "transitions": ts.n_transitions,
-                "complete": ts.complete, "seconds": round(ts.seconds, 6)} for ts in ctx.systems]
+                "complete": ts.complete, "seconds": round(ts.seconds, 6),
+                **({} if ts.complete else {"budget": ts.stopped})} for ts in ctx.systems]
     return Report(model.name, results, systems, time.perf_counter() - t0)

@@ -8,7 +8,8 @@ from __future__ import annotations
 
 from btfsm.errors import DomainError
 
-from .explore import EnumOracle, _readable
+from .labels import readable
+from .search import EnumOracle
 
 __all__ = ["late_requests"]
 
@@ -31,7 +32,7 @@ def _results(op, state, adopt) -> dict:
                 stack.append(tuple(o.taken[:k]) + (c,))
         if res is None:
             continue
-        request = tuple(it for it in _readable(prog, tuple(o.picks), op)[0] if it[0] != "outcome")
+        request = tuple(it for it in readable(prog, tuple(o.picks), op)[0] if it[0] != "outcome")
         out.setdefault(request, set()).add(res)
     return out
 

@@ -49,6 +49,8 @@ from btfsm.errors import DomainError, ModelError
 from btfsm.expr import Type, compile_fn
 from btfsm.status import Status
 
+from .search import Budget, BudgetExceeded, describe_hit
+
 __all__ = ["Skill", "Pair", "Derivation", "Support", "skills_of", "derive", "check_support",
            "counts", "format_text", "to_dot", "to_json", "cli_skills", "KINDS"]
 
@@ -98,6 +100,7 @@ class Derivation:
     ended: dict = field(default_factory=dict)  # (skill, "success"|"failure") -> model states right after
     params: dict = field(default_factory=dict)  # skill -> parameter tuples it was started with
     errors: list = field(default_factory=list)  # (model state, script, message) of DomainErrors
+    stopped: "str | None" = None  # the budget hit: "states", "transitions" or "seconds" (Budget.hit)
 
     @property
     def single_fsm(self) -> bool:
@@ -202,12 +205,19 @@ class _Tracker:
         return tuple(out)
 
 
-def derive(model, *, max_states: "int | None" = None, progress=None) -> Derivation:
+def derive(model, *, max_states: "int | None" = None, max_transitions: "int | None" = None,
+           max_seconds: "float | None" = None, progress=None) -> Derivation:
     """Explore ``model`` in product with the last skill and derive the skill transitions.
 
-    ``max_states`` bounds the product states (``complete`` is False when it was hit);
+    ``max_states`` bounds the product states, ``max_transitions`` the product transitions,
+    ``max_seconds`` the time (a monotonic clock, ``btfsm.verify.search.Budget``): the
+    exploration stops at the first one hit, within a state's successors too (they are
+    enumerated lazily), with ``complete`` False and ``stopped`` naming it.
     ``progress(states, seconds)`` is called now and then."""
     t0 = time.perf_counter()
+    budget = Budget(max_states, max_transitions, max_seconds)
+    smax = budget.max_states
+    tmax = budget.max_transitions
     prog = model.program
     skills = skills_of(model)
     tracker = _Tracker(prog, skills)
@@ -220,11 +230,14 @@ def derive(model, *, max_states: "int | None" = None, progress=None) -> Derivati
     parent = [(-1, ())]
     order = [start]
     cache: dict = {}
-    i = 0
-    while i < len(order):
+    i = met = 0  # met: model states whose successors were enumerated (at least in part)
+    while i < len(order) and d.complete:
         state, last = order[i]
-        if state not in cache:
-            cache[state] = _expand(prog, tracker, state, d)
+        succ = cache.get(state)
+        fresh = succ is None
+        if fresh:
+            met += 1
+            succ = _expand(prog, tracker, state, d, budget)
             for fi, slot in goal_slots:
                 g = state[slot]
                 if g:
@@ -232,7 +245,17 @@ def derive(model, *, max_states: "int | None" = None, progress=None) -> Derivati
                     k = skill_of_goal.get((f.name, f.goals[g - 1]))
                     if k is not None:
                         d.held.setdefault(k, set()).add(state)
-        for script, dst, events in cache[state]:
+        kept = [] if fresh else None
+        for item in succ:
+            if item is None:  # out of time while enumerating
+                d.complete, d.stopped = False, "seconds"
+                break
+            if tmax is not None and d.transitions >= tmax:
+                d.complete, d.stopped = False, "transitions"
+                break
+            if fresh:
+                kept.append(item)
+            script, dst, events = item
             d.transitions += 1
             cur = last
             started = []
@@ -264,30 +287,38 @@ def derive(model, *, max_states: "int | None" = None, progress=None) -> Derivati
                     d.switched.setdefault((a, b, kind), set()).add((dst, params))
             key = (dst, cur)
             if key not in index:
-                if max_states is not None and len(order) >= max_states:
-                    d.complete = False
-                    continue
+                if smax is not None and len(order) >= smax:
+                    d.complete, d.stopped = False, "states"
+                    break
                 index[key] = len(order)
                 order.append(key)
                 parent.append((i, script))
+        if not d.complete:
+            break
+        if fresh:
+            cache[state] = kept
         i += 1
         if progress is not None and i % 5000 == 0:
             progress(len(order), time.perf_counter() - t0)
-    d.states, d.model_states = len(order), len(cache)
+    d.states, d.model_states = len(order), met
     d.seconds = time.perf_counter() - t0
     return d
 
 
-def _expand(prog, tracker, state, d):
-    out = []
-    for script, result in _successors(lambda s, o: prog.step(s, o, record=True), state):
+def _expand(prog, tracker, state, d, budget):
+    """The successors ``(script, state, skill events)`` of ``state``, one at a time; None
+    (then nothing more) when the time budget runs out."""
+    timed = budget.max_seconds is not None
+    for k, (script, result) in enumerate(_successors(lambda s, o: prog.step(s, o, record=True), state)):
+        if timed and k % 256 == 255 and budget.out_of_time():
+            yield None
+            return
         if isinstance(result, DomainError):
             d.errors.append((state, script, str(result)))
             continue
         if result.state is None:
             continue
-        out.append((script, result.state, tracker.events(state, result)))
-    return out
+        yield script, result.state, tracker.events(state, result)
 
 
 def _path(parent, i) -> tuple:
@@ -329,7 +360,7 @@ def _project(state, drop) -> tuple:
     return tuple(0 if k in drop else v for k, v in enumerate(state))
 
 
-def _good_region(prog, skill, params, sources, drop, budget):
+def _good_region(prog, skill, params, sources, drop, budget, clock=None):
     """FSM-level states (projected) from which ``skill``'s SUCCESS reply is reachable while
     it is requested on every tick; also the explored graph for explanations."""
     fsm, goal = skill.fsm, skill.goal
@@ -338,6 +369,9 @@ def _good_region(prog, skill, params, sources, drop, budget):
     seen = set(sources)
     good = set()
     while todo:
+        if clock is not None and clock.out_of_time():
+            raise BudgetExceeded("seconds", f"time budget hit while checking FSM support of {skill.goal} "
+                                            f"({len(seen):,} FSM states explored)")
         key = todo.popleft()
         out = []
         for script, result in _successors(lambda s, o: prog.fsm_step(s, fsm, goal, params, o), key):
@@ -395,7 +429,8 @@ def _explain(prog, skill, params, source, limit=60) -> dict:
             "request": skill.goal, "params": pvals, "steps": steps}
 
 
-def check_support(d: Derivation, *, where: str = "switch", budget: int = 1_000_000) -> list:
+def check_support(d: Derivation, *, where: str = "switch", budget: int = 1_000_000,
+                  max_seconds: "float | None" = None) -> list:
     """Check every derived transition against the FSMs (step 5); a list of Support.
 
     ``where="switch"`` (default): from every state right after a tick in which the tree
@@ -404,11 +439,15 @@ def check_support(d: Derivation, *, where: str = "switch", budget: int = 1_000_0
     completion (failure), from every state right after ``a`` replied SUCCESS (FAILURE),
     whatever the tree would request there. The second is stricter than the tree needs
     when ``b``'s FSM refuses on purpose in states where the tree never asks for ``b``
-    (a guarded FAILURE marker that reads a world variable)."""
+    (a guarded FAILURE marker that reads a world variable).
+
+    ``budget`` bounds the FSM-level states of each region searched, ``max_seconds`` the
+    time; hitting either raises ``btfsm.verify.search.BudgetExceeded``."""
     if where not in ("switch", "held"):
         raise ValueError(f"where must be 'switch' or 'held', not {where!r}")
     prog = d.model.program
     drop = _tree_slots(prog)
+    clock = Budget(max_seconds=max_seconds) if max_seconds is not None else None
     out = []
     regions: dict = {}
     for (a, b, kind), pair in sorted(d.pairs.items(), key=lambda kv: (str(kv[0][0]), kv[0][1], kv[0][2])):
@@ -434,9 +473,10 @@ def check_support(d: Derivation, *, where: str = "switch", budget: int = 1_000_0
             missing = [k for k in keys if region is None or k not in region[1]]
             if missing:
                 start = set(missing) | (region[1] if region else set())
-                good, _ = _good_region(prog, skill, params, start, drop, budget)
+                good, _ = _good_region(prog, skill, params, start, drop, budget, clock)
                 if good is None:
-                    raise RuntimeError(f"FSM-level budget of {budget} states exceeded for {skill.goal}")
+                    raise BudgetExceeded("states", f"state budget of {budget:,} FSM states hit while checking "
+                                                   f"FSM support of {skill.goal}")
                 region = (good, start)
                 regions[cache_key] = region
             for k in sorted(keys, key=lambda k: repr(prog.decode(k))):
@@ -492,7 +532,7 @@ def format_text(d: Derivation, support: "list | None" = None) -> str:
                 f"{d.name(p.a)} -> {d.name(p.b)} ({len(p.witness)} ticks"
                 + (f"; refused by the FSM {p.refused} of {p.count} times" if p.refused else "") + ")" for p in ps))
     lines.append(f"explored {d.states} product states ({d.model_states} model states), {d.transitions} transitions "
-                 f"in {d.seconds:.2f} s{'' if d.complete else ' -- INCOMPLETE: state budget hit'}")
+                 f"in {d.seconds:.2f} s{'' if d.complete else f' -- INCOMPLETE: {describe_hit(d.stopped)} hit'}")
     if d.errors:
         lines.append(f"note: {len(d.errors)} transitions raised a domain error and were left out ({d.errors[0][2]})")
     if support is not None:
@@ -553,7 +593,8 @@ def to_json(d: Derivation, support: "list | None" = None) -> dict:
     return {"model": d.model.name, "skills": [{"name": d.name(i), "fsm": s.fsm, "goal": s.goal, "nodes": list(s.nodes)}
                                               for i, s in enumerate(d.skills)],
             "counts": counts(d), "transitions": trans, "states": d.states, "model_states": d.model_states,
-            "explored_transitions": d.transitions, "complete": d.complete, "seconds": round(d.seconds, 4),
+            "explored_transitions": d.transitions, "complete": d.complete, "budget": d.stopped,
+            "seconds": round(d.seconds, 4),
             "domain_errors": len(d.errors)}
 
 
@@ -569,23 +610,39 @@ def _load(ref):
 
 
 def cli_skills(args) -> int:
-    """``btfsm skills MODEL [--format text|dot|json] [--max-states N]``: exit 0 when every
-    derived transition is supported, 1 when one is not, 3 when the budget was hit."""
+    """``btfsm skills MODEL [--format text|dot|json] [--max-states N] [--max-transitions N]
+    [--max-seconds S]``: exit 0 when every derived transition is supported, 1 when one is
+    not, 3 when a budget was hit."""
     import sys
 
     from btfsm.cli import UsageError
 
     if args.max_states is not None and args.max_states < 1:
         raise UsageError("--max-states must be at least 1")
+    max_transitions = getattr(args, "max_transitions", None)
+    max_seconds = getattr(args, "max_seconds", None)
+    if max_transitions is not None and max_transitions < 1:
+        raise UsageError("--max-transitions must be at least 1")
+    if max_seconds is not None and not (0 < max_seconds < float("inf")):
+        raise UsageError("--max-seconds must be a positive finite number")
     model = _load(args.model)
     if model.tree is None:
         raise ModelError("tree", f"{model.name} has no tree: there are no skill requests to derive from")
     from btfsm.progress import ExplorationProgress
 
+    max_states = args.max_states if args.max_states is not None else 2_000_000
     with ExplorationProgress() as bar:  # on a terminal only, after a second
-        d = derive(model, max_states=args.max_states if args.max_states is not None else 2_000_000,
+        d = derive(model, max_states=max_states, max_transitions=max_transitions, max_seconds=max_seconds,
                    progress=lambda states, seconds: bar("skills", states))
-    support = check_support(d) if d.complete else None
+    support = None
+    if d.complete:
+        try:
+            support = check_support(d, budget=min(max_states, 1_000_000),
+                                    max_seconds=None if max_seconds is None else max(max_seconds - d.seconds, 1e-9))
+        except BudgetExceeded as exc:
+            print(f"btfsm skills: incomplete: {exc}; explored {d.states:,} product states, {d.transitions:,} "
+                  f"transitions (raise the budget)", file=sys.stderr)
+            return 3
     if args.format == "json":
         print(json.dumps(to_json(d, support), indent=1))
     elif args.format == "dot":
@@ -593,6 +650,8 @@ def cli_skills(args) -> int:
     else:
         print(format_text(d, support))
     if not d.complete:
-        print("btfsm skills: incomplete: the state budget was hit (raise --max-states)", file=sys.stderr)
+        hit = describe_hit(d.stopped, max_states, max_transitions, max_seconds)
+        print(f"btfsm skills: incomplete: the {hit} was hit after {d.states:,} product states, {d.transitions:,} "
+              f"transitions, {d.seconds:.2f} s (raise it)", file=sys.stderr)
         return 3
     return 0 if all(s.supported for s in support) else 1

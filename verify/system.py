@@ -47,7 +47,9 @@ class TransitionSystem:
     reply per transition), ``goal`` (requested goal index per transition, FSM level),
     ``expanded`` (states ``0..expanded-1`` have all their successors), ``errors``
     (``DomainViolation``s), ``violations`` (``(transition, violations)`` contract breaches),
-    ``open`` (FSM level: the open system's description, see ``btfsm.verify.explore.OpenFSM``)."""
+    ``open`` (FSM level: the open system's description, see ``btfsm.verify.explore.OpenFSM``),
+    ``stopped`` (an incomplete system: the budget that was hit, ``"states"``,
+    ``"transitions"``, ``"seconds"`` or ``"paths"``; see ``btfsm.verify.search.Budget``)."""
 
     model: object
     kind: str  # "model" | "fsm"
@@ -67,6 +69,7 @@ class TransitionSystem:
     errors: tuple = ()
     violations: tuple = ()
     open: object = None
+    stopped: "str | None" = None
 
     # ------------------------------------------------------------------ sizes
     @property
@@ -79,7 +82,7 @@ class TransitionSystem:
 
     def __repr__(self) -> str:
         what = self.kind if self.fsm is None else f"fsm {self.fsm}"
-        done = "" if self.complete else ", incomplete"
+        done = "" if self.complete else f", incomplete: {self.stopped or 'budget'} budget hit"
         return f"TransitionSystem({self.model.name}, {what}: {self.n_states} states, {self.n_transitions} transitions{done})"
 
     # ------------------------------------------------------------------ adjacency

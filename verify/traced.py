@@ -42,19 +42,41 @@ import numpy as np
 
 from btfsm.errors import DomainError
 
-from .explore import DEFAULT_MAX_STATES, EnumOracle, _codec, _decode, _readable
+from .codec import codec, decode
+from .labels import readable
+from .search import DEFAULT_MAX_STATES, Budget, EnumOracle
 from .system import DomainViolation, TransitionSystem
 
-__all__ = ["search", "Untraceable", "CHUNK", "DENSE_LIMIT"]
+__all__ = ["search", "Untraceable", "TooManyPaths", "CHUNK", "DENSE_LIMIT", "PATHS_MIN", "ROWS_LIMIT"]
 
 CHUNK = 1 << 15  # states expanded per batch
 DENSE_LIMIT = 1 << 24  # code space up to which the visited set is a flat id table (64 MB)
+PATHS_MIN = 1 << 13  # paths traced before the trie must pay off (see ``search``)
+PATHS_RATIO = 4  # ... then at most one path per this many transitions found
+ROWS_LIMIT = 1 << 21  # (state, path) rows of one batch before it is split
 _CONTROL = ("token", "goal", "flag", "memory", "param")  # decided when first read
 _LAST = 1 << 20  # choice answer c > 0 sorts as _LAST - c: answers 0, n-1, ..., 1 (DFS order)
 
 
 class Untraceable(Exception):
     """The step did something the tracer does not follow; use the generic engine."""
+
+
+class TooManyPaths(Untraceable):
+    """The decision trie grew past its path limit: the model's paths multiply (many free
+    inputs or environment events), so tracing does not pay off; use the scalar engine."""
+
+
+class _Stop(Exception):
+    """A budget was hit while a batch was walked (``hit``: ``"seconds"`` or ``"paths"``)."""
+
+    def __init__(self, hit):
+        super().__init__(hit)
+        self.hit = hit
+
+
+class _Wide(Exception):
+    """A batch reaches more (state, path) rows than it may; split it."""
 
 
 # ---------------------------------------------------------------------- expressions
@@ -279,7 +301,7 @@ class _Engine:
         self.prog, self.run, self.op = prog, run, op
         self.width = len(prog.slots)
         self.kept, self.base = frozenset(kept), tuple(base)
-        self.mults, self.offset, self.total = _codec(prog, tuple(kept))
+        self.mults, self.offset, self.total = codec(prog, tuple(kept))
         if self.total >= 1 << 62:
             raise Untraceable("the state space does not fit one int64 code")
         self.sizes = [max(s.size, 1) for s in prog.slots]
@@ -290,6 +312,8 @@ class _Engine:
         self.leaves: list = []
         self.order_dirty = False
         self.leaf_ord = np.zeros(0, np.int64)
+        self.max_paths = PATHS_MIN
+        self.budget = None
 
     # ---- tracing
     def state_of(self, code: int) -> tuple:
@@ -300,11 +324,16 @@ class _Engine:
         """(label, requested goal index or -1) of a transition's picks."""
         got = self.names.get(picks)
         if got is None:
-            got = self.names[picks] = _readable(self.prog, picks, self.op)
+            got = self.names[picks] = readable(self.prog, picks, self.op)
         return got
 
     def trace(self, state, script):
-        """Run the step from ``state`` (as Syms) answering ``script``; insert the path."""
+        """Run the step from ``state`` (as Syms) answering ``script``; insert the path.
+        Raises ``_Stop`` past the path limit or the time budget."""
+        if len(self.leaves) >= self.max_paths:
+            raise _Stop("paths")
+        if self.budget is not None and self.budget.out_of_time():
+            raise _Stop("seconds")
         t = _Tracer(self.g)
         path = t.path
         o = _TracingOracle(script, path)
@@ -370,8 +399,9 @@ class _Engine:
         return self.leaf_ord
 
     # ---- one batch
-    def expand(self, codes: np.ndarray):
-        """Walk the trie with the batch ``codes``: ``[(leaf, rows)]``."""
+    def expand(self, codes: np.ndarray, cap: int = ROWS_LIMIT):
+        """Walk the trie with the batch ``codes``: ``[(leaf, rows)]``. Raises ``_Wide`` when
+        a batch of more than one state reaches more than ``cap`` rows of ok leaves."""
         memo: dict = {}
         nodes, mults, sizes, los = self.g.nodes, self.mults, self.sizes, self.los
 
@@ -396,6 +426,7 @@ class _Engine:
             return v
 
         out = []
+        emitted, wide = 0, len(codes) > 1
         stack = [(self.root, None, np.arange(len(codes)), ())]
         while stack:
             holder, key, rows, script = stack.pop()
@@ -405,6 +436,10 @@ class _Engine:
                 node = holder[key]
             if isinstance(node, _Leaf):
                 out.append((node, rows))
+                if node.kind == "ok":
+                    emitted += len(rows)
+                    if wide and emitted > cap:
+                        raise _Wide()
                 continue
             kind, what, kids = node
             if kind == "c":
@@ -440,18 +475,31 @@ class _Engine:
         return out, ev
 
 
-def search(model, kind, fsm, kept, run, s0, max_states, progress, op) -> TransitionSystem:
+def search(model, kind, fsm, kept, run, s0, budget, progress, op, fallback: bool = True) -> TransitionSystem:
     """Explore one system breadth-first from ``s0`` with path-compiled batches: ``run(state,
     oracle)`` is one transition (``Program.step``, or ``OpenFSM.run`` with ``op`` at FSM
     level) and states are coded over the ``kept`` slots. Called by
     ``btfsm.verify.explore.explore``/``explore_fsm``, whose scalar engine takes the same
     arguments and gives the same system. Raises ``Untraceable`` when the tracer cannot
-    follow ``run``."""
+    follow ``run``.
+
+    ``budget`` (a ``btfsm.verify.search.Budget``, None: unbounded) holds in time even when
+    paths multiply: a batch whose rows would pass ``ROWS_LIMIT`` or the transitions left
+    is split (down to one state: transitions stay in the scalar engine's order); the trie
+    may hold ``PATHS_MIN`` paths, then one per ``PATHS_RATIO`` transitions found, and
+    past that the search raises ``TooManyPaths`` (``fallback``: the caller goes on with the
+    scalar engine) or stops with ``budget.hit = "paths"``; the clock is read before every
+    path traced and after every batch."""
     t0 = time.perf_counter()
     prog = model.program
     eng = _Engine(model, run, kept, s0, op)
     mults, offset, total = eng.mults, eng.offset, eng.total
-    budget = DEFAULT_MAX_STATES * 1000 if max_states is None else max(int(max_states), 1)
+    if budget is None:
+        budget = Budget()
+    eng.budget = budget if budget.max_seconds is not None else None
+    smax = DEFAULT_MAX_STATES * 1000 if budget.max_states is None else budget.max_states
+    tmax = (1 << 62) if budget.max_transitions is None else budget.max_transitions
+    chunk = CHUNK
     c0 = sum(v * m for v, m in zip(s0, mults)) - offset
 
     visited = (_Dense if total <= DENSE_LIMIT else _Sorted)(total, c0)
@@ -469,9 +517,22 @@ def search(model, kind, fsm, kept, run, s0, max_states, progress, op) -> Transit
     leaf_status = np.zeros(0, np.int8)
     leaf_viol = np.zeros(0, bool)
     while head < n:
-        k = min(n - head, CHUNK)
+        if budget.out_of_time():
+            complete, budget.hit, expanded = False, "seconds", head
+            break
+        k = min(n - head, chunk)
         batch = codes[head:head + k]
-        out, ev = eng.expand(batch)
+        try:
+            out, ev = eng.expand(batch, min(ROWS_LIMIT, tmax - nt + 1))
+        except _Wide:  # split the batch: transitions are ordered by source state first
+            chunk = max(1, k // 4)
+            continue
+        except _Stop as stop_:
+            if stop_.hit == "paths" and fallback:
+                raise TooManyPaths(f"more than {eng.max_paths} paths traced after {nt} transitions") from None
+            complete, budget.hit, expanded = False, stop_.hit, head
+            break
+        chunk = min(CHUNK, chunk * 2)
         ords = eng.ordinals()
         # transitions of the batch, ordered as the generic engine makes them
         ok = [(leaf, rows) for leaf, rows in out if leaf.kind == "ok"]
@@ -481,15 +542,18 @@ def search(model, kind, fsm, kept, run, s0, max_states, progress, op) -> Transit
         rows, lid, dst = rows[order], lid[order], dst[order]
         # ids of the targets; new states numbered in order of first discovery
         ids = visited.ids(dst)
-        fresh = np.flatnonzero(ids < 0)
         cut = len(dst)
+        if cut > tmax - nt:  # the transition budget ends within this batch
+            cut = tmax - nt
+            complete, budget.hit = False, "transitions"
+        fresh = np.flatnonzero(ids[:cut] < 0)
         if len(fresh):
             _, first = np.unique(dst[fresh], return_index=True)
             firstpos = np.sort(fresh[first])
             newcodes = dst[firstpos]
-            room = budget - n
+            room = smax - n
             if len(newcodes) > room:
-                complete = False
+                complete, budget.hit = False, "states"
                 cut = int(firstpos[room])
                 firstpos, newcodes = firstpos[:room], newcodes[:room]
             newids = np.arange(n, n + len(newcodes), dtype=np.int64)
@@ -500,6 +564,7 @@ def search(model, kind, fsm, kept, run, s0, max_states, progress, op) -> Transit
                 codes = np.concatenate([codes, np.zeros(max(len(codes), len(newcodes)), np.int64)])
             codes[n:n + len(newcodes)] = newcodes
             n += len(newcodes)
+        ids = ids[:cut]
         stop = None if complete else (int(rows[cut]), int(ords[lid[cut]]))
         named = lid[:cut + 1]  # the generic engine names the cut transition's label too
         rows, lid = rows[:cut], lid[:cut]
@@ -535,11 +600,12 @@ def search(model, kind, fsm, kept, run, s0, max_states, progress, op) -> Transit
             expanded = head + stop[0]
             break
         head += k
+        eng.max_paths = max(PATHS_MIN, nt // PATHS_RATIO)
         if progress is not None:
             progress(n, nt, time.perf_counter() - t0)
     if expanded is None:
         expanded = head
-    states = _decode(prog, tuple(kept), codes[:n] + offset, offset, mults)
+    states = decode(prog, tuple(kept), codes[:n] + offset, offset, mults)
     seconds = time.perf_counter() - t0
     if progress is not None:
         progress(n, nt, seconds)
@@ -550,7 +616,8 @@ def search(model, kind, fsm, kept, run, s0, max_states, progress, op) -> Transit
                             label=lab, labels=tuple(labels),
                             parent=np.concatenate(parent), complete=complete, seconds=seconds,
                             status=_view(stat_a, np.int8), goal=goal,
-                            expanded=expanded, errors=tuple(errors), violations=tuple(violations), open=op)
+                            expanded=expanded, errors=tuple(errors), violations=tuple(violations), open=op,
+                            stopped=None if complete else budget.hit)
 
 
 def _view(buf, dtype) -> np.ndarray:
@@ -597,7 +664,7 @@ def _errors(eng, prog, bad, codes, head, ords, cut_at):
         try:
             eng.run(eng.state_of(int(codes[r])), o)
         except DomainError as exc:
-            out.append(DomainViolation(head + r, tuple(o.taken), _readable(prog, tuple(o.picks), eng.op)[0],
+            out.append(DomainViolation(head + r, tuple(o.taken), readable(prog, tuple(o.picks), eng.op)[0],
                                        exc.var, exc.value, exc.where, str(exc)))
         else:
             raise Untraceable("a traced domain error did not happen again")

@@ -39,6 +39,7 @@ from btfsm.errors import DomainError, ModelError
 from btfsm.expr import INT, BinOp, Call, Const, IfElse, Name, Unary, names_in, to_numpy_source
 from btfsm.model import EnvChoice
 
+from .search import Budget
 from .stepspec import StepSpec, int_bounds, step_spec
 from .system import DomainViolation, TransitionSystem
 
@@ -46,6 +47,7 @@ __all__ = ["explore", "reach", "Reach", "Engine", "DENSE_LIMIT", "CHUNK"]
 
 DENSE_LIMIT = 1 << 31  # codes; the bitmap then takes 256 MB
 CHUNK = 1 << 16
+ROWS_LIMIT = 1 << 21  # rows (state, answers) of one chunk at most
 RUNNING, SUCCESS, FAILURE = 0, 1, 2
 _STATUS = ("RUNNING", "SUCCESS", "FAILURE")
 _T, _F = np.bool_(True), np.bool_(False)
@@ -656,6 +658,7 @@ class Reach:
     seconds: float
     error_states: np.ndarray
     visited_bytes: int
+    stopped: "str | None" = None  # the budget hit (``btfsm.verify.search.Budget.hit``)
 
     @property
     def n_states(self) -> int:
@@ -725,11 +728,35 @@ class _Buffer:
         return self.a[a:self.n if b is None else b]
 
 
-def _search(model, fsm, goals, max_states, progress, chunk, keep_edges):
+def _rows_per_state(spec) -> int:
+    """An upper bound of the rows (state, answers) one state can split into."""
+    bound = max(len(spec.goals), 1)
+    for _, vals in tuple(spec.inputs) + (tuple(spec.params) if spec.kind == "fsm" else ()):
+        bound *= max(len(vals), 1)
+    for i in spec.env:
+        ev = spec.model.environment[i]
+        bound *= max(len(ev.options), 1) if isinstance(ev, EnvChoice) else 2
+    return bound * max((len(r.outcomes) for r in _flat_rows(spec.rows)), default=1)
+
+
+def _flat_rows(rows):
+    for r in rows:
+        if isinstance(r, (tuple, list)):
+            yield from _flat_rows(r)
+        elif hasattr(r, "outcomes"):
+            yield r
+
+
+def _search(model, fsm, goals, max_states, progress, chunk, keep_edges, max_transitions=None, max_seconds=None):
     t0 = time.perf_counter()
     spec = step_spec(model, fsm, goals)
     eng = Engine(spec, labels=keep_edges)
     budget = None if max_states is None else max(int(max_states), 1)
+    clock = Budget(max_states, max_transitions, max_seconds)
+    tmax = clock.max_transitions
+    # chunks small enough that one chunk's rows stay below ROWS_LIMIT
+    per_state = _rows_per_state(spec)
+    chunk = max(1, min(chunk, ROWS_LIMIT // per_state))
     visited = _Dense(eng.total) if eng.total <= DENSE_LIMIT else _Runs()
     cdt = eng.code_dtype
     c0 = np.array([_initial_code(eng)], dtype=np.int64)
@@ -746,6 +773,8 @@ def _search(model, fsm, goals, max_states, progress, chunk, keep_edges):
     frontier = c0.astype(cdt)
     front_start = 0
     n_trans, complete, expanded = 0, True, None
+    if per_state > ROWS_LIMIT:  # one state alone may not fit: stop before it
+        complete, clock.hit, expanded = False, "rows", 0
     dead_parts, err_parts = [], []
     edge_parts = []  # (src, dst code, label id, status, post)
     label_ids: dict = {}
@@ -753,9 +782,15 @@ def _search(model, fsm, goals, max_states, progress, chunk, keep_edges):
     while len(frontier) and complete:
         new_codes, new_par = [], []
         for a in range(0, len(frontier), chunk):
+            if clock.out_of_time():
+                complete, clock.hit, expanded = False, "seconds", front_start + a
+                break
             part = frontier[a:a + chunk]
             eng.errors = []
             outs = eng.step(part)
+            if tmax is not None and n_trans + sum(len(o[0]) for o in outs) > tmax:
+                complete, clock.hit, expanded = False, "transitions", front_start + a
+                break  # this chunk's transitions would pass the budget: none of them kept
             cand, cpos = [], []
             for pos, code, lab, reply, post in outs:
                 if len(pos) == 0:
@@ -789,7 +824,7 @@ def _search(model, fsm, goals, max_states, progress, chunk, keep_edges):
                 keep = budget - n
                 sel = np.sort(np.argsort(first, kind="stable")[:keep])
                 uniq, first = uniq[sel], first[sel]
-                complete = False
+                complete, clock.hit = False, "states"
                 expanded = front_start + a
             visited.add(uniq)
             new_codes.append(uniq.astype(cdt))
@@ -821,24 +856,34 @@ def _search(model, fsm, goals, max_states, progress, chunk, keep_edges):
     dead = np.concatenate(dead_parts) if dead_parts else np.zeros(0, np.int64)
     errs = np.unique(np.concatenate(err_parts)) if err_parts else np.zeros(0, np.int64)
     return eng, codes, parent, np.unique(np.asarray(levels, np.int64)), dead, n_trans, complete, expanded, errs, \
-        edge_parts, labels, visited.nbytes, t0
+        edge_parts, labels, visited.nbytes, t0, clock.hit
 
 
-def reach(model, *, fsm=None, goals=None, max_states=None, progress=None, chunk: int = CHUNK) -> Reach:
+def reach(model, *, fsm=None, goals=None, max_states=None, max_transitions=None, max_seconds=None, progress=None,
+          chunk: int = CHUNK) -> Reach:
     """Reachable states and BFS parents (no transitions): ``model`` with a single
     SkillRequest tree, or FSM ``fsm`` as an open system. ``progress(states, transitions,
-    seconds)`` is called after every level."""
-    eng, codes, parent, levels, dead, nt, complete, _, errs, _, _, vbytes, t0 = _search(
-        model, fsm, goals, max_states, progress, chunk, False)
-    return Reach(eng, codes, parent, levels, dead, nt, complete, time.perf_counter() - t0, errs, vbytes)
+    seconds)`` is called after every level. Budgets as for ``explore``."""
+    eng, codes, parent, levels, dead, nt, complete, _, errs, _, _, vbytes, t0, hit = _search(
+        model, fsm, goals, max_states, progress, chunk, False, max_transitions, max_seconds)
+    return Reach(eng, codes, parent, levels, dead, nt, complete, time.perf_counter() - t0, errs, vbytes, hit)
 
 
-def explore(model, *, fsm=None, goals=None, max_states=None, progress=None, chunk: int = CHUNK) -> TransitionSystem:
+def explore(model, *, fsm=None, goals=None, max_states=None, max_transitions=None, max_seconds=None, progress=None,
+            chunk: int = CHUNK) -> TransitionSystem:
     """The ``TransitionSystem`` of ``btfsm.verify.explore.explore`` (``fsm`` None) or
     ``explore_fsm`` (``fsm`` given), computed by the vectorised engine. States are in
-    BFS order (by code within a level), transitions sorted by source."""
-    eng, codes, parent_state, _, _, _, complete, expanded, errs, parts, labels, _, t0 = _search(
-        model, fsm, goals, max_states, progress, chunk, True)
+    BFS order (by code within a level), transitions sorted by source.
+
+    Budgets (``btfsm.verify.search.Budget``) hold at chunk granularity: the state budget
+    cuts within a chunk, a chunk whose transitions would pass ``max_transitions`` is
+    dropped whole, the clock is read before every chunk, and chunks are made small
+    enough that one chunk's rows stay below ``ROWS_LIMIT``; when a single state may
+    split into more rows than that (many free inputs or environment events), nothing is
+    expanded (``stopped="rows"``: use ``btfsm.verify.explore``). ``stopped`` names the
+    budget hit."""
+    eng, codes, parent_state, _, _, _, complete, expanded, errs, parts, labels, _, t0, hit = _search(
+        model, fsm, goals, max_states, progress, chunk, True, max_transitions, max_seconds)
     spec = eng.spec
     if parts:
         src = np.concatenate([p[0] for p in parts])
@@ -875,7 +920,8 @@ def explore(model, *, fsm=None, goals=None, max_states=None, progress=None, chun
                             slots=tuple(spec.stored), states=states, src=src, dst=dst, label=lab, labels=tuple(labels),
                             parent=parent, complete=complete, seconds=time.perf_counter() - t0, status=stat,
                             goal=goal_a, expanded=int(expanded if expanded is not None else len(codes)),
-                            errors=errors, violations=violations, open=_open(model, spec, goals))
+                            errors=errors, violations=violations, open=_open(model, spec, goals),
+                            stopped=None if complete else hit)
 
 
 def _open(model, spec, goals):
@@ -891,7 +937,9 @@ def _domain_errors(model, spec, eng, codes, states, goals=None) -> tuple:
     one (re-run with the generic step function: errors are rare and need scripts)."""
     if not len(states):
         return ()
-    from .explore import EnumOracle, _readable, open_fsm
+    from .explore import open_fsm
+    from .labels import readable
+    from .search import EnumOracle
 
     prog = model.program
     op = open_fsm(model, spec.fsm, goals) if spec.kind == "fsm" else None
@@ -909,7 +957,7 @@ def _domain_errors(model, spec, eng, codes, states, goals=None) -> tuple:
             try:
                 run(tuple(s), o)
             except DomainError as exc:
-                out.append(DomainViolation(int(i), tuple(o.taken), _readable(prog, tuple(o.picks), op)[0],
+                out.append(DomainViolation(int(i), tuple(o.taken), readable(prog, tuple(o.picks), op)[0],
                                            exc.var, exc.value, exc.where, str(exc)))
             for k in range(len(script), len(o.arities)):
                 for c in range(1, o.arities[k]):

@@ -7,7 +7,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..explore import DEFAULT_MAX_STATES, explore, explore_fsm
+from ..explore import DEFAULT_MAX_STATES, Budget, explore, explore_fsm
 
 __all__ = ["Result", "Context", "evaluate", "columns_of"]
 
@@ -33,10 +33,12 @@ class Context:
     """The model under check and its explorations (each done once, on demand)."""
 
     def __init__(self, model, *, max_states: "int | None" = DEFAULT_MAX_STATES, progress=None, engine: str = "auto",
-                 goal_level: str = "open"):
+                 max_transitions: "int | None" = None, max_seconds: "float | None" = None, goal_level: str = "open"):
         self.model = model
         self.goal_level = goal_level  # goal-reachability: "open" (each FSM alone) or "tree"
         self.max_states = max_states
+        self.max_transitions = max_transitions
+        self.clock = Budget(max_seconds=max_seconds)  # one time budget for every exploration of the check
         self.engine = engine
         self.progress = progress
         self._model_ts = None
@@ -46,8 +48,9 @@ class Context:
     def model_ts(self):
         """The whole model's transition system."""
         if self._model_ts is None:
-            self._model_ts = explore(self.model, max_states=self.max_states,
-                                     progress=self._progress("model"), engine=self.engine)
+            self._model_ts = explore(self.model, max_states=self.max_states, max_transitions=self.max_transitions,
+                                     max_seconds=self._seconds_left(), progress=self._progress("model"),
+                                     engine=self.engine)
             self.systems.append(self._model_ts)
         return self._model_ts
 
@@ -56,9 +59,15 @@ class Context:
         ts = self._fsm_ts.get(name)
         if ts is None:
             ts = self._fsm_ts[name] = explore_fsm(self.model, name, max_states=self.max_states,
+                                                  max_transitions=self.max_transitions,
+                                                  max_seconds=self._seconds_left(),
                                                   progress=self._progress(f"fsm {name}"), engine=self.engine)
             self.systems.append(ts)
         return ts
+
+    def _seconds_left(self):
+        c = self.clock
+        return None if c.max_seconds is None else max(c.max_seconds - c.elapsed(), 0.0)
 
     def _progress(self, what):
         if self.progress is None:

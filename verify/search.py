@@ -1,0 +1,164 @@
+"""The pieces every exploration engine shares: the enumerating oracle (``EnumOracle``),
+the environment step (``run_environment``) and the budgets (``Budget``).
+"""
+from __future__ import annotations
+
+import time
+
+from btfsm.oracles import ScriptOracle
+
+__all__ = ["EnumOracle", "run_environment", "DEFAULT_MAX_STATES", "DEFAULT_MAX_TRANSITIONS", "Budget", "BudgetExceeded",
+           "describe_hit", "HIT_WORDS"]
+
+DEFAULT_MAX_STATES = 5_000_000
+DEFAULT_MAX_TRANSITIONS = 50_000_000  # the command line's default: about 1.3 GB of transition arrays
+
+
+class EnumOracle(ScriptOracle):
+    """A ``ScriptOracle`` that also keeps ``picks``: every answer in a state-independent
+    form (``("env", i, 0|1)``, ``("choice", i, option)``, ``(site, outcome)`` for every
+    primitive that ran, single-outcome ones included). ``picks`` name a transition.
+
+    Same answers and records as ``ScriptOracle`` (script entry k answers choice point k, 0
+    past the end; ``arities``, ``labels``, ``taken``); the bookkeeping is inlined because
+    this is the innermost loop of exploration. Scripts are assumed valid (they are made
+    from the arities recorded on the same prefix)."""
+
+    __slots__ = ("picks",)
+
+    def __init__(self, script=()):
+        self.script, self.pos = script, 0
+        self.arities, self.labels, self.taken, self.picks = [], [], [], []
+
+    def env(self, i):
+        k = self.pos
+        self.pos = k + 1
+        s = self.script
+        c = s[k] if k < len(s) else 0
+        self.arities.append(2)
+        self.labels.append(("env", i))
+        self.taken.append(c)
+        self.picks.append(("env", i, c))
+        return c == 1
+
+    def choose(self, i, enabled):
+        if len(enabled) == 1:
+            return 0  # a lone option is no choice (as in ScriptOracle)
+        k = self.pos
+        self.pos = k + 1
+        s = self.script
+        c = s[k] if k < len(s) else 0
+        self.arities.append(len(enabled))
+        self.labels.append(("choice", i))
+        self.taken.append(c)
+        self.picks.append(("choice", i, enabled[c]))
+        return c
+
+    def outcome(self, site):
+        n = len(site.outcomes)
+        if n == 1:
+            self.picks.append((site, 0))
+            return 0
+        k = self.pos
+        self.pos = k + 1
+        s = self.script
+        c = s[k] if k < len(s) else 0
+        self.arities.append(n)
+        self.labels.append(site)
+        self.taken.append(c)
+        self.picks.append((site, c))
+        return c
+
+
+def run_environment(env, s, oracle, indices=None, rec=None) -> bool:
+    """Apply the environment entries ``env`` (``Program.env``; only those at ``indices``
+    when given) to the state list ``s`` in place, asking ``oracle`` like ``Program.step``
+    does (docs/semantics.md, tick step 1); ``rec`` collects env and write events.
+    Returns False when a choice has no enabled option (the tick cannot happen)."""
+    for i in (range(len(env)) if indices is None else indices):
+        name, guard, eff, options = env[i]
+        if options is not None:
+            enabled = [k for k, o in enumerate(options) if o[1] is None or o[1](s)]
+            if not enabled:
+                return False
+            name, _, eff, _ = options[enabled[oracle.choose(i, enabled)] if len(enabled) > 1 else enabled[0]]
+        elif not ((guard is None or guard(s)) and oracle.env(i)):
+            continue
+        if eff is not None:
+            eff(s)
+        if rec is not None:
+            rec.append(("env", name))
+            if eff is not None:
+                rec.extend(("write", k, s[k]) for k in eff.targets)
+    return True
+
+
+class Budget:
+    """The bounds of one exploration: ``max_states`` (states numbered), ``max_transitions``
+    (transitions kept), ``max_seconds`` (wall time, read from a monotonic clock here in the
+    checker only, never in the model or the simulator). None: no bound. The clock starts
+    when the Budget is made, so a fallback from one engine to another shares it.
+
+    An engine that hits a bound stops, keeps what it explored and sets ``hit`` to
+    ``"states"``, ``"transitions"``, ``"seconds"`` (or ``"paths"``: the traced engine's
+    decision trie grew past what it may trace, see ``btfsm.verify.traced``; ``"rows"``: a
+    state of the vectorised engine may split into more rows than it holds). Without a time
+    bound, what is explored does not depend on the clock.
+
+    >>> b = Budget(max_states=10)
+    >>> b.states_left(7), b.transitions_left(7), b.out_of_time()
+    (3, None, False)
+    """
+
+    __slots__ = ("max_states", "max_transitions", "max_seconds", "start", "hit")
+
+    def __init__(self, max_states=None, max_transitions=None, max_seconds=None):
+        self.max_states = None if max_states is None else max(int(max_states), 1)
+        self.max_transitions = None if max_transitions is None else max(int(max_transitions), 0)
+        self.max_seconds = None if max_seconds is None else float(max_seconds)
+        self.start = time.monotonic()
+        self.hit = None
+
+    def states_left(self, n: int):
+        return None if self.max_states is None else self.max_states - n
+
+    def transitions_left(self, nt: int):
+        return None if self.max_transitions is None else self.max_transitions - nt
+
+    def out_of_time(self) -> bool:
+        return self.max_seconds is not None and time.monotonic() - self.start >= self.max_seconds
+
+    def elapsed(self) -> float:
+        return time.monotonic() - self.start
+
+    def describe(self) -> str:
+        """``"state budget (--max-states 1000)"`` for the bound that was hit ("" if none)."""
+        return describe_hit(self.hit, self.max_states, self.max_transitions, self.max_seconds)
+
+
+HIT_WORDS = {"states": "state", "transitions": "transition", "seconds": "time", "paths": "path", "rows": "row"}
+
+
+def describe_hit(hit, max_states=None, max_transitions=None, max_seconds=None) -> str:
+    """Words for a budget that was hit (``Budget.hit``)."""
+    if hit == "states":
+        return f"state budget (--max-states {max_states:,})" if max_states is not None else "state budget"
+    if hit == "transitions":
+        return (f"transition budget (--max-transitions {max_transitions:,})" if max_transitions is not None
+                else "transition budget")
+    if hit == "seconds":
+        return f"time budget (--max-seconds {max_seconds:g})" if max_seconds is not None else "time budget"
+    if hit == "rows":
+        return "row budget of the vectorised engine (one state splits into too many rows)"
+    if hit == "paths":
+        return "path budget of the traced engine (use --engine scalar)"
+    return ""
+
+
+class BudgetExceeded(Exception):
+    """Raised by searches that cannot return a partial result (``skills`` support checks);
+    ``hit`` names the bound as ``Budget.hit`` does."""
+
+    def __init__(self, hit: str, message: str):
+        super().__init__(message)
+        self.hit = hit
