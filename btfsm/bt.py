@@ -23,7 +23,7 @@ MemoryFallback     ``Selector(memory=True)``       ``Fallback``
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Iterator
 
 from .expr import Expr, as_expr

@@ -43,8 +43,8 @@ import sys
 from contextlib import contextmanager
 
 from .errors import ConformanceError, DomainError, ModelError, Terminated, UsageError
-from .validators import (finite_float, input_file, input_text, int_range, output_dir, output_file, positive_int,
-                         probability, seed_int)
+from .validators import (finite_float, input_file, input_text, int_range, output_dir, output_file, probability,
+                         seed_int)
 
 __all__ = ["main", "build_parser", "UsageError", "EXIT_OK", "EXIT_FAILED", "EXIT_INPUT", "EXIT_BUDGET",
            "EXIT_INTERNAL", "EXIT_INTERRUPTED", "EXIT_TERMINATED", "REPORT_HINT"]

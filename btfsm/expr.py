@@ -23,7 +23,7 @@ from __future__ import annotations
 import ast
 import warnings
 from dataclasses import dataclass
-from typing import Iterable, Mapping, Union
+from typing import Mapping, Union
 
 from .errors import DomainError, ModelError
 
@@ -630,6 +630,10 @@ def _want(got: Type, want: Type, e: Expr) -> None:
 
 
 def _check_in_domain(var_side: Expr, const_side: Expr, scope) -> None:
+    # a negated constant counts as the constant it denotes (the parser folds ``-4`` to one)
+    while (isinstance(const_side, Unary) and const_side.op == "-" and isinstance(const_side.arg, Const)
+           and type(const_side.arg.value) is int):
+        const_side = Const(-const_side.arg.value)
     if isinstance(var_side, Name) and isinstance(const_side, Const) and type(const_side.value) is int:
         slot = scope[var_side.id]
         if slot.type == INT and not slot.lo <= const_side.value <= slot.hi:

@@ -220,7 +220,7 @@ class Model:
         calls = {f.name: {(n.fsm, st.id) for st in f.states if st.subtree is not None
                           for n in walk(st.subtree) if isinstance(n, SkillRequest)} for f in self.fsms}
         for start in calls:
-            path, todo, seen = {start: None}, [start], set()
+            todo, seen = [start], set()
             while todo:
                 f = todo.pop()
                 for g, via in calls.get(f, ()):

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from .expr import Expr, as_expr
+from .expr import as_expr
 from .status import Status
 
 __all__ = ["Outcome", "Primitive", "success", "failure", "running", "effects_of", "PASS"]

@@ -21,7 +21,7 @@ from dataclasses import dataclass
 
 from .bt import (Action, Condition, Effects, ForceFailure, ForceSuccess, Guard, Inverter,
                  MemoryFallback, MemorySequence, Node, Parallel, ReactiveFallback,
-                 ReactiveSequence, Repeat, Retry, SkillRequest, walk)
+                 ReactiveSequence, Repeat, Retry, SkillRequest)
 from .errors import ModelError
 from .expr import BOOL, Scope, Slot, Type, compile_effects, compile_fn
 from .status import Status

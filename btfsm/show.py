@@ -20,7 +20,6 @@ True
 """
 from __future__ import annotations
 
-import os
 import shutil
 import subprocess
 import sys
@@ -30,6 +29,7 @@ from .bt import (Action, Condition, Decorator, Effects, ForceFailure, ForceSucce
                  MemoryFallback, MemorySequence, Parallel, ReactiveFallback, ReactiveSequence, Repeat,
                  Retry, SkillRequest)
 from .cli import UsageError
+from .escape import dot_string
 from .expr import to_text
 from .fsm import FSM
 
@@ -46,30 +46,8 @@ class GraphvizError(UsageError):
     """Graphviz is missing or failed (exit code 2 on the command line)."""
 
 
-def _q(text) -> str:
-    """A dot double-quoted string; newlines become centred line breaks, other
-    non-printable characters (controls, lone surrogates) are shown as ``\\uXXXX`` text.
-
-    >>> print(_q('a"b\\\\c\\nd\\x00'))
-    "a\\"b\\\\c\\nd\\\\u0000"
-    """
-    out = []
-    for c in str(text).replace("\r\n", "\n"):
-        if c == "\\":
-            out.append("\\\\")
-        elif c == '"':
-            out.append('\\"')
-        elif c == "\n":
-            out.append("\\n")
-        elif not c.isprintable():
-            out.append(f"\\\\u{ord(c):04x}")
-        else:
-            out.append(c)
-    return '"' + "".join(out) + '"'
-
-
 def _attrs(**kw) -> str:
-    return "[" + ", ".join(f"{k}={_q(v)}" for k, v in kw.items() if v is not None) + "]"
+    return "[" + ", ".join(f"{k}={dot_string(v)}" for k, v in kw.items() if v is not None) + "]"
 
 
 def _effects_text(effects) -> list:
@@ -134,29 +112,29 @@ def _tree_lines(root, indent: str) -> list:
     out, stack = [], [root]
     while stack:
         n = stack.pop()
-        out.append(f"{indent}{_q('n:' + n.name)} {_attrs(id=n.name, tooltip=type(n).__name__, **_node_look(n))};")
+        out.append(f"{indent}{dot_string('n:' + n.name)} {_attrs(id=n.name, tooltip=type(n).__name__, **_node_look(n))};")
         kids = [c for c in n.children_of() if c is not None]
         for k, c in enumerate(kids):
             label = str(k + 1) if len(kids) > 1 else None
-            out.append(f"{indent}{_q('n:' + n.name)} -> {_q('n:' + c.name)} {_attrs(taillabel=label)};")
+            out.append(f"{indent}{dot_string('n:' + n.name)} -> {dot_string('n:' + c.name)} {_attrs(taillabel=label)};")
         stack.extend(reversed(kids))
     return out
 
 
 def tree_to_dot(model) -> str:
     """The tree as dot: the main tree, then each FSM state's subtree in its own box."""
-    lines = [f"digraph {_q(model.name + ' tree')} {{",
+    lines = [f"digraph {dot_string(model.name + ' tree')} {{",
              f"  graph {_attrs(label=f'{model.name}: tree', labelloc='t', fontname='Helvetica', ordering='out')};",
              f"  node {_attrs(fontname='Helvetica', fontsize='10')};",
              f"  edge {_attrs(arrowsize='0.6', fontsize='8', fontname='Helvetica')};"]
     roots = model.roots()
     if not roots:
-        lines.append(f"  {_q('empty')} {_attrs(shape='note', label='(this model has no tree)')};")
+        lines.append(f"  {dot_string('empty')} {_attrs(shape='note', label='(this model has no tree)')};")
     for k, (path, root) in enumerate(roots):
         if path == "tree":
             lines += _tree_lines(root, "  ")
         else:
-            lines.append(f"  subgraph {_q(f'cluster_{k}')} {{")
+            lines.append(f"  subgraph {dot_string(f'cluster_{k}')} {{")
             lines.append(f"    graph {_attrs(label=path, style='dashed', fontsize='9')};")
             lines += _tree_lines(root, "    ")
             lines.append("  }")
@@ -199,35 +177,35 @@ def fsm_to_dot(model, fsm) -> str:
     if f.retarget != "immediate":
         extras.append(f"retarget: {f.retarget} via '{f.withdraw_goal}'")
     title = "\n".join([f"{model.name}: FSM {f.name}", "goals: " + ", ".join(f.goals)] + extras)
-    lines = [f"digraph {_q('fsm ' + f.name)} {{",
+    lines = [f"digraph {dot_string('fsm ' + f.name)} {{",
              f"  graph {_attrs(label=title, labelloc='t', rankdir='LR', fontname='Helvetica')};",
              f"  node {_attrs(fontname='Helvetica', fontsize='10')};",
              f"  edge {_attrs(fontname='Helvetica', fontsize='8', arrowsize='0.7')};",
-             f"  {_q('start')} {_attrs(shape='point', width='0.12', label='')};",
-             f"  {_q('start')} -> {_q('s:' + f.initial)} {_attrs(tooltip='initial state')};"]
+             f"  {dot_string('start')} {_attrs(shape='point', width='0.12', label='')};",
+             f"  {dot_string('start')} -> {dot_string('s:' + f.initial)} {_attrs(tooltip='initial state')};"]
     for st in f.states:
         look = {"shape": "box", "style": "rounded", "label": _state_label(st)}
         if st.id in f.terminal:
             look["peripheries"] = "2"
         if st.id == f.initial:
             look["style"] = "rounded,bold"
-        lines.append(f"  {_q('s:' + st.id)} {_attrs(id=f'state:{st.id}', tooltip=st.id, **look)};")
+        lines.append(f"  {dot_string('s:' + st.id)} {_attrs(id=f'state:{st.id}', tooltip=st.id, **look)};")
     for e in f.edges:
         trig = _trigger(e)
         label = "\n".join([_goals_text(e.goals, f), _head(trig, e.guard)] + _effects_text(e.effects))
         colour = _TRIGGER_COLOR[trig]
         look = _attrs(id=f"edge:{e.id}", tooltip=e.id, label=label, style="dashed" if e.direct else None,
                       color=colour, fontcolor=colour)
-        lines.append(f"  {_q('s:' + e.source)} -> {_q('s:' + e.target)} {look};")
+        lines.append(f"  {dot_string('s:' + e.source)} -> {dot_string('s:' + e.target)} {look};")
     for k, m in enumerate(f.markers):
         ok = m.outcome.name == "SUCCESS"
         node, colour = f"m:{k}", "darkgreen" if ok else "firebrick"
         look = _attrs(id=f"marker:{m.id}", tooltip=m.id, shape="doublecircle", label="S" if ok else "F", width="0.25",
                       fixedsize="true", fontsize="8", style="filled", fillcolor="palegreen" if ok else "mistyrose")
-        lines.append(f"  {_q(node)} {look};")
+        lines.append(f"  {dot_string(node)} {look};")
         label = f"{_goals_text(m.goals, f)}\n{_head(_trigger(m), m.guard)}"
         look = _attrs(label=label, style="dashed" if m.direct else "dotted", arrowhead="dot", color=colour, fontcolor=colour)
-        lines.append(f"  {_q('s:' + m.state)} -> {_q(node)} {look};")
+        lines.append(f"  {dot_string('s:' + m.state)} -> {dot_string(node)} {look};")
     lines.append("}")
     return "\n".join(lines) + "\n"
 

@@ -24,7 +24,6 @@ from __future__ import annotations
 
 import json
 import os
-import stat
 
 from .clock import Clock
 from .outputs import atomic_writer

@@ -22,7 +22,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from .cell import BELT, GRIPPER, Place
+from .cell import BELT, Place
 
 __all__ = ["CellBinding", "Dialect", "ARIAC", "ORIGINAL", "DIALECTS"]
 

@@ -47,7 +47,7 @@ class CellReplay:
         if self.frozen:
             st, t0, t1 = self.frozen
             lines.append(f"  the arm stayed in '{st}' from t = {t0:.1f} s to t = {t1:.1f} s ({t1 - t0:.1f} s without a move)")
-        lines.append(f"  last FSM states: " + "; ".join(f"{t:.1f} s {s} ({g or '-'})" for t, s, g in self.timeline[-4:]))
+        lines.append("  last FSM states: " + "; ".join(f"{t:.1f} s {s} ({g or '-'})" for t, s, g in self.timeline[-4:]))
         if self.picture:
             lines.append(f"  picture: {self.picture}")
         return "\n".join(lines)

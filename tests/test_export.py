@@ -453,8 +453,13 @@ def test_export_writes_the_file(tmp_path):
     out = tmp_path / "pp.pml"
     text = export(pickplace(3), "promela", output=str(out))
     assert out.read_text() == text
-    with pytest.raises(ModelError, match="cannot write"):
-        export(pickplace(3), "smv", output=str(tmp_path / "missing" / "x.smv"))
+    from btfsm.errors import UsageError
+
+    export(pickplace(3), "smv", output=str(tmp_path / "missing" / "x.smv"))  # folders are created (btfsm.outputs)
+    assert (tmp_path / "missing" / "x.smv").read_text().startswith("--")
+    with pytest.raises(UsageError, match="cannot write"):  # a path under a file
+        export(pickplace(3), "smv", output=str(out / "x.smv"))
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["missing", "pp.pml"]  # nothing half-written
 
 
 def test_export_errors_name_the_problem():

@@ -361,3 +361,14 @@ def test_compile_fn_reads_fsm_names():
     assert fn(s) is False
     s[p.scope["arm.state"].index], s[p.scope["arm.t"].index] = 1, 1
     assert fn(s) is True
+
+
+def test_negated_constant_is_checked_like_the_folded_one():
+    """``-(4)`` built by hand and ``-4`` parsed (folded to one constant) give the same verdict
+    (hypothesis found ``not n == -4`` passing as a tree and failing after a round trip)."""
+    from btfsm.expr import Compare, Const, Name, Unary
+
+    for e in (Compare("==", Name("n"), Unary("-", Const(4))), parse("n == -4")):
+        with pytest.raises(ModelError, match="outside the domain of n"):
+            check(e, SCOPE, "x")
+    assert check(Compare("==", Name("n"), Unary("-", Const(3))), SCOPE, "x") == BOOL

@@ -44,8 +44,7 @@ def cli_check(args) -> int:
         print(f"btfsm check: out of memory while exploring {model.name}; lower --max-states", file=sys.stderr)
         return 3
     progress.done()
-    if args.counterexample_dir:
-        _write_counterexamples(report, args.counterexample_dir)
+    written = _write_counterexamples(report, args.counterexample_dir) if args.counterexample_dir else []
     if args.json:
         print(json.dumps(report.to_json(), default=_plain))
     else:
@@ -55,6 +54,8 @@ def cli_check(args) -> int:
                           for s in report.systems if not s["complete"]})
             print(f"({' and '.join(hit)} hit: explored {report.states:,} states, {report.transitions:,} transitions "
                   f"in {report.seconds:.2f} s; raise it to decide the rest)")
+        for path in written:
+            print(f"counterexample written: {path}")
     return report.exit_code
 
 
@@ -84,15 +85,19 @@ def _load(ref):
         raise UsageError(f"{ref}: {exc.strerror or exc}") from None
 
 
-def _write_counterexamples(report, folder):
-    """Each counterexample as ``MODEL.PROPERTY.HASH.json`` in ``folder``, written atomically."""
+def _write_counterexamples(report, folder) -> list:
+    """Each counterexample as ``MODEL.PROPERTY.HASH.json`` in ``folder``, written atomically;
+    the paths written."""
     from btfsm.outputs import atomic_write_text, ensure_output_dir
 
     ensure_output_dir(folder)
+    written = []
     for r in report.results:
         if r.counterexample is not None:
             path = os.path.join(folder, r.counterexample.file_name())
             atomic_write_text(path, json.dumps(r.counterexample.to_json(), indent=1, default=_plain) + "\n")
+            written.append(path)
+    return written
 
 
 def cli_export(args) -> int:

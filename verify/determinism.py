@@ -169,7 +169,6 @@ def analyse(model, *, gaps: bool = True) -> tuple:
     for f in model.fsms:
         solver = _Solver(prog, f)
         fi = prog.fsm_index[f.name]
-        ids = prog.fsm_info[fi][1]
         tok_var = solver.vars[prog.fsm_info[fi][2]]
         lits: dict = {}  # id(element) -> literal constraints of its guard
         done: dict = {}

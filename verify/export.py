@@ -16,6 +16,7 @@ The step description the exporters share with the vectorised engine is
 from __future__ import annotations
 
 from btfsm.errors import ModelError
+from btfsm.escape import dot_string
 
 from .stepspec import Row, StepSpec, step_spec, terminal_expr
 
@@ -100,24 +101,6 @@ def _explore_small(model, fsm, max_states=None, max_transitions=None, max_second
     return ts
 
 
-def _dot_id(text: str) -> str:
-    """A dot double-quoted string: backslashes and quotes escaped, newlines as ``\\n``
-    line breaks, other non-printable characters (controls, lone surrogates) as ``\\uXXXX`` text."""
-    out = []
-    for c in str(text):
-        if c == "\\":
-            out.append("\\\\")
-        elif c == '"':
-            out.append('\\"')
-        elif c == "\n":
-            out.append("\\n")
-        elif not c.isprintable():
-            out.append(f"\\\\u{ord(c):04x}")
-        else:
-            out.append(c)
-    return '"' + "".join(out) + '"'
-
-
 def to_dot(ts, max_states: int = DOT_MAX_STATES) -> str:
     """Graphviz dot of an explored ``TransitionSystem``: one node per state (its variables,
     FSM states and goals, non-zero node memories and the running nodes), one edge per
@@ -127,7 +110,7 @@ def to_dot(ts, max_states: int = DOT_MAX_STATES) -> str:
     if ts.n_states > max_states:
         raise ModelError("format", f"dot export draws at most {max_states} states; this system has {ts.n_states}")
     title = ts.model.name if ts.kind == "model" else f"{ts.model.name}: FSM {ts.fsm}"
-    lines = [f"digraph {_dot_id(title)} {{", "  rankdir=LR;", '  node [shape=box, fontname="Helvetica", fontsize=10];',
+    lines = [f"digraph {dot_string(title)} {{", "  rankdir=LR;", '  node [shape=box, fontname="Helvetica", fontsize=10];',
              '  edge [fontname="Helvetica", fontsize=9];']
     dead = set(int(x) for x in ts.dead)
     prog = ts.model.program
@@ -145,14 +128,14 @@ def to_dot(ts, max_states: int = DOT_MAX_STATES) -> str:
         text = "\n".join(label)
         style = ", style=bold" if i == 0 else ""
         shape = ", shape=doubleoctagon" if i in dead else ""
-        lines.append(f"  s{i} [label={_dot_id(text)}{style}{shape}];")
+        lines.append(f"  s{i} [label={dot_string(text)}{style}{shape}];")
     merged: dict = {}
     for t in range(ts.n_transitions):
         key = (int(ts.src[t]), int(ts.dst[t]))
         merged.setdefault(key, []).append(_label_text(ts.labels[int(ts.label[t])]))
     for (a, b), texts in merged.items():
         shown = texts if len(texts) <= 3 else texts[:3] + [f"... {len(texts) - 3} more"]
-        lines.append(f"  s{a} -> s{b} [label={_dot_id(chr(10).join(shown))}];")
+        lines.append(f"  s{a} -> s{b} [label={dot_string(chr(10).join(shown))}];")
     lines.append("}")
     return "\n".join(lines) + "\n"
 

@@ -43,6 +43,7 @@ import time
 from dataclasses import dataclass
 
 from btfsm.errors import ModelError
+from btfsm.escape import comment_text
 from btfsm.expr import (BOOL, INT, BinOp, BoolOp, Call, Compare, Const, IfElse, Name, Unary, check)
 from btfsm.model import EnvChoice
 
@@ -65,23 +66,6 @@ RUNNING SUCCESS FAILURE
 """.split())
 
 _STATUS_NAMES = ("RUNNING", "SUCCESS", "FAILURE")
-
-
-def comment_text(text: object) -> str:
-    """``text`` made safe inside a generated comment (Promela ``/* */``, SMV ``--``,
-    anything line-based): printable ASCII on one line (other characters as ``\\xNN`` /
-    ``\\uNNNN`` escapes) with no comment delimiter (``/*`` and ``*/`` are broken apart).
-    Names in generated text reach the code only through ``Namer``; everything else a user
-    wrote is shown only through this function.
-
-    >>> comment_text('x */ c_code { system("touch X") } /* y\\nz')
-    'x * / c_code { system("touch X") } / * y\\\\x0az'
-    """
-    t = str(text).encode("ascii", "backslashreplace").decode("ascii")
-    t = "".join(c if c.isprintable() else f"\\x{ord(c):02x}" for c in t)
-    while "/*" in t or "*/" in t:
-        t = t.replace("/*", "/ *").replace("*/", "* /")
-    return t
 
 
 _c = comment_text

@@ -28,11 +28,12 @@ True
 """
 from __future__ import annotations
 
+from btfsm.escape import comment_text as _c
 from btfsm.expr import BOOL, INT, BinOp, BoolOp, Call, Compare, Const, IfElse, Name, Unary, check
 from btfsm.model import EnvChoice
 
+from .promela import Namer, SlotNames
 from .stepspec import StepSpec, int_bounds, terminal_expr
-from .promela import Namer, SlotNames, comment_text as _c
 
 __all__ = ["to_smv", "SMV_RESERVED"]
 

@@ -36,7 +36,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from btfsm.errors import DomainError, ModelError
-from btfsm.expr import INT, BinOp, Call, Const, IfElse, Name, Unary, names_in, to_numpy_source
+from btfsm.expr import INT, names_in, to_numpy_source
 from btfsm.model import EnvChoice
 
 from .search import Budget
