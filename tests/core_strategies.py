@@ -316,7 +316,8 @@ def _gen(draw, env, t, depth, anchored=False):
 def _in_domain(draw, env, e, other):
     """Replace an int constant compared with an int variable by one in its domain (the
     checker rejects the others, as docs/semantics.md section 7 says)."""
-    if isinstance(e, Const) and isinstance(other, Name):
+    negated = isinstance(e, Unary) and e.op == "-" and isinstance(e.arg, Const)  # -c is the constant -c
+    if (isinstance(e, Const) or negated) and isinstance(other, Name):
         for name, t, lo, hi in env:
             if name == other.id and t == INT:
                 return Const(draw(st.integers(lo, hi)))
