@@ -9,7 +9,7 @@ import numpy as np
 
 from ..explore import DEFAULT_MAX_STATES, Budget, explore, explore_fsm
 
-__all__ = ["Result", "Context", "evaluate", "columns_of"]
+__all__ = ["Result", "Context", "evaluate", "columns_of", "budget_hit"]
 
 
 @dataclass
@@ -118,3 +118,10 @@ class columns_of:
         if col is None:
             col = self.cache[slot] = self.ts.column(slot).astype(np.int64)
         return col
+
+
+def budget_hit(ts) -> str:
+    """``"time budget hit"`` (or state, transition, ...) for an incomplete system."""
+    from ..search import HIT_WORDS
+
+    return f"{HIT_WORDS.get(getattr(ts, 'stopped', None), 'state')} budget hit"

@@ -26,7 +26,7 @@ from btfsm.status import Status
 from ..counterexample import path_counterexample
 from ..explore import EnumOracle
 from ..system import shortest_path
-from .base import Result, evaluate
+from .base import Result, evaluate, budget_hit
 
 __all__ = ["check", "dead_states", "terminal_mask", "non_progress", "progress_mask", "sink_states", "reachable_sinks"]
 
@@ -179,7 +179,7 @@ def check(ctx) -> Result:
     info["dead_states"] = int(dead.size)
     undecided = not ts.complete
     if undecided:
-        notes.append(f"model: state budget hit ({ts.n_states} states); only the {ts.expanded} expanded states were checked")
+        notes.append(f"model: {budget_hit(ts)} ({ts.n_states} states); only the {ts.expanded} expanded states were checked")
     ce = None
     if dead.size:
         i = int(dead[0])
@@ -212,7 +212,7 @@ def check(ctx) -> Result:
         fts = ctx.fsm_ts(f.name)
         if not fts.complete:
             undecided = True
-            notes.append(f"FSM {f.name}: state budget hit; non-progress cycles not decided")
+            notes.append(f"FSM {f.name}: {budget_hit(ts)}; non-progress cycles not decided")
             continue
         found = non_progress(fts)
         if found is not None:

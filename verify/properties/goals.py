@@ -28,7 +28,7 @@ from ..counterexample import path_counterexample
 from ..explore import successor_scripts
 from ..system import forward_reach, reverse_reach
 from ..treegoals import tree_goal_failures
-from .base import Result
+from .base import Result, budget_hit
 
 __all__ = ["check", "goal_failures", "tree_goal_failures", "TREE_LIMIT", "LEVELS"]
 
@@ -70,7 +70,7 @@ def _check_tree(ctx) -> Result:
     ts = ctx.model_ts()
     info = {"level": "tree", "states": ts.n_states}
     if not ts.complete or ts.n_transitions > TREE_LIMIT:
-        why = "state budget hit" if not ts.complete else f"more than {TREE_LIMIT:,} transitions to re-run"
+        why = budget_hit(ts) if not ts.complete else f"more than {TREE_LIMIT:,} transitions to re-run"
         return Result("goal-reachability", None, None,
                       [f"level tree: {why}; not decided (--goal-level open judges each FSM alone)"], info)
     fails = tree_goal_failures(ts)
@@ -100,7 +100,7 @@ def _check_open(ctx) -> Result:
                         "failing": {f.goals[g]: int(v.size) for g, v in fails.items()}}
         if not ts.complete:
             undecided = True
-            notes.append(f"FSM {f.name}: state budget hit ({ts.n_states} states); not decided")
+            notes.append(f"FSM {f.name}: {budget_hit(ts)} ({ts.n_states} states); not decided")
             continue
         for g, bad in fails.items():
             i = int(bad[0])

@@ -15,7 +15,7 @@ from __future__ import annotations
 
 from ..counterexample import path_counterexample
 from ..retarget import late_requests
-from .base import Result
+from .base import Result, budget_hit
 
 __all__ = ["check", "late_requests"]
 
@@ -29,7 +29,7 @@ def check(ctx) -> Result:
         ts = ctx.fsm_ts(f.name)
         if not ts.complete:
             undecided = True
-            notes.append(f"FSM {f.name}: state budget hit; not decided")
+            notes.append(f"FSM {f.name}: {budget_hit(ts)}; not decided")
         for i in range(ts.n_states):
             late = late_requests(model, ts.open, ts.full_state(i))
             if late:

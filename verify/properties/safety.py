@@ -15,7 +15,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..counterexample import path_counterexample
-from .base import Result, evaluate
+from .base import Result, evaluate, budget_hit
 
 __all__ = ["check_invariants", "check_contracts", "check_domain"]
 
@@ -39,7 +39,7 @@ def check_invariants(ctx) -> Result:
                 first = (int(bad[0]), name, expr)
     if first is None:
         return Result("invariants", _undecided(ts), None,
-                      notes + ([] if ts.complete else ["state budget hit: not decided"]), {"violations": counts})
+                      notes + ([] if ts.complete else [f"{budget_hit(ts)}: not decided"]), {"violations": counts})
     i, name, expr = first
     viol = {"kind": "invariant", "name": name, "text": f"invariant '{name}' ({expr}) is false here"}
     ce = path_counterexample(ts, ts.path_to(i), "invariants", f"invariant '{name}' can be broken", viol)
@@ -50,7 +50,7 @@ def check_contracts(ctx) -> Result:
     ts = ctx.model_ts()
     found = [(t, v) for t, vs in ts.violations for v in vs if v[0] in ("post", "busy")]
     if not found:
-        return Result("contracts", _undecided(ts), None, [] if ts.complete else ["state budget hit: not decided"])
+        return Result("contracts", _undecided(ts), None, [] if ts.complete else [f"{budget_hit(ts)}: not decided"])
     posts = [p for p in found if p[1][0] == "post"]
     busy = [p for p in found if p[1][0] == "busy"]
     t, v = min(found, key=lambda p: (int(ts.src[p[0]]), p[0]))
@@ -91,7 +91,7 @@ def check_domain(ctx) -> Result:
             if worst is None or d < worst[0]:
                 worst = (d, ts, e)
     if worst is None:
-        return Result("domain", None if undecided else True, None, ["state budget hit: not decided"] if undecided else [])
+        return Result("domain", None if undecided else True, None, [f"{budget_hit(ts)}: not decided"] if undecided else [])
     _, ts, e = worst
     viol = {"kind": "domain", "var": e.var, "value": e.value, "where": e.where, "text": f"the last tick fails: {e.message}"}
     ce = path_counterexample(ts, ts.path_to(e.state), "domain", f"{e.where} writes {e.var} = {e.value}, outside its domain",

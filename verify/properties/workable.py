@@ -13,7 +13,7 @@ import numpy as np
 
 from ..counterexample import path_counterexample
 from ..system import forward_reach, reverse_reach
-from .base import Result, evaluate
+from .base import Result, evaluate, budget_hit
 
 __all__ = ["check", "workable_mask", "traps"]
 
@@ -51,13 +51,13 @@ def check(ctx) -> Result:
     if bad.size == 0:
         if not ts.complete:
             return Result("workable-reachability", None, None,
-                          [what, "state budget hit: every explored state reaches a workable one, "
+                          [what, f"{budget_hit(ts)}: every explored state reaches a workable one, "
                                  "but unexplored states are not decided"], info)
         return Result("workable-reachability", True, None, [what], info)
     if not ts.complete:
         # a trap in a partial system may reach a workable state through unexplored states
         return Result("workable-reachability", None, None,
-                      [what, f"state budget hit: {bad.size} explored state(s) reach no workable state within "
+                      [what, f"{budget_hit(ts)}: {bad.size} explored state(s) reach no workable state within "
                              "the explored part; undecided"], info)
     i = int(bad[0])
     region = np.flatnonzero(forward_reach(ts, i))
