@@ -25,7 +25,8 @@ from functools import cached_property
 
 import numpy as np
 
-__all__ = ["TransitionSystem", "DomainViolation", "shortest_path", "reverse_reach", "forward_reach"]
+__all__ = ["TransitionSystem", "DomainViolation", "shortest_path", "reverse_reach", "forward_reach",
+           "strong_components", "bottom_sccs", "cyclic_states"]
 
 
 @dataclass(frozen=True)
@@ -279,3 +280,49 @@ def shortest_path(ts: TransitionSystem, start: int, goal, mask: "np.ndarray | No
                 nxt.append(j)
         frontier = nxt
     return None
+
+
+def strong_components(n: int, src, dst) -> np.ndarray:
+    """SCC label of each of the ``n`` nodes of the graph with edges ``src[k] -> dst[k]``
+    (scipy's linear-time algorithm over a CSR matrix; exact at any size)."""
+    from scipy.sparse import csr_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    src, dst = np.asarray(src, np.int64), np.asarray(dst, np.int64)
+    m = csr_matrix((np.ones(src.size, np.int8), (src, dst)), shape=(n, n))
+    return connected_components(m, directed=True, connection="strong")[1]
+
+
+def bottom_sccs(n: int, src, dst, nodes) -> list:
+    """Bottom SCCs of the sub-graph induced by ``nodes`` (edges ``src -> dst`` with both ends
+    in ``nodes``): sorted lists of node indices, ordered by their lowest node."""
+    nodes = np.unique(np.asarray(nodes, np.int64))
+    if nodes.size == 0:
+        return []
+    src, dst = np.asarray(src, np.int64), np.asarray(dst, np.int64)
+    inside = np.zeros(n, bool)
+    inside[nodes] = True
+    keep = inside[src] & inside[dst]
+    pos = np.full(n, -1, np.int64)
+    pos[nodes] = np.arange(nodes.size)
+    s, d = pos[src[keep]], pos[dst[keep]]
+    lab = strong_components(nodes.size, s, d)
+    leaves = np.ones(int(lab.max()) + 1, bool)
+    leaves[lab[s][lab[s] != lab[d]]] = False
+    order = np.argsort(lab, kind="stable")  # nodes ascending within each label
+    groups = np.split(nodes[order], np.flatnonzero(np.diff(lab[order])) + 1)
+    out = [g.tolist() for g in groups if leaves[lab[pos[g[0]]]]]
+    return sorted(out, key=lambda scc: scc[0])
+
+
+def cyclic_states(n: int, src, dst) -> np.ndarray:
+    """Sorted nodes lying on a cycle of the graph with edges ``src -> dst``: members of an
+    SCC with more than one node, or with a self-loop."""
+    src, dst = np.asarray(src, np.int64), np.asarray(dst, np.int64)
+    if src.size == 0:
+        return np.zeros(0, np.int64)
+    lab = strong_components(n, src, dst)
+    size = np.bincount(lab)
+    on = size[lab] > 1
+    on[src[src == dst]] = True
+    return np.flatnonzero(on)

@@ -25,13 +25,12 @@ from btfsm.status import Status
 
 from ..counterexample import path_counterexample
 from ..explore import EnumOracle
-from ..system import shortest_path
+from ..system import cyclic_states, shortest_path
 from .base import Result, evaluate, budget_hit
 
 __all__ = ["check", "dead_states", "terminal_mask", "non_progress", "progress_mask", "sink_states", "reachable_sinks"]
 
 RUNNING = int(Status.RUNNING)
-_SCC_LIMIT = 500_000
 
 
 def terminal_mask(ts) -> np.ndarray:
@@ -112,41 +111,10 @@ def non_progress(ts) -> "tuple | None":
 
 
 def _cycle_states(ts, sub) -> np.ndarray:
-    """States lying on a cycle of the transitions selected by ``sub``, in BFS order."""
-    import networkx as nx
-
+    """States lying on a cycle of the transitions selected by ``sub``, in BFS order;
+    exact at any size (scipy strong components)."""
     t = np.flatnonzero(sub)
-    s, d = ts.src[t], ts.dst[t]
-    self_loops = np.unique(s[s == d])
-    # peel states with no way forward (they cannot be on a cycle)
-    n = ts.n_states
-    out = np.bincount(s, minlength=n)
-    order = np.argsort(d, kind="stable")
-    d_sorted, s_by_d = d[order], s[order]
-    offs = np.searchsorted(d_sorted, np.arange(n + 1))
-    stack = [i for i in np.unique(np.concatenate((s, d))).tolist() if out[i] == 0]
-    alive = np.zeros(n, bool)
-    alive[s] = True
-    alive[d] = True
-    while stack:
-        j = stack.pop()
-        if not alive[j]:
-            continue
-        alive[j] = False
-        for k in range(int(offs[j]), int(offs[j + 1])):
-            i = int(s_by_d[k])
-            out[i] -= 1
-            if out[i] == 0 and alive[i]:
-                stack.append(i)
-    keep = alive[s] & alive[d]
-    if not keep.any():
-        return self_loops
-    if int(alive.sum()) > _SCC_LIMIT:  # too big for networkx: every survivor leads to a cycle
-        return np.flatnonzero(alive)
-    g = nx.DiGraph()
-    g.add_edges_from(zip(s[keep].tolist(), d[keep].tolist()))
-    members = [x for comp in nx.strongly_connected_components(g) if len(comp) > 1 for x in comp]
-    return np.unique(np.concatenate((np.asarray(members, np.int64), self_loops)))
+    return cyclic_states(ts.n_states, ts.src[t], ts.dst[t])
 
 
 def _shortest_cycle(ts, c, sub) -> list:

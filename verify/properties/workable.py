@@ -12,12 +12,11 @@ from __future__ import annotations
 import numpy as np
 
 from ..counterexample import path_counterexample
-from ..system import forward_reach, reverse_reach
+from ..system import bottom_sccs, forward_reach, reverse_reach
 from .base import Result, evaluate, budget_hit
 
 __all__ = ["check", "workable_mask", "traps"]
 
-_SCC_LIMIT = 20_000
 _SHOW = 8
 
 
@@ -78,24 +77,9 @@ def check(ctx) -> Result:
 
 
 def _bottom_sccs(ts, region) -> list:
-    """Bottom SCCs of the sub-graph on ``region`` (lists of state indices), nearest first.
-    For big regions only the states without a way out of their own SCC are not computed:
-    the region itself is returned."""
-    if region.size > _SCC_LIMIT:
-        return [region.tolist()]
-    import networkx as nx
-
-    inside = np.zeros(ts.n_states, bool)
-    inside[region] = True
-    g = nx.DiGraph()
-    g.add_nodes_from(region.tolist())
-    for i in region.tolist():
-        for j in ts.successors(i).tolist():
-            if inside[j]:
-                g.add_edge(i, j)
-    cond = nx.condensation(g)
-    out = [sorted(cond.nodes[c]["members"]) for c in cond.nodes if cond.out_degree(c) == 0]
-    return sorted(out, key=lambda scc: scc[0])
+    """Bottom SCCs of the sub-graph on ``region`` (lists of state indices), nearest first;
+    exact at any size (scipy strong components)."""
+    return bottom_sccs(ts.n_states, ts.src, ts.dst, region)
 
 
 def _decoded(prog, state) -> dict:
