@@ -53,8 +53,6 @@ def cli_experiment(args) -> int:
 
     ks = select_ks(args.k, args.trials)
     variants = tuple(dict.fromkeys(args.variant)) if args.variant else VARIANTS
-    if args.workers < 1:
-        raise UsageError("--workers must be at least 1")
     time_limit = getattr(args, "time", 1500.0)
     specs = trial_specs(ks, variants, time_limit=time_limit)
     ensure_output_dir(args.out)

@@ -615,16 +615,8 @@ def cli_skills(args) -> int:
     not, 3 when a budget was hit."""
     import sys
 
-    from btfsm.cli import UsageError
-
-    if args.max_states is not None and args.max_states < 1:
-        raise UsageError("--max-states must be at least 1")
-    max_transitions = getattr(args, "max_transitions", None)
+    max_transitions = getattr(args, "max_transitions", None)  # ranges checked by the parser (btfsm.cli)
     max_seconds = getattr(args, "max_seconds", None)
-    if max_transitions is not None and max_transitions < 1:
-        raise UsageError("--max-transitions must be at least 1")
-    if max_seconds is not None and not (0 < max_seconds < float("inf")):
-        raise UsageError("--max-seconds must be a positive finite number")
     model = _load(args.model)
     if model.tree is None:
         raise ModelError("tree", f"{model.name} has no tree: there are no skill requests to derive from")
