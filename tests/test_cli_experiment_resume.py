@@ -99,7 +99,10 @@ def test_real_ctrl_c_with_workers_then_resume(tmp_path):
     proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
         deadline = time.time() + 120
-        while time.time() < deadline and not (tmp_path / "trials").is_dir():
+        trials = tmp_path / "trials"
+        # wait for a finished trial file: the folder (and a temporary) appear before it
+        while time.time() < deadline and not (trials.is_dir() and any(
+                p.suffix == ".json" and not p.name.startswith(".") for p in trials.iterdir())):
             time.sleep(0.02)
         proc.send_signal(signal.SIGINT)
         out, err = proc.communicate(timeout=60)
