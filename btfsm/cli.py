@@ -43,6 +43,7 @@ import sys
 from contextlib import contextmanager
 
 from .errors import ConformanceError, DomainError, ModelError, Terminated, UsageError
+from .profiles import SEMANTICS
 from .validators import (finite_float, input_file, input_text, int_range, output_dir, output_file, probability,
                          seed_int)
 
@@ -118,6 +119,9 @@ def build_parser() -> argparse.ArgumentParser:
 
 def _args_model(sp):
     sp.add_argument("model", type=input_file, help="model file (.yaml/.json) or built-in model name")
+    sp.add_argument("--semantics", choices=SEMANTICS, default=None,
+                    help="tick rules of this engine instead of the model's own (btfsm, btcpp: BehaviorTree.CPP 4, "
+                         "pytrees: py_trees 2.6; see docs/semantics.md section 8)")
 
 
 def _args_json(sp, what="the result"):
@@ -444,11 +448,11 @@ def _main(argv) -> int:
 def cli_validate(args) -> int:
     """``btfsm validate MODEL [--strict] [--json]``: the text report is ``btfsm.files.cli_validate``."""
     from .files import cli_validate as validate_text
-    from .files import load_model
+    from .files import load_cli_model
 
     if not getattr(args, "json", False):
         return validate_text(args)
-    model = load_model(args.model)
+    model = load_cli_model(args)
     warnings = [{"element": element, "text": text} for element, text in
                 list(model.warnings) + list(model.program.lints)]
     print(json.dumps({"file": args.model, "model": model.name, "ok": True,
@@ -464,12 +468,12 @@ def cli_run(args) -> int:
     one line on stderr, exit 1; the trace holds every tick up to it (the violating tick
     itself when it completed, as a contract violation does)."""
     from .errors import ConformanceError, DomainError
-    from .files import load_model
+    from .files import load_cli_model
     from .formats import printable
     from .oracles import RandomOracle
     from .runtime import Runtime
 
-    model = load_model(args.model)
+    model = load_cli_model(args)
     if args.ticks < 0:
         raise UsageError("--ticks must be >= 0")
     if args.trace:
@@ -573,11 +577,11 @@ def cli_replay(args) -> int:
     """Replay a trace (JSON Lines) or a counterexample (``.json``): exit 0 when it
     reproduces, 1 when the model does something else, 2 when the file is not a valid
     trace or counterexample (one line naming the file, the line or JSON path, the problem)."""
-    from .files import load_model
+    from .files import load_cli_model
     from .formats import FormatError, printable
     from .trace import replay
 
-    model = load_model(args.model)
+    model = load_cli_model(args)
     if str(args.trace).endswith(".json"):
         from btfsm.verify.counterexample import load_counterexample, replay_counterexample
 

@@ -25,6 +25,7 @@ True
 from __future__ import annotations
 
 import copy
+import dataclasses
 import difflib
 import importlib
 import json
@@ -42,6 +43,7 @@ from .expr import Const, Expr, as_expr, to_text
 from .fsm import FSM, Edge, Marker, State
 from .model import EnvChoice, EnvEvent, Model
 from .primitives import Outcome, Primitive
+from .profiles import DEFAULT_SEMANTICS, PROFILES
 from .status import Status
 from .world import Bool, Enum, Int, Var
 
@@ -753,7 +755,7 @@ _NODE_REQUIRED = {"Guard": ("condition", "child"), "Condition": ("expr",), "Skil
                   "Inverter": ("child",), "ForceSuccess": ("child",), "ForceFailure": ("child",),
                   "Retry": ("child",), "Repeat": ("child",), "Effects": ("child",)}
 TRIGGER_KEYS = ("when", "on", True)  # "on" and True (YAML 1.1's reading of on:) are older spellings
-TOP_FIELDS = ("name", "description", "tick_rate", "variables", "primitives", "fsms", "tree",
+TOP_FIELDS = ("name", "description", "semantics", "tick_rate", "variables", "primitives", "fsms", "tree",
               "environment", "invariants", "workable", "terminal")
 FSM_FIELDS = ("goals", "states", "initial", "edges", "markers", "params", "retarget", "withdraw_goal", "terminal")
 
@@ -1163,6 +1165,11 @@ class _Reader:
         kw = {"name": self.string(data["name"], "name", data, "name", "a model name")}
         if "description" in data:
             kw["description"] = self.string(data["description"], "description", data, "description")
+        if "semantics" in data:
+            sem = data["semantics"]
+            if not isinstance(sem, str) or sem not in PROFILES:
+                raise self.fail("semantics", f"expected one of {', '.join(PROFILES)}, got {sem!r}", data, "semantics")
+            kw["semantics"] = sem
         if "tick_rate" in data:
             r = data["tick_rate"]
             if isinstance(r, bool) or not isinstance(r, (int, float)) or not math.isfinite(r):
@@ -1221,11 +1228,30 @@ def builtin_models() -> dict:
     return dict(BUILTIN)
 
 
-def load_model(ref, *, file_name: "str | None" = None) -> Model:
+def load_model(ref, *, file_name: "str | None" = None, semantics: "str | None" = None) -> Model:
     """A Model from a file (.yaml/.yml/.json) or a built-in name (``builtin_models()``).
+
+    ``semantics`` (a ``btfsm.profiles`` name) overrides the profile the model names.
 
     Built-in entries are ``module:function`` (a shipped function returning a Model) or a
     file path relative to the ``models`` package; user input never names a module."""
+    model = _load_model(ref, file_name)
+    if semantics is None or semantics == model.semantics:
+        return model
+    if semantics not in PROFILES:
+        raise _err("semantics", f"unknown semantics {semantics!r} (one of: {', '.join(PROFILES)})", model.source)
+    try:
+        return _with_source(dataclasses.replace(model, semantics=semantics), model.source)
+    except ModelError as exc:
+        raise (exc if exc.file else exc.at(file=model.source)) from None
+
+
+def load_cli_model(args) -> Model:
+    """The model a command's arguments name: ``args.model``, under ``args.semantics`` when given."""
+    return load_model(args.model, semantics=getattr(args, "semantics", None))
+
+
+def _load_model(ref, file_name) -> Model:
     text = os.fspath(ref) if isinstance(ref, os.PathLike) else ref
     if not isinstance(text, str) or not text:
         raise _err("", f"expected a model file or a built-in model name, got {text!r}")
@@ -1447,6 +1473,8 @@ def model_to_data(model: Model) -> dict:
     out: dict = {"name": model.name}
     if model.description:
         out["description"] = model.description
+    if model.semantics != DEFAULT_SEMANTICS:
+        out["semantics"] = model.semantics
     if model.tick_rate != 10.0:
         out["tick_rate"] = model.tick_rate
     if model.variables:
@@ -1492,7 +1520,7 @@ def dump_model(model: Model, path_or_stream, fmt: "str | None" = None) -> None:
 
 def cli_validate(args) -> int:
     """``btfsm validate FILE [--strict]``: load, summarise, list warnings and lints."""
-    model = load_model(args.model)
+    model = load_cli_model(args)
     states = sum(len(f.states) for f in model.fsms)
     nodes = len(model.nodes())
     print(f"{args.model}: ok ({_count(len(model.variables), 'variable')}, {_count(len(model.fsms), 'FSM')} "

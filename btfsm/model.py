@@ -23,6 +23,7 @@ from .bt import Action, Node, SkillRequest, walk
 from .errors import ModelError
 from .expr import Expr, as_expr
 from .fsm import FSM
+from .profiles import PROFILES
 from .primitives import PASS, Primitive, effects_of
 from .world import Var, check_label, check_name, check_text
 
@@ -62,6 +63,7 @@ class Model:
     ``workable``: the predicate of states from which work can go on (default: every FSM
     token on its initial state). ``invariants``: ``(name, expr)`` that must hold in every
     reachable state. ``terminal``: states where stopping is intended. ``tick_rate`` in Hz.
+    ``semantics``: the engine whose tick rules apply (``btfsm.profiles``: btfsm, btcpp, pytrees).
     """
 
     name: str
@@ -75,6 +77,7 @@ class Model:
     terminal: "Expr | None" = None
     tick_rate: float = 10.0
     description: str = ""
+    semantics: str = "btfsm"
     warnings: tuple = field(default=(), compare=False, repr=False)
 
     def __post_init__(self):
@@ -147,6 +150,8 @@ class Model:
             raise ModelError("name", "a model needs a non-empty name")
         check_label(self.name, "name", "model name")
         check_text(self.description, "description", "the description")
+        if self.semantics not in PROFILES:
+            raise ModelError("semantics", f"unknown semantics {self.semantics!r} (one of: {', '.join(PROFILES)})")
         names = set()
         for i, var in enumerate(self.variables):
             if not isinstance(var, Var):

@@ -24,6 +24,7 @@ from .bt import (Action, Condition, Effects, ForceFailure, ForceSuccess, Guard, 
                  ReactiveSequence, Repeat, Retry, SkillRequest)
 from .errors import ModelError
 from .expr import BOOL, Scope, Slot, Type, compile_effects, compile_fn
+from .profiles import profile
 from .status import Status
 
 __all__ = ["Program", "Site", "Step", "SlotInfo"]
@@ -100,6 +101,7 @@ class Program:
 
     def __init__(self, model):
         self.model = model
+        self.profile = profile(model.semantics)  # the rule switches (btfsm.profiles)
         self._initial: list = []
         self.slots: list[SlotInfo] = []
         self.sites: list[Site] = []
@@ -642,7 +644,7 @@ class Program:
 
     def _conflicts(self, info):
         """Halt-before-start: branches to halt before this leaf starts (rule 'halt order')."""
-        if not info.can_run:
+        if not info.can_run or not self.profile.halt_before_start:
             return ()
         out, seen = [], set()
         for other in self.nodes.values():

@@ -250,12 +250,12 @@ def cli_show(args) -> int:
     ``--output`` ending in ``.dot``, ``.svg`` or ``.png`` is one file (it must match
     ``--format`` and the pictures must be one); any other name is a folder, created if
     missing, with one ``NAME.FORMAT`` file per picture. Files are written atomically."""
-    from .files import load_model
+    from .files import load_cli_model
 
     fmt, output = args.format, args.output
     if fmt != "dot" and shutil.which("dot") is None:
         render("", fmt)  # raises GraphvizError with the explanation
-    model = load_model(args.model)
+    model = load_cli_model(args)
     pics = pictures(model, args.what)
     if output is None:
         if fmt == "dot":

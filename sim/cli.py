@@ -93,14 +93,14 @@ def _ks_text(ks) -> str:
 
 
 def cli_sim(args) -> int:
-    from btfsm.files import load_model
+    from btfsm.files import load_cli_model
     from btfsm.outputs import atomic_path
 
     from .experiment import TrialSpec
     from .render import Recorder, render_png
     from .trial import run_trial
 
-    model = load_model(args.model)
+    model = load_cli_model(args)
     variant = variant_of(model)
     if not 1 <= args.k <= 40:
         raise UsageError("--k must be in 1..40")
@@ -142,11 +142,11 @@ def cli_sim(args) -> int:
 
 
 def cli_conform(args) -> int:
-    from btfsm.files import load_model
+    from btfsm.files import load_cli_model
 
     from .conformance import PathMonitor, random_scenarios, run_scenario
 
-    model = load_model(args.model)
+    model = load_cli_model(args)
     variant = variant_of(model)
     monitor = None
     if not args.no_path:

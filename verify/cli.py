@@ -33,7 +33,7 @@ def cli_check(args) -> int:
     max_transitions, max_seconds = _budgets(args, DEFAULT_MAX_TRANSITIONS)
     from btfsm.progress import ExplorationProgress
 
-    model = _load(args.model)
+    model = _load(args)
     progress = ExplorationProgress()
     try:
         report = check(model, props or None, max_states=max_states, max_transitions=max_transitions,
@@ -75,14 +75,14 @@ def _plain(x):
     return str(x)
 
 
-def _load(ref):
+def _load(args):
     from btfsm.errors import UsageError
-    from btfsm.files import load_model
+    from btfsm.files import load_cli_model
 
     try:
-        return load_model(ref)
+        return load_cli_model(args)
     except OSError as exc:
-        raise UsageError(f"{ref}: {exc.strerror or exc}") from None
+        raise UsageError(f"{args.model}: {exc.strerror or exc}") from None
 
 
 def _write_counterexamples(report, folder) -> list:
@@ -103,7 +103,7 @@ def _write_counterexamples(report, folder) -> list:
 def cli_export(args) -> int:
     from btfsm.errors import UsageError
 
-    model = _load(args.model)
+    model = _load(args)
     if args.fsm is not None and args.fsm not in [f.name for f in model.fsms]:
         raise UsageError(f"{args.model}: --fsm: no FSM named '{args.fsm}' in {model.name} (have: {', '.join(f.name for f in model.fsms) or 'none'})")
     from .export import export  # written separately (verify/export.py)

@@ -29,6 +29,7 @@ class Report:
     results: list
     systems: list = field(default_factory=list)
     seconds: float = 0.0
+    semantics: str = "btfsm"
 
     @property
     def complete(self) -> bool:
@@ -53,7 +54,7 @@ class Report:
         raise KeyError(name)
 
     def to_json(self) -> dict:
-        return {"model": self.model, "states": self.states, "transitions": self.transitions,
+        return {"model": self.model, "semantics": self.semantics, "states": self.states, "transitions": self.transitions,
                 "seconds": round(self.seconds, 6), "complete": self.complete, "systems": self.systems,
                 "properties": [r.to_json() for r in self.results]}
 
@@ -63,7 +64,8 @@ class Report:
         properties) are summed up in one line; ``verbose`` lists them all, ``quiet``
         leaves out lints and information entirely."""
         explored = "; ".join(_system_text(s) for s in self.systems) or "nothing to explore"
-        lines = [f"model {self.model}: {explored} ({self.seconds:.2f} s)"]
+        under = "" if self.semantics == "btfsm" else f" under {self.semantics} semantics"
+        lines = [f"model {self.model}{under}: {explored} ({self.seconds:.2f} s)"]
         if not self.complete:
             hit = sorted({describe_hit(s.get("budget")) or "a budget" for s in self.systems if not s["complete"]})
             lines.append(f"INCOMPLETE: the {' and the '.join(hit)} was hit; undecided properties say so")
@@ -164,4 +166,4 @@ def check(model, properties=None, *, max_states: "int | None" = DEFAULT_MAX_STAT
     systems = [{"kind": ts.kind, "fsm": ts.fsm, "states": ts.n_states, "transitions": ts.n_transitions,
                 "complete": ts.complete, "seconds": round(ts.seconds, 6),
                 **({} if ts.complete else {"budget": ts.stopped})} for ts in ctx.systems]
-    return Report(model.name, results, systems, time.perf_counter() - t0)
+    return Report(model.name, results, systems, time.perf_counter() - t0, model.semantics)

@@ -599,14 +599,10 @@ def to_json(d: Derivation, support: "list | None" = None) -> dict:
 
 
 # --------------------------------------------------------------------------- CLI
-def _load(ref):
-    try:
-        from btfsm.files import load_model
-    except ImportError:  # the file loader is optional here: built-in names still work
-        from btfsm.models.registry import load_builtin
+def _load(args):
+    from btfsm.files import load_cli_model
 
-        return load_builtin(ref)
-    return load_model(ref)
+    return load_cli_model(args)
 
 
 def cli_skills(args) -> int:
@@ -617,7 +613,7 @@ def cli_skills(args) -> int:
 
     max_transitions = getattr(args, "max_transitions", None)  # ranges checked by the parser (btfsm.cli)
     max_seconds = getattr(args, "max_seconds", None)
-    model = _load(args.model)
+    model = _load(args)
     if model.tree is None:
         raise ModelError("tree", f"{model.name} has no tree: there are no skill requests to derive from")
     from btfsm.progress import ExplorationProgress
