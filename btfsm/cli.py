@@ -91,12 +91,13 @@ COMMANDS = {
     "sim": ("btfsm.sim.cli:cli_sim", "run a model in the pymunk kitting cell"),
     "experiment": ("btfsm.sim.cli:cli_experiment", "reproduce the paper's ARIAC experiment"),
     "conform": ("btfsm.sim.cli:cli_conform", "run scenarios and check runtime conformance"),
+    "import": ("btfsm.cli:cli_import", "read a BehaviorTree.CPP XML v4 tree (+ side file); write a btfsm model file"),
 }
 
 #: Per command: the argument names that are output paths (checked against the inputs).
 OUTPUTS = {"show": ("output",), "run": ("trace",), "replay": ("render", "gif"), "check": ("counterexample_dir",),
-           "export": ("output",), "sim": ("render", "gif"), "experiment": ("out",)}
-INPUTS = {"replay": ("trace", "model")}
+           "export": ("output",), "sim": ("render", "gif"), "experiment": ("out",), "import": ("output",)}
+INPUTS = {"replay": ("trace", "model"), "import": ("model", "leaves")}
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -252,9 +253,20 @@ def _args_conform(sp):
     _args_json(sp, "the scenarios and the verdict")
 
 
+def _args_import(sp):
+    sp.add_argument("model", metavar="tree.xml", type=input_file, help="BehaviorTree.CPP XML v4 file")
+    sp.add_argument("--leaves", type=input_file, default=None,
+                    help="side file (a partial btfsm model file: variables, primitives, nodes, fsms, environment, "
+                         "...; default: STEM.btfsm.yaml beside the XML when it exists)")
+    sp.add_argument("--semantics", choices=SEMANTICS, default=None,
+                    help="profile written into the model (default: the side file's, else btcpp)")
+    sp.add_argument("--output", "-o", type=input_text, default=None,
+                    help="model file to write (.yaml, .yml or .json; default: YAML on stdout)")
+
+
 _ARGS = {"validate": _args_validate, "show": _args_show, "run": _args_run, "replay": _args_replay,
          "check": _args_check, "export": _args_export, "skills": _args_skills,
-         "experiment": _args_experiment, "sim": _args_sim, "conform": _args_conform}
+         "experiment": _args_experiment, "sim": _args_sim, "conform": _args_conform, "import": _args_import}
 
 
 def _refuse_input_as_output(args) -> None:
@@ -460,6 +472,41 @@ def cli_validate(args) -> int:
                       "states": sum(len(f.states) for f in model.fsms), "tree_nodes": len(model.nodes()),
                       "warnings": warnings}))
     return 1 if warnings and args.strict else 0
+
+
+def cli_import(args) -> int:
+    """``btfsm import tree.xml [--leaves side.yaml] [-o model.yaml]``: the equivalent btfsm model file."""
+    import dataclasses
+    from pathlib import Path
+
+    from .files import FORMATS, dumps_model, load_xml_model
+    from .interop.btcpp_import import side_file_for
+    from .outputs import atomic_write_text
+
+    fmt = "yaml"
+    if args.output is not None:
+        fmt = FORMATS.get(Path(args.output).suffix.lower(), "")
+        if not fmt:
+            raise UsageError(f"--output {args.output}: a model file ends in .yaml, .yml or .json")
+        side = args.leaves if args.leaves is not None else side_file_for(args.model)
+        for inp in (args.model, side):
+            try:
+                same = inp is not None and os.path.exists(args.output) and os.path.samefile(args.output, inp)
+            except OSError:
+                same = False
+            if same:
+                raise UsageError(f"--output {args.output}: is the input file {inp}; refusing to overwrite it")
+    model = load_xml_model(args.model, leaves=args.leaves)
+    if args.semantics is not None and args.semantics != model.semantics:
+        model = dataclasses.replace(model, semantics=args.semantics)
+    text = dumps_model(model, fmt)
+    for element, warning in model.warnings:
+        print(f"warning: {element}: {warning}".replace("\n", " "), file=sys.stderr)
+    if args.output is None:
+        sys.stdout.write(text)
+    else:
+        atomic_write_text(args.output, text)
+    return 0
 
 
 def cli_run(args) -> int:

@@ -50,7 +50,7 @@ from .world import Bool, Enum, Int, Var
 __all__ = [
     "FORMATS", "load_model", "loads_model", "load_data", "loads_data", "expand_templates",
     "model_from_data", "model_to_data", "dump_model", "dumps_model", "builtin_models",
-    "format_of", "cli_validate", "read_model_bytes", "MAX_FILE_BYTES", "MAX_NODES",
+    "format_of", "cli_validate", "read_model_bytes", "MAX_FILE_BYTES", "MAX_NODES", "load_xml_model",
 ]
 
 FORMATS = {".yaml": "yaml", ".yml": "yaml", ".json": "json"}
@@ -1241,7 +1241,9 @@ def load_model(ref, *, file_name: "str | None" = None, semantics: "str | None" =
     if semantics not in PROFILES:
         raise _err("semantics", f"unknown semantics {semantics!r} (one of: {', '.join(PROFILES)})", model.source)
     try:
-        return _with_source(dataclasses.replace(model, semantics=semantics), model.source)
+        new = dataclasses.replace(model, semantics=semantics)
+        object.__setattr__(new, "warnings", new.warnings + tuple(w for w in model.warnings if w not in new.warnings))
+        return _with_source(new, model.source)
     except ModelError as exc:
         raise (exc if exc.file else exc.at(file=model.source)) from None
 
@@ -1259,12 +1261,33 @@ def _load_model(ref, file_name) -> Model:
     registry = {} if suffix in FORMATS or os.sep in text or "/" in text else builtin_models()
     if text in registry:
         return _with_source(_load_builtin(text, registry[text], file_name), file_name or text)
+    if suffix == ".xml":
+        return _with_source(load_xml_model(text, file_name=file_name), file_name or text)
     if suffix in FORMATS or os.path.exists(text):
         if os.path.isdir(text):
             raise _err("", "is a folder, not a model file", file_name or text)
         return _with_source(model_from_data(load_data(text, file_name=file_name), file_name or text), file_name or text)
     names = ", ".join(sorted(builtin_models())) or "none installed"
-    raise _err("", f"no such file or built-in model '{text}' (model files end in .yaml, .yml or .json; built-in models: {names})")
+    raise _err("", f"no such file or built-in model '{text}' (model files end in .yaml, .yml, .json or .xml; built-in models: {names})")
+
+
+def load_xml_model(path, *, leaves=None, file_name: "str | None" = None) -> Model:
+    """A Model from a BehaviorTree.CPP XML v4 file and its side file (``leaves``, or
+    ``STEM.btfsm.yaml`` beside the XML when found): ``btfsm.interop.btcpp_import``."""
+    from .interop.btcpp_import import side_file_for, xml_to_data
+
+    shown = file_name or os.fspath(path)
+    xml = read_model_bytes(path, shown)
+    side_path = leaves if leaves is not None else side_file_for(path)
+    side_name = None if side_path is None else os.fspath(side_path)
+    side = {} if side_path is None else load_data(side_path)
+    result = xml_to_data(xml, shown, side, side_name)
+    try:
+        model = model_from_data(result.data, side_name or shown)
+    except ModelError as exc:
+        raise result.locate(exc, shown) from None
+    object.__setattr__(model, "warnings", model.warnings + tuple(result.warnings))
+    return model
 
 
 def _with_source(model: Model, shown: str) -> Model:

@@ -1,0 +1,678 @@
+"""BehaviorTree.CPP XML v4 in: an XML tree (plus an optional side file) as btfsm model data.
+
+``xml_to_data(xml_bytes, xml_name, side, side_name)`` reads a BehaviorTree.CPP 4 XML
+document (``<root BTCPP_format="4">``, one or more ``<BehaviorTree ID>``, ``SubTree``
+with port remapping, ``TreeNodesModel``) and returns an ``XmlImport``: the data of a btfsm
+model file (the dict ``btfsm.files.model_from_data`` reads), the model warnings the import
+makes, and the XML line of every tree element (to put line numbers on later errors).
+``btfsm.files.load_xml_model`` is the loader every command uses for ``.xml`` files.
+
+The side file is a partial btfsm model file (``variables``, ``primitives``, ``fsms``,
+``environment``, ``invariants``, ``resources``, ``semantics``...) plus two keys of its
+own: ``nodes`` (how one XML node, by name or ID, is modelled) and ``main_tree``. The
+conventions are in docs/model-files.md, section "BehaviorTree.CPP XML models".
+
+XML is read with expat, without any DTD: a DOCTYPE, an entity declaration or an external
+entity is refused, so no entity expansion ("billion laughs") or external file can happen.
+
+>>> r = xml_to_data(b'<root BTCPP_format="4"><BehaviorTree ID="T"><Sequence>'
+...                 b'<Ok/><AlwaysSuccess/></Sequence></BehaviorTree></root>', "t.xml", {"primitives": {"Ok": ["success"]}})
+>>> r.data["tree"]["MemorySequence"], [c.get("Action") for c in r.data["tree"]["children"]]
+('Sequence', ['Ok', 'AlwaysSuccess'])
+>>> r.data["semantics"], r.warnings
+('btcpp', [])
+"""
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass, field
+from pathlib import Path
+from xml.parsers import expat
+
+from ..bt import NODE_TYPES
+from ..errors import ModelError
+from ..expr import as_expr, names_in
+
+__all__ = ["XmlImport", "xml_to_data", "side_file_for", "parse_xml", "CONTROLS", "DECORATORS", "REFUSED",
+           "MAX_ELEMENTS", "MAX_DEPTH", "MAX_INLINED", "SIDE_KEYS"]
+
+MAX_ELEMENTS = 200_000  # elements in one XML document
+MAX_DEPTH = 100  # nesting of XML elements
+MAX_INLINED = 100_000  # tree nodes after SubTrees are inlined (a SubTree "bomb" stops here)
+MAX_OUTCOMES = 64  # outcomes an undeclared leaf gets for the values its output ports may write
+
+#: BT.CPP control tag -> (btfsm type key, {XML attribute: (btfsm field, default)}).
+CONTROLS = {
+    "Sequence": ("MemorySequence", {}),
+    "SequenceWithMemory": ("SequenceWithMemory", {}),
+    "ReactiveSequence": ("ReactiveSequence", {}),
+    "Fallback": ("MemoryFallback", {}),
+    "ReactiveFallback": ("ReactiveFallback", {}),
+    "Parallel": ("Parallel", {"success_count": ("success_threshold", -1), "failure_count": ("failure_threshold", 1)}),
+    "ParallelAll": ("ParallelAll", {"max_failures": ("max_failures", 1)}),
+    "IfThenElse": ("IfThenElse", {}),
+    "WhileDoElse": ("WhileDoElse", {}),
+}
+#: BT.CPP decorator tag -> (btfsm type key, {XML attribute: (btfsm field, default)}).
+DECORATORS = {
+    "Inverter": ("Inverter", {}),
+    "ForceSuccess": ("ForceSuccess", {}),
+    "ForceFailure": ("ForceFailure", {}),
+    "RetryUntilSuccessful": ("Retry", {"num_attempts": ("attempts", None)}),
+    "Repeat": ("Repeat", {"num_cycles": ("times", None)}),
+    "KeepRunningUntilFailure": ("KeepRunningUntilFailure", {}),
+    "RunOnce": ("RunOnce", {"then_skip": ("then_skip", True)}),
+}
+#: BT.CPP built-in leaves with fixed outcomes.
+BUILTIN_LEAVES = {"AlwaysSuccess": ["success"], "AlwaysFailure": ["failure"]}
+#: BT.CPP nodes btfsm does not model, and why (an error unless the side file abstracts them).
+REFUSED = {
+    "Script": "runs script code on the blackboard",
+    "ScriptCondition": "evaluates script code on the blackboard",
+    "SetBlackboard": "writes the blackboard from the XML",
+    "UnsetBlackboard": "erases a blackboard entry",
+    "Precondition": "evaluates a script before its child",
+    "Sleep": "waits for wall-clock time",
+    "Delay": "waits for wall-clock time before its child",
+    "Timeout": "fails its child after wall-clock time",
+    "Switch2": "switches on a blackboard value", "Switch3": "switches on a blackboard value",
+    "Switch4": "switches on a blackboard value", "Switch5": "switches on a blackboard value",
+    "Switch6": "switches on a blackboard value",
+    "LoopInt": "loops over a blackboard queue", "LoopDouble": "loops over a blackboard queue",
+    "LoopString": "loops over a blackboard queue", "LoopBool": "loops over a blackboard queue",
+    "WasEntryUpdated": "reads blackboard sequence ids", "SkipUnlessUpdated": "reads blackboard sequence ids",
+    "WaitValueUpdate": "reads blackboard sequence ids", "EntryUpdated": "reads blackboard sequence ids",
+    "ManualSelector": "asks a human", "PopFromQueue": "pops a blackboard queue", "QueueSize": "reads a blackboard queue",
+    "ReactiveSequenceWithMemory": "is not a BehaviorTree.CPP 4 node",
+}
+#: Script attributes (pre- and post-conditions) that every BT.CPP 4 node may carry.
+SCRIPT_ATTRS = ("_skipIf", "_successIf", "_failureIf", "_while", "_onSuccess", "_onFailure", "_onHalted", "_post")
+#: Attributes that are documentation only (Groot2 writes them).
+DOC_ATTRS = ("_description", "_uid", "_fullpath")
+#: Side-file keys the importer itself reads (every other key is passed to the model).
+SIDE_KEYS = ("nodes", "main_tree")
+_PORT_TAGS = ("input_port", "output_port", "inout_port")
+_MODEL_KINDS = ("Action", "Condition", "Control", "Decorator", "SubTree")
+_IDENT = re.compile(r"[A-Za-z_][A-Za-z0-9_]*\Z")
+_REF = re.compile(r"\{(@?)([^{}]*)\}\Z")
+_BOOL_TYPES = ("bool",)
+_SKILL = re.compile(r"btfsm SkillRequest: fsm (?P<fsm>[^,]+), goal (?P<goal>.+?)(?:, params (?P<params>.*))?\Z", re.S)
+
+
+# ============================================================================ XML reading
+
+
+@dataclass
+class El:
+    """One XML element: tag, attributes (in document order), line, children, text."""
+    tag: str
+    attrs: dict
+    line: int
+    children: list = field(default_factory=list)
+    text: str = ""
+
+    def where(self) -> str:
+        return f"line {self.line}: <{self.tag}>"
+
+
+class _Stop(Exception):
+    def __init__(self, line, problem):
+        super().__init__(problem)
+        self.line, self.problem = line, problem
+
+
+def parse_xml(data: bytes, file: str) -> El:
+    """The root element of an XML document, without any DTD (a DOCTYPE, entity declaration
+    or external entity is a ModelError), at most ``MAX_ELEMENTS`` elements ``MAX_DEPTH`` deep.
+
+    >>> parse_xml(b'<root><a x="1"/></root>', "f").children[0].attrs
+    {'x': '1'}
+    >>> parse_xml(b'<!DOCTYPE r [<!ENTITY a "b">]><r/>', "f.xml")
+    Traceback (most recent call last):
+    btfsm.errors.ModelError: f.xml: line 1: a DOCTYPE (DTD) is refused: DTDs and entities are not read
+    """
+    p = expat.ParserCreate()
+    p.SetParamEntityParsing(expat.XML_PARAM_ENTITY_PARSING_NEVER)
+    stack: list = []
+    top: list = []
+    count = [0]
+
+    def refuse(what):
+        def handler(*_):
+            raise _Stop(p.CurrentLineNumber, f"{what} is refused: DTDs and entities are not read")
+        return handler
+
+    def start(tag, attrs):
+        count[0] += 1
+        if count[0] > MAX_ELEMENTS:
+            raise _Stop(p.CurrentLineNumber, f"more than {MAX_ELEMENTS} XML elements")
+        if len(stack) >= MAX_DEPTH:
+            raise _Stop(p.CurrentLineNumber, f"<{tag}>: XML nested more than {MAX_DEPTH} levels deep")
+        el = El(tag, dict(attrs), p.CurrentLineNumber)
+        (stack[-1].children if stack else top).append(el)
+        stack.append(el)
+
+    def end(_tag):
+        stack.pop()
+
+    def text(s):
+        if stack and len(stack[-1].text) < 100_000:
+            stack[-1].text += s
+
+    p.StartDoctypeDeclHandler = refuse("a DOCTYPE (DTD)")
+    p.EntityDeclHandler = refuse("an entity declaration")
+    p.UnparsedEntityDeclHandler = refuse("an entity declaration")
+    p.ExternalEntityRefHandler = refuse("an external entity")
+    p.StartElementHandler, p.EndElementHandler, p.CharacterDataHandler = start, end, text
+    try:
+        p.Parse(data, True)
+    except _Stop as exc:
+        raise ModelError(f"line {exc.line}", exc.problem, file) from None
+    except expat.ExpatError as exc:
+        raise ModelError(f"line {exc.lineno}", f"XML syntax error: {expat.ErrorString(exc.code)} "
+                                               f"(column {exc.offset + 1})", file) from None
+    except RecursionError:  # pragma: no cover - the depth limit comes first
+        raise ModelError("", "XML nested too deeply", file) from None
+    return top[0]
+
+
+# ============================================================================ XML -> data
+
+
+@dataclass
+class XmlImport:
+    """The result of ``xml_to_data``: model ``data``, ``warnings`` ((element, text) pairs as
+    in ``Model.warnings``) and ``lines``: data path of a tree element -> its "line N: <tag>"."""
+    data: dict
+    warnings: list
+    lines: dict
+
+    def locate(self, exc: ModelError, xml_name: str) -> ModelError:
+        """``exc`` (raised while building the model from ``data``) at its XML line when
+        it is about the tree; unchanged otherwise."""
+        el = exc.element or ""
+        cut = len(el)
+        while cut > 0:
+            head = el[:cut]
+            if head in self.lines:
+                rest = el[cut:]
+                return ModelError(self.lines[head] + (f" ({rest.lstrip('.')})" if rest else ""),
+                                  re.sub(r" \(line \d+\)$", "", exc.problem), xml_name)
+            cut = max(el.rfind(".", 0, cut), el.rfind("[", 0, cut))
+        return exc
+
+
+def side_file_for(xml_path) -> "Path | None":
+    """The side file found beside ``xml_path``: ``STEM.btfsm.yaml`` (or ``.yml``/``.json``)."""
+    p = Path(xml_path)
+    for ext in (".btfsm.yaml", ".btfsm.yml", ".btfsm.json"):
+        cand = p.with_name(p.stem + ext)
+        if cand.is_file():
+            return cand
+    return None
+
+
+def xml_to_data(xml: bytes, xml_name: str, side: "dict | None" = None, side_name: "str | None" = None) -> XmlImport:
+    """BT.CPP XML v4 (bytes) plus side-file data -> btfsm model data (see the module doc)."""
+    return _Importer(xml_name, side or {}, side_name).run(parse_xml(xml, xml_name))
+
+
+class _Importer:
+    def __init__(self, file, side, side_name):
+        self.file, self.side_name = file, side_name or file
+        if not isinstance(side, dict):
+            raise ModelError("", "the side file must be a mapping (a partial btfsm model file)", self.side_name)
+        if "tree" in side:
+            raise ModelError("tree", "the tree comes from the XML file; a side file has no tree", self.side_name)
+        self.side = side
+        nodes = side.get("nodes") or {}
+        if not isinstance(nodes, dict):
+            raise ModelError("nodes", "expected a mapping of XML node names or IDs to how they are modelled", self.side_name)
+        self.nodes = nodes
+        vars_ = side.get("variables") or {}
+        if not isinstance(vars_, dict):
+            raise ModelError("variables", "expected a mapping of variable names to types", self.side_name)
+        self.variables = dict(vars_)
+        prims = side.get("primitives") or {}
+        self.side_prims = prims if isinstance(prims, dict) else {}
+        self.primitives: dict = {}  # generated primitives (undeclared and built-in leaves)
+        self.trees: dict = {}
+        self.models: dict = {}  # TreeNodesModel: ID -> (kind, {port: (direction, type)}, description, element)
+        self.names: set = set()
+        self.count = 0
+        self.warnings: list = []
+        self.lines: dict = {}
+        self.used_nodes: set = set()
+        self.pending: list = []
+
+    def fail(self, el, problem):
+        return ModelError(el.where() if el is not None else "", problem, self.file)
+
+    # ---------------------------------------------------------------- document
+    def run(self, root: El) -> XmlImport:
+        if root.tag != "root":
+            raise self.fail(root, "expected <root BTCPP_format=\"4\"> as the document element")
+        for a, v in root.attrs.items():
+            if a == "BTCPP_format":
+                if v.strip() != "4":
+                    raise self.fail(root, f"BTCPP_format=\"{v}\": only BehaviorTree.CPP XML version 4 is read")
+            elif a != "main_tree_to_execute":
+                raise self.fail(root, f"unknown attribute '{a}' (expected BTCPP_format, main_tree_to_execute)")
+        for el in root.children:
+            if el.tag == "BehaviorTree":
+                tid = el.attrs.get("ID")
+                if not tid:
+                    raise self.fail(el, "a BehaviorTree needs an ID")
+                if tid in self.trees:
+                    raise self.fail(el, f"BehaviorTree ID '{tid}' is defined twice (first at line {self.trees[tid].line})")
+                extra = [a for a in el.attrs if a not in ("ID",) + DOC_ATTRS]
+                if extra:
+                    raise self.fail(el, f"unknown attribute '{extra[0]}' (a BehaviorTree has an ID)")
+                if len(el.children) != 1:
+                    raise self.fail(el, f"BehaviorTree '{tid}' must have exactly one root node, has {len(el.children)}")
+                self.trees[tid] = el
+            elif el.tag == "TreeNodesModel":
+                self.read_models(el)
+            elif el.tag == "include":
+                raise self.fail(el, "<include> of other XML files is not read: put every tree in one file")
+            else:
+                raise self.fail(el, "unknown element under <root> (expected BehaviorTree, TreeNodesModel)")
+        if not self.trees:
+            raise self.fail(root, "no <BehaviorTree> in the file")
+        main = self.side.get("main_tree") or root.attrs.get("main_tree_to_execute")
+        if main is None:
+            if len(self.trees) != 1:
+                raise self.fail(root, f"{len(self.trees)} BehaviorTrees ({', '.join(self.trees)}) and no "
+                                      "main_tree_to_execute: say which one runs (or main_tree: ID in the side file)")
+            main = next(iter(self.trees))
+        if main not in self.trees:
+            raise self.fail(root, f"main tree '{main}' is not defined (trees: {', '.join(self.trees)})")
+        tree = self.node(self.trees[main].children[0], "tree", _Scope.root(), (main,), "")
+        self.resolve_pending()
+        data = {"name": self.side.get("name", main)}
+        for k, v in self.side.items():
+            if k not in SIDE_KEYS and k not in ("name", "variables", "primitives"):
+                data[k] = v
+        data.setdefault("semantics", "btcpp")
+        if self.variables:
+            data["variables"] = self.variables
+        prims = dict(self.side_prims)
+        prims.update({k: v for k, v in self.primitives.items() if k not in prims})
+        if prims:
+            data["primitives"] = prims
+        data["tree"] = tree
+        unused = [k for k in self.nodes if k not in self.used_nodes]
+        if unused:
+            raise ModelError(f"nodes.{unused[0]}", "names no node of the XML tree (by name or ID)", self.side_name)
+        return XmlImport(data, self.warnings, self.lines)
+
+    def read_models(self, tnm: El):
+        for el in tnm.children:
+            if el.tag not in _MODEL_KINDS:
+                raise self.fail(el, f"unknown element in TreeNodesModel (expected {', '.join(_MODEL_KINDS)})")
+            ident = el.attrs.get("ID")
+            if not ident:
+                raise self.fail(el, "a TreeNodesModel entry needs an ID")
+            ports, desc = {}, el.attrs.get("description", "")
+            for p in el.children:
+                if p.tag in _PORT_TAGS:
+                    pname = p.attrs.get("name")
+                    if not pname:
+                        raise self.fail(p, "a port needs a name")
+                    ports[pname] = (p.tag.split("_")[0], p.attrs.get("type", ""), p.attrs.get("default"))
+                elif p.tag == "description":
+                    desc = p.text.strip()
+                elif p.tag != "MetadataFields":
+                    raise self.fail(p, "unknown element in a node model (expected input_port, output_port, "
+                                       "inout_port, description)")
+            self.models[ident] = (el.tag, ports, desc, el)
+
+    # ---------------------------------------------------------------- nodes
+    def unique(self, name: str) -> str:
+        base, k = name, 1
+        while name in self.names:
+            k += 1
+            name = f"{base}#{k}"
+        self.names.add(name)
+        return name
+
+    def node(self, el: El, path: str, scope, stack: tuple, prefix: str) -> dict:
+        self.count += 1
+        if self.count > MAX_INLINED:
+            raise self.fail(el, f"the tree has more than {MAX_INLINED} nodes once SubTrees are inlined")
+        for a in el.attrs:
+            if a in SCRIPT_ATTRS:
+                raise self.fail(el, f"script attribute {a}=\"{el.attrs[a]}\" is not modelled by btfsm "
+                                    "(rewrite it as a condition or an action declared in the side file)")
+        tag = el.tag
+        if tag == "SubTree":
+            return self.subtree(el, path, scope, stack, prefix)
+        if tag in ("Action", "Condition", "Control", "Decorator") and "ID" in el.attrs:
+            ident, kind = el.attrs["ID"], tag
+        else:
+            ident, kind = tag, None
+        name_attr = el.attrs.get("name")
+        shown = name_attr or ident
+        if ident in CONTROLS or ident in DECORATORS:
+            return self.inner(el, ident, path, scope, stack, prefix)
+        decl = self.declaration(shown, ident)
+        if ident in REFUSED and decl is None:
+            raise self.fail(el, f"{ident} {REFUSED[ident]}: not modelled by btfsm (declare '{shown}' under "
+                                f"nodes: or primitives: in the side file to model it explicitly)")
+        if el.children:
+            if decl is not None and isinstance(decl, dict) and decl.get("abstract") == "child":
+                if len(el.children) != 1:
+                    raise self.fail(el, "abstract: child needs exactly one child node")
+                self.used_nodes.add(shown if shown in self.nodes else ident)
+                return self.node(el.children[0], path, scope, stack, prefix)
+            model = self.models.get(ident)
+            what = f"declared as a {model[0]} in TreeNodesModel" if model else "not a BehaviorTree.CPP 4 control or decorator"
+            raise self.fail(el, f"unknown node type with children ({what}); btfsm models the standard controls and "
+                                f"decorators: {', '.join(list(CONTROLS) + list(DECORATORS))}")
+        return self.leaf(el, ident, kind, shown, path, scope, prefix)
+
+    def declaration(self, name, ident):
+        for key in (name, ident):
+            if key in self.nodes:
+                return self.nodes[key]
+        return None
+
+    def inner(self, el, tag, path, scope, stack, prefix):
+        key, attrs = (CONTROLS if tag in CONTROLS else DECORATORS)[tag]
+        if key not in NODE_TYPES:
+            raise self.fail(el, f"{tag} maps to btfsm {key}, which this version of btfsm does not have")
+        name = self.unique(prefix + (el.attrs.get("name") or tag))
+        out = {key: name}
+        self.lines[path] = el.where()
+        for a, v in el.attrs.items():
+            if a in ("name", "ID") + DOC_ATTRS:
+                continue
+            if a not in attrs:
+                known = ", ".join(attrs) or "none besides name"
+                raise self.fail(el, f"unknown attribute '{a}' (attributes of {tag}: {known})")
+            fname, default = attrs[a]
+            if _REF.match(v.strip()):
+                raise self.fail(el, f"{a}=\"{v}\" reads the blackboard: not modelled by btfsm (give a constant)")
+            if fname == "then_skip":
+                if v.strip() not in ("true", "false", "1", "0"):
+                    raise self.fail(el, f"{a}=\"{v}\": expected true or false")
+                val = v.strip() in ("true", "1")
+            else:
+                try:
+                    val = int(v.strip())
+                except ValueError:
+                    raise self.fail(el, f"{a}=\"{v}\": expected an integer") from None
+                if fname in ("attempts", "times") and val < 1:
+                    raise self.fail(el, f"{a}=\"{v}\": btfsm needs a bound of at least 1 (-1, forever, cannot be "
+                                        "model-checked as a count; use a bound, or KeepRunningUntilFailure)")
+            if fname == "success_threshold" and val == -1:
+                continue  # BT.CPP's default: every child (btfsm's default)
+            if val != default or fname in ("then_skip",):
+                out[fname] = val
+        if tag in DECORATORS:
+            if len(el.children) != 1:
+                raise self.fail(el, f"a {tag} has exactly one child, has {len(el.children)}")
+            out["child"] = self.node(el.children[0], f"{path}.child", scope, stack, prefix)
+        else:
+            if not el.children:
+                raise self.fail(el, f"a {tag} needs children")
+            if tag in ("IfThenElse", "WhileDoElse") and len(el.children) not in (2, 3):
+                raise self.fail(el, f"a {tag} has 2 or 3 children, has {len(el.children)}")
+            out["children"] = [self.node(c, f"{path}.children[{i}]", scope, stack, prefix)
+                               for i, c in enumerate(el.children)]
+        return out
+
+    def subtree(self, el, path, scope, stack, prefix):
+        sid = el.attrs.get("ID")
+        if not sid:
+            raise self.fail(el, "a SubTree needs an ID")
+        if el.children:
+            raise self.fail(el, "a SubTree element has no children (its tree is the BehaviorTree with its ID)")
+        if sid not in self.trees:
+            raise self.fail(el, f"SubTree ID '{sid}' names no BehaviorTree (trees: {', '.join(self.trees)})")
+        if sid in stack:
+            raise self.fail(el, f"recursive SubTree: {' -> '.join(stack + (sid,))}")
+        auto = el.attrs.get("_autoremap", "false").strip()
+        if auto not in ("true", "false", "1", "0"):
+            raise self.fail(el, f"_autoremap=\"{auto}\": expected true or false")
+        remap = {}
+        for a, v in el.attrs.items():
+            if a in ("ID", "name", "_autoremap") + DOC_ATTRS:
+                continue
+            if a.startswith("_"):
+                raise self.fail(el, f"unknown attribute '{a}'")
+            remap[a] = scope.value(v.strip(), a) if _REF.match(v.strip()) else ("lit", v)
+        inst = el.attrs.get("name") or sid
+        sub = scope.child(remap, auto in ("true", "1"), _ident(prefix + inst))
+        return self.node(self.trees[sid].children[0], path, sub, stack + (sid,), f"{prefix}{inst}/")
+
+    # ---------------------------------------------------------------- leaves
+    def leaf(self, el, ident, kind, shown, path, scope, prefix):
+        name = self.unique(prefix + shown)
+        self.lines[path] = el.where()
+        model = self.models.get(ident)
+        if kind is None and model is not None:
+            kind = model[0]
+        if kind in ("Control", "Decorator"):
+            raise self.fail(el, f"{ident} is declared as a {kind} in TreeNodesModel but has no children")
+        ports = {}
+        for a, v in el.attrs.items():
+            if a in ("name", "ID") + DOC_ATTRS:
+                continue
+            if a.startswith("_"):
+                raise self.fail(el, f"unknown attribute '{a}'")
+            if model is not None and a not in model[1]:
+                raise self.fail(el, f"port '{a}' is not declared for {ident} in TreeNodesModel "
+                                    f"(ports: {', '.join(model[1]) or 'none'})")
+            ports[a] = v
+        # blackboard references -> world variables
+        args, written = {}, []
+        for a, v in ports.items():
+            m = _REF.match(v.strip())
+            if not m:
+                args[a] = v
+                continue
+            res = scope.value(v.strip(), a)
+            if res[0] == "lit":
+                args[a] = res[1]
+                continue
+            var = res[1]
+            ptype = model[1][a][1] if model is not None else ""
+            self.declare_var(el, var, a, ptype)
+            args[a] = "{" + var + "}"
+            if model is not None and model[1][a][0] in ("output", "inout"):
+                written.append(var)
+        decl = self.declaration(shown, ident)
+        if decl is not None:
+            self.used_nodes.add(shown if shown in self.nodes else ident)
+            return self.declared(el, name, ident, decl, args)
+        for key in (shown, ident):
+            if key in self.side_prims:
+                out = {"Action": name, "primitive": key}
+                if args:
+                    out["args"] = args
+                return out
+        if model is not None and model[2] and _SKILL.match(model[2]) and kind == "Action":
+            got = self.from_description(el, name, kind, model[2])
+            if got is not None:
+                return got
+        if ident in BUILTIN_LEAVES and not ports:
+            self.primitives.setdefault(ident, BUILTIN_LEAVES[ident])
+            return {"Action": name, "primitive": ident}
+        out: dict = {}
+        later = (out, el, name, ident, kind, shown, written, args, model[2] if model is not None else "")
+        if kind == "Condition" and later[-1]:
+            self.pending.append(later)  # its description may name variables declared further on
+        else:
+            self.undeclared(*later)
+        return out
+
+    def resolve_pending(self):
+        for out, el, name, ident, kind, shown, written, args, desc in self.pending:
+            got = self.from_description(el, name, kind, desc)
+            if got is not None:
+                out.update(got)
+            else:
+                self.undeclared(out, el, name, ident, kind, shown, written, args, desc)
+
+    def undeclared(self, out, el, name, ident, kind, shown, written, args, desc):
+        statuses = ["success", "failure"] if kind == "Condition" else ["running", "success", "failure"]
+        outcomes = self.havoc(el, statuses, written)
+        what = "RUNNING, SUCCESS or FAILURE" if kind != "Condition" else "SUCCESS or FAILURE"
+        extra = f" and write any value to {', '.join(written)}" if written else ""
+        names = f"'{shown}' or '{ident}'" if shown != ident else f"'{ident}'"
+        model = "its node model's description is not a btfsm expression over declared variables" if desc else \
+            "no usable node model"
+        self.warnings.append((f"tree.{name}", f"{self.file}: {el.where()}: no declared outcomes (no side-file entry "
+                                              f"for {names}, {model}): it may return any of {what}{extra}"))
+        out.update({"Action": name, "primitive": ident if not written else name})
+        if written:
+            out["outcomes"] = outcomes
+        else:
+            prev = self.primitives.setdefault(ident, outcomes)
+            if prev != outcomes or ident in self.side_prims:
+                out["primitive"] = name
+                out["outcomes"] = outcomes
+        if args:
+            out["args"] = args
+
+    def havoc(self, el, statuses, written):
+        """Outcomes: every status, times every value the written variables can take."""
+        combos = [{}]
+        for var in written:
+            dom = self.domain(var)
+            if dom is None or len(combos) * len(dom) * len(statuses) > MAX_OUTCOMES:
+                raise self.fail(el, f"writes {var} but declares no outcomes, and its values are too many to "
+                                    "enumerate: declare the leaf under primitives: or nodes: in the side file")
+            combos = [dict(c, **{var: d}) for c in combos for d in dom]
+        if combos == [{}]:
+            return list(statuses)
+        out = []
+        for st in statuses:
+            for c in combos:
+                label = st + "(" + ", ".join(f"{k}={_text(v)}" for k, v in c.items()) + ")"
+                out.append({st: c, "name": label})
+        return out
+
+    def domain(self, var):
+        spec = self.variables.get(var)
+        if spec == "bool" or (isinstance(spec, dict) and "bool" in spec):
+            return [False, True]
+        if isinstance(spec, dict) and "enum" in spec and isinstance(spec["enum"], list):
+            return [repr(str(x)) for x in spec["enum"]]
+        if isinstance(spec, dict) and isinstance(spec.get("int"), list) and len(spec["int"]) == 2:
+            lo, hi = spec["int"]
+            if isinstance(lo, int) and isinstance(hi, int) and 0 <= hi - lo < MAX_OUTCOMES:
+                return list(range(lo, hi + 1))
+        return None
+
+    def declare_var(self, el, var, port, ptype):
+        if var in self.variables:
+            return
+        if not _IDENT.match(var):
+            raise self.fail(el, f"port {port}: blackboard entry '{var}' is not an identifier, so it cannot be "
+                                "a btfsm world variable")
+        if ptype in _BOOL_TYPES:
+            self.variables[var] = "bool"
+            return
+        why = f"has type {ptype}, which is not finite" if ptype else "has no declared type (no TreeNodesModel port type)"
+        raise self.fail(el, f"port {port}: blackboard entry {{{var}}} {why}: declare '{var}' under variables: in the "
+                            "side file (bool, enum or int range) to model it")
+
+    def declared(self, el, name, ident, decl, args):
+        if not isinstance(decl, dict):
+            raise ModelError(f"nodes.{ident}", "expected a mapping (expr:, fsm:/goal:, outcomes:, primitive: or "
+                                               "abstract: child)", self.side_name)
+        keys = set(decl)
+        if "expr" in keys:
+            _only(keys, {"expr"}, ident, self.side_name)
+            return {"Condition": name, "expr": decl["expr"]}
+        if "fsm" in keys or "goal" in keys:
+            _only(keys, {"fsm", "goal", "params", "pre", "post"}, ident, self.side_name)
+            return {"SkillRequest": name, **decl}
+        if "outcomes" in keys or "primitive" in keys:
+            _only(keys, {"outcomes", "primitive"}, ident, self.side_name)
+            out = {"Action": name, "primitive": decl.get("primitive", ident)}
+            if "outcomes" in decl:
+                out["outcomes"] = decl["outcomes"]
+            if args:
+                out["args"] = args
+            return out
+        if decl.get("abstract") == "child":
+            raise self.fail(el, "abstract: child is for a node with one child; this one has none")
+        raise ModelError(f"nodes.{ident}", "expected one of expr:, fsm:/goal:, outcomes:, primitive:, abstract: child",
+                         self.side_name)
+
+    def from_description(self, el, name, kind, desc):
+        """btfsm's own exporter writes a condition's expression and a skill request's
+        fsm/goal/params as the TreeNodesModel description."""
+        m = _SKILL.match(desc)
+        if m and kind == "Action":
+            out = {"SkillRequest": name, "fsm": m["fsm"].strip(), "goal": m["goal"].strip()}
+            if m["params"]:
+                params = {}
+                for part in m["params"].split(", "):
+                    k, eq, v = part.partition("=")
+                    if not eq:
+                        return None
+                    params[k.strip()] = v.strip()
+                out["params"] = params
+            return out
+        if kind != "Condition":
+            return None
+        try:
+            e = as_expr(desc)
+        except (ModelError, ValueError, SyntaxError, RecursionError):
+            return None
+        known = set(self.variables)
+        fsms = self.side.get("fsms") or {}
+        if all(n in known or n.split(".")[0] in fsms for n in names_in(e)):
+            return {"Condition": name, "expr": desc}
+        return None
+
+
+class _Scope:
+    """Blackboard key -> ('var', world variable) or ('lit', constant), for one SubTree instance."""
+
+    def __init__(self, parent, remap, auto, prefix):
+        self.parent, self.remap, self.auto, self.prefix = parent, remap, auto, prefix
+
+    @classmethod
+    def root(cls):
+        return cls(None, {}, False, "")
+
+    def child(self, remap, auto, prefix):
+        return _Scope(self, remap, auto, prefix)
+
+    def value(self, ref: str, port: str):
+        m = _REF.match(ref)
+        glob, key = m.group(1), m.group(2).strip()
+        if key == "=":
+            key = port
+        if glob:
+            return ("var", key)
+        return self.lookup(key)
+
+    def lookup(self, key):
+        if key in self.remap:
+            return self.remap[key]
+        if self.parent is None:
+            return ("var", key)
+        if self.auto:
+            return self.parent.lookup(key)
+        return ("var", f"{self.prefix}__{key}")
+
+
+def _ident(text: str) -> str:
+    out = re.sub(r"[^A-Za-z0-9_]", "_", text)
+    return out if _IDENT.match(out) else "_" + out
+
+
+def _text(v) -> str:
+    return ("true" if v else "false") if isinstance(v, bool) else str(v)
+
+
+def _only(keys, allowed, ident, file):
+    extra = sorted(str(k) for k in keys - allowed)
+    if extra:
+        raise ModelError(f"nodes.{ident}.{extra[0]}", f"unknown field (allowed here: {', '.join(sorted(allowed))})", file)
