@@ -32,6 +32,7 @@ from xml.parsers import expat
 from ..bt import NODE_TYPES
 from ..errors import ModelError
 from ..expr import as_expr, names_in
+from ..world import check_label
 
 __all__ = ["XmlImport", "xml_to_data", "side_file_for", "parse_xml", "CONTROLS", "DECORATORS", "REFUSED",
            "MAX_ELEMENTS", "MAX_DEPTH", "MAX_INLINED", "SIDE_KEYS"]
@@ -328,7 +329,11 @@ class _Importer:
             self.models[ident] = (el.tag, ports, desc, el)
 
     # ---------------------------------------------------------------- nodes
-    def unique(self, name: str) -> str:
+    def unique(self, name: str, el: El) -> str:
+        try:
+            check_label(name, "", "node name")
+        except ModelError as exc:
+            raise self.fail(el, exc.problem) from None
         base, k = name, 1
         while name in self.names:
             k += 1
@@ -356,14 +361,14 @@ class _Importer:
         if ident in CONTROLS or ident in DECORATORS:
             return self.inner(el, ident, path, scope, stack, prefix)
         decl = self.declaration(shown, ident)
-        if ident in REFUSED and decl is None:
+        if ident in REFUSED and decl is None and shown not in self.side_prims and ident not in self.side_prims:
             raise self.fail(el, f"{ident} {REFUSED[ident]}: not modelled by btfsm (declare '{shown}' under "
                                 f"nodes: or primitives: in the side file to model it explicitly)")
         if el.children:
             if decl is not None and isinstance(decl, dict) and decl.get("abstract") == "child":
                 if len(el.children) != 1:
                     raise self.fail(el, "abstract: child needs exactly one child node")
-                self.used_nodes.add(shown if shown in self.nodes else ident)
+                self.used_nodes.add(self.node_key(shown, ident))
                 return self.node(el.children[0], path, scope, stack, prefix)
             model = self.models.get(ident)
             what = f"declared as a {model[0]} in TreeNodesModel" if model else "not a BehaviorTree.CPP 4 control or decorator"
@@ -377,11 +382,14 @@ class _Importer:
                 return self.nodes[key]
         return None
 
+    def node_key(self, name, ident):
+        return name if name in self.nodes else ident
+
     def inner(self, el, tag, path, scope, stack, prefix):
         key, attrs = (CONTROLS if tag in CONTROLS else DECORATORS)[tag]
         if key not in NODE_TYPES:
             raise self.fail(el, f"{tag} maps to btfsm {key}, which this version of btfsm does not have")
-        name = self.unique(prefix + (el.attrs.get("name") or tag))
+        name = self.unique(prefix + (el.attrs.get("name") or tag), el)
         out = {key: name}
         self.lines[path] = el.where()
         for a, v in el.attrs.items():
@@ -448,7 +456,7 @@ class _Importer:
 
     # ---------------------------------------------------------------- leaves
     def leaf(self, el, ident, kind, shown, path, scope, prefix):
-        name = self.unique(prefix + shown)
+        name = self.unique(prefix + shown, el)
         self.lines[path] = el.where()
         model = self.models.get(ident)
         if kind is None and model is not None:
@@ -484,8 +492,9 @@ class _Importer:
                 written.append(var)
         decl = self.declaration(shown, ident)
         if decl is not None:
-            self.used_nodes.add(shown if shown in self.nodes else ident)
-            return self.declared(el, name, ident, decl, args)
+            key = self.node_key(shown, ident)
+            self.used_nodes.add(key)
+            return self.declared(el, name, ident, key, decl, args)
         for key in (shown, ident):
             if key in self.side_prims:
                 out = {"Action": name, "primitive": key}
@@ -579,19 +588,19 @@ class _Importer:
         raise self.fail(el, f"port {port}: blackboard entry {{{var}}} {why}: declare '{var}' under variables: in the "
                             "side file (bool, enum or int range) to model it")
 
-    def declared(self, el, name, ident, decl, args):
+    def declared(self, el, name, ident, key, decl, args):
         if not isinstance(decl, dict):
-            raise ModelError(f"nodes.{ident}", "expected a mapping (expr:, fsm:/goal:, outcomes:, primitive: or "
+            raise ModelError(f"nodes.{key}", "expected a mapping (expr:, fsm:/goal:, outcomes:, primitive: or "
                                                "abstract: child)", self.side_name)
         keys = set(decl)
         if "expr" in keys:
-            _only(keys, {"expr"}, ident, self.side_name)
+            _only(keys, {"expr"}, key, self.side_name)
             return {"Condition": name, "expr": decl["expr"]}
         if "fsm" in keys or "goal" in keys:
-            _only(keys, {"fsm", "goal", "params", "pre", "post"}, ident, self.side_name)
+            _only(keys, {"fsm", "goal", "params", "pre", "post"}, key, self.side_name)
             return {"SkillRequest": name, **decl}
         if "outcomes" in keys or "primitive" in keys:
-            _only(keys, {"outcomes", "primitive"}, ident, self.side_name)
+            _only(keys, {"outcomes", "primitive"}, key, self.side_name)
             out = {"Action": name, "primitive": decl.get("primitive", ident)}
             if "outcomes" in decl:
                 out["outcomes"] = decl["outcomes"]
@@ -600,7 +609,7 @@ class _Importer:
             return out
         if decl.get("abstract") == "child":
             raise self.fail(el, "abstract: child is for a node with one child; this one has none")
-        raise ModelError(f"nodes.{ident}", "expected one of expr:, fsm:/goal:, outcomes:, primitive:, abstract: child",
+        raise ModelError(f"nodes.{key}", "expected one of expr:, fsm:/goal:, outcomes:, primitive:, abstract: child",
                          self.side_name)
 
     def from_description(self, el, name, kind, desc):
