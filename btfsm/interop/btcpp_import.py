@@ -240,6 +240,7 @@ class _Importer:
         self.trees: dict = {}
         self.models: dict = {}  # TreeNodesModel: ID -> (kind, {port: (direction, type)}, description, element)
         self.names: set = set()
+        self.suffix: dict = {}  # name -> the last k of "name#k" given
         self.count = 0
         self.warnings: list = []
         self.lines: dict = {}
@@ -334,9 +335,9 @@ class _Importer:
             check_label(name, "", "node name")
         except ModelError as exc:
             raise self.fail(el, exc.problem) from None
-        base, k = name, 1
+        base = name
         while name in self.names:
-            k += 1
+            k = self.suffix[base] = self.suffix.get(base, 1) + 1
             name = f"{base}#{k}"
         self.names.add(name)
         return name
