@@ -21,7 +21,7 @@ from btfsm.files import (builtin_models, dump_model, dumps_model, expand_templat
 from strategies import random_models
 
 ROOT = Path(__file__).resolve().parent.parent
-EXAMPLES = sorted((ROOT / "models" / "examples").glob("*.yaml"))
+EXAMPLES = sorted(p for p in (ROOT / "models" / "examples").glob("*.yaml") if not p.name.endswith(".btfsm.yaml"))  # not side files of XML models
 SCHEMA = json.loads((ROOT / "btfsm" / "schema" / "model.schema.json").read_text())
 VALIDATOR = jsonschema.Draft202012Validator(SCHEMA)
 

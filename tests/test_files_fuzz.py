@@ -27,7 +27,7 @@ from btfsm.files import builtin_models, dumps_model, load_model, loads_data, loa
 from btfsm.model import Model
 
 ROOT = Path(__file__).resolve().parent.parent
-EXAMPLES = sorted((ROOT / "models" / "examples").glob("*.yaml"))
+EXAMPLES = sorted(p for p in (ROOT / "models" / "examples").glob("*.yaml") if not p.name.endswith(".btfsm.yaml"))  # not side files of XML models
 SMALL = 8000  # characters: bigger dumps load in ~0.3 s and get fewer inputs
 
 

@@ -30,7 +30,7 @@ from btfsm.status import Status
 from btfsm.world import Bool, Int
 
 ROOT = Path(__file__).resolve().parent.parent
-SHIPPED = sorted((ROOT / "models").rglob("*.yaml"))
+SHIPPED = sorted(p for p in (ROOT / "models").rglob("*.yaml") if not p.name.endswith(".btfsm.yaml"))  # not side files of XML models
 SCHEMA = json.loads((ROOT / "btfsm" / "schema" / "model.schema.json").read_text())
 VALIDATOR = jsonschema.Draft202012Validator(SCHEMA)
 
