@@ -260,7 +260,7 @@ def _args_import(sp):
                          "...; default: STEM.btfsm.yaml beside the XML when it exists)")
     sp.add_argument("--semantics", choices=SEMANTICS, default=None,
                     help="profile written into the model (default: the side file's, else btcpp)")
-    sp.add_argument("--output", "-o", type=input_text, default=None,
+    sp.add_argument("--output", "-o", type=output_file(".yaml", ".yml", ".json"), default=None,
                     help="model file to write (.yaml, .yml or .json; default: YAML on stdout)")
 
 
@@ -485,9 +485,7 @@ def cli_import(args) -> int:
 
     fmt = "yaml"
     if args.output is not None:
-        fmt = FORMATS.get(Path(args.output).suffix.lower(), "")
-        if not fmt:
-            raise UsageError(f"--output {args.output}: a model file ends in .yaml, .yml or .json")
+        fmt = FORMATS[Path(args.output).suffix.lower()]
         side = args.leaves if args.leaves is not None else side_file_for(args.model)
         for inp in (args.model, side):
             try:

@@ -359,11 +359,13 @@ def test_cli_import_refuses_to_overwrite_inputs(tmp_path, capsys):
     xml_path.write_text(doc('<A name="a"/>'))
     side.write_text(yaml.safe_dump(LEAVES))
     before = (xml_path.read_text(), side.read_text())
-    for target in ("t.xml", "t.btfsm.yaml"):
+    code, _, err = _run(["import", xml_path, "-o", tmp_path / "t.btfsm.yaml"], capsys)  # the side file found
+    assert code == 2 and "refusing to overwrite" in err
+    code, _, err = _run(["import", xml_path, "--leaves", side, "-o", side], capsys)
+    assert code == 2 and "refusing to overwrite" in err
+    for target in ("t.xml", "x.txt"):  # an output is a model file
         code, _, err = _run(["import", xml_path, "-o", tmp_path / target], capsys)
-        assert code == 2 and "refusing to overwrite" in err
-    code, _, err = _run(["import", xml_path, "--leaves", side, "-o", tmp_path / "x.txt"], capsys)
-    assert code == 2 and ".yaml, .yml or .json" in err
+        assert code == 2 and "ending in .yaml or .yml or .json" in err
     assert (xml_path.read_text(), side.read_text()) == before
 
 

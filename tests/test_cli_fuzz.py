@@ -25,6 +25,7 @@ from hypothesis import strategies as st
 from btfsm.cli import COMMANDS, MAX_FRAMES, MAX_SCENARIOS, MAX_SIM_TIME, MAX_STATES_LIMIT, MAX_TICKS, MAX_WORKERS, main
 
 TWO = "two-area"  # a small built-in model
+XML = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "models", "examples", "pick_place_btcpp.xml")
 ARIAC = "ariac-preemptive"  # the one the kitting cell runs
 
 # Paths: a scratch folder with a file, a folder and a FIFO (ids do not depend on its name).
@@ -106,6 +107,8 @@ TABLE = {
                                        "--max-frames": _ints(1, MAX_FRAMES) + ["0"],
                                        "--render": BAD_OUTPUT_FILES + ["x.jpg", "x"],
                                        "--gif": BAD_OUTPUT_FILES + ["x.png", "x"]}),
+    "import": ([XML], {"--output": BAD_OUTPUT_FILES + ["x.txt", "x"], "--leaves": BAD_INPUTS,
+                       "--semantics": CHOICE_BAD}),
     "conform": ([ARIAC, "--scenarios", "1", "--time", "0.5"], {
         "--scenarios": _ints(1, MAX_SCENARIOS) + ["-1", "0"], "--seed": _ints(-(2 ** 63 - 1), 2 ** 63 - 1),
         "--time": _floats(0.0, MAX_SIM_TIME, lo_open=True) + ["0", "nan"],
@@ -224,7 +227,7 @@ _SETTINGS = settings(max_examples=HYPOTHESIS_EXAMPLES, deadline=None, derandomiz
                      suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow])
 
 
-@pytest.mark.parametrize("group", [("validate", "show", "skills"), ("run", "check", "export"),
+@pytest.mark.parametrize("group", [("validate", "show", "skills", "import"), ("run", "check", "export"),
                                    ("sim", "conform", "replay"), ("experiment",)])
 def test_generated_argv(group, capsys, tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
