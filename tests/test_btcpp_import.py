@@ -159,6 +159,23 @@ def test_descriptions_written_by_btfsm_are_read_back():
     assert kids[2] == {"SkillRequest": "place", "fsm": "arm", "goal": "place", "params": {"k": "n + 1"}}
 
 
+def test_outcomes_and_expressions_from_node_model_descriptions():
+    models = ('<Action ID="Move"><input_port name="to"/><description>btfsm outcomes: running, success</description></Action>'
+              '<Condition ID="Near"><description>btfsm expr: not far</description></Condition>'
+              '<Condition ID="Sees"><description>btfsm outcomes: success, failure</description></Condition>')
+    xml = doc('<Sequence><Move to="bin"/><Near/><Sees/></Sequence>', models=models)
+    r = data_of(xml, {"variables": {"far": "bool"}})
+    assert r.data["tree"]["children"] == [{"Action": "Move", "primitive": "Move", "args": {"to": "bin"}},
+                                          {"Condition": "Near", "expr": "not far"},
+                                          {"Action": "Sees", "primitive": "Sees"}]
+    assert r.data["primitives"] == {"Move": ["running", "success"], "Sees": ["success", "failure"]}
+    assert r.warnings == []
+    assert btcpp_loads(xml)
+    bad = doc("<Sees/>", models='<Condition ID="Sees"><description>btfsm outcomes: running</description></Condition>')
+    with pytest.raises(ModelError, match=r"line 6: <Condition>: description 'btfsm outcomes: running': expected"):
+        data_of(bad)
+
+
 def test_blackboard_ports_become_world_variables():
     models = ('<Action ID="Pick"><output_port name="got" type="bool"/><input_port name="mode" type="std::string"/></Action>'
               '<Condition ID="Has"><input_port name="v" type="bool"/><description>got</description></Condition>')

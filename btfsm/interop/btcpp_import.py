@@ -97,6 +97,8 @@ _MODEL_KINDS = ("Action", "Condition", "Control", "Decorator", "SubTree")
 _IDENT = re.compile(r"[A-Za-z_][A-Za-z0-9_]*\Z")
 _REF = re.compile(r"\{(@?)([^{}]*)\}\Z")
 _BOOL_TYPES = ("bool",)
+_OUTCOMES = re.compile(r"btfsm outcomes:(?P<list>.*)\Z", re.S)
+_EXPR = re.compile(r"btfsm expr:(?P<expr>.*)\Z", re.S)
 _SKILL = re.compile(r"btfsm SkillRequest: fsm (?P<fsm>[^,]+), goal (?P<goal>.+?)(?:, params (?P<params>.*))?\Z", re.S)
 
 
@@ -502,6 +504,21 @@ class _Importer:
                 if args:
                     out["args"] = args
                 return out
+        desc = model[2] if model is not None else ""
+        if _OUTCOMES.match(desc):
+            statuses = [x.strip().lower() for x in _OUTCOMES.match(desc)["list"].split(",")]
+            allowed = ("success", "failure") if kind == "Condition" else ("running", "success", "failure")
+            if not statuses or any(x not in allowed for x in statuses) or len(set(statuses)) != len(statuses):
+                raise self.fail(model[3], f"description '{desc}': expected 'btfsm outcomes: ' and a list of "
+                                          f"distinct statuses from {', '.join(allowed)}")
+            if self.primitives.setdefault(ident, statuses) != statuses:  # pragma: no cover - one model per ID
+                raise self.fail(model[3], "two node models for one ID")
+            out = {"Action": name, "primitive": ident}
+            if args:
+                out["args"] = args
+            return out
+        if _EXPR.match(desc) and kind == "Condition":
+            return {"Condition": name, "expr": _EXPR.match(desc)["expr"].strip()}
         if model is not None and model[2] and _SKILL.match(model[2]) and kind == "Action":
             got = self.from_description(el, name, kind, model[2])
             if got is not None:
