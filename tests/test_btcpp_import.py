@@ -360,6 +360,8 @@ def test_cli_import_validate_check(tmp_path, capsys):
     assert code == 0 and "ok (0 variables, 0 FSMs with 0 states, 3 tree nodes)" in out
     assert "warning: tree.u:" in out and "may return any of RUNNING, SUCCESS or FAILURE" in out
     assert _run(["validate", tmp_path / "t.xml", "--strict"], capsys)[0] == 1
+    code, out, err = _run(["validate", tmp_path / "t.xml", "--semantics", "btfsm"], capsys)
+    assert code == 0 and "warning: tree.u:" in out  # the import's warning survives a profile override
     code, out, err = _run(["check", tmp_path / "t.xml"], capsys)
     assert code in (0, 1) and "under btcpp semantics" in out, err
     out_file = tmp_path / "m.yaml"
