@@ -205,6 +205,11 @@ def test_subtree_remapping_autoremap_and_unique_names():
                     ("two/seq", [("two/w", "{x}"), ("two/w2", "{y}")]),         # _autoremap: the parent's entries
                     ("S/seq", [("S/w", "{x}"), ("S/w2", "{S__y}")])]            # {=}: same name in the parent
     assert kids[3] == {"Action": "L/w", "primitive": "W", "args": {"out": "{L__z}"}}
+    # a nodes entry by full name (SubTree prefix) comes before one by name or ID
+    side2 = {**side, "nodes": {"two/w": {"outcomes": ["failure"]}, "w2": {"outcomes": ["success"]}}}
+    kids2 = data_of(xml, side2).data["tree"]["children"]
+    assert kids2[1]["children"][0]["outcomes"] == ["failure"] and "outcomes" not in kids2[0]["children"][0]
+    assert all(k["children"][1]["outcomes"] == ["success"] for k in kids2[:3])
     assert kids[4]["Action"] == "w"
     assert set(r.data["variables"]) == {"a", "one__y", "x", "y", "S__y", "L__z", "b"}
     assert btcpp_loads(xml)
@@ -533,6 +538,26 @@ def test_fuzz_never_a_traceback(tmp_path, capsys, text):
     assert "Traceback" not in err
     if code == 2:
         assert len(err.strip().splitlines()) == 1
+
+
+_SIDE_VALUES = st.recursive(st.one_of(st.none(), st.booleans(), st.integers(-3, 3), st.sampled_from(["a", "A", "x", "bool", "success", "child", "T"])),
+                            lambda kids: st.one_of(st.lists(kids, max_size=3),
+                                                   st.dictionaries(st.sampled_from(["a", "A", "expr", "outcomes", "fsm", "goal",
+                                                                                    "abstract", "primitive", "bool", "int"]),
+                                                                   kids, max_size=3)), max_leaves=8)
+
+
+@settings(derandomize=True, max_examples=150, deadline=None, database=None)
+@given(st.dictionaries(st.sampled_from(["nodes", "main_tree", "primitives", "variables", "name", "semantics", "tree", "x"]),
+                       _SIDE_VALUES, max_size=4))
+def test_fuzz_side_files_never_a_traceback(side):
+    xml = doc('<Sequence><A name="a"/><Sub v="{x}"/></Sequence>',
+              models='<Action ID="Sub"><input_port name="v" type="bool"/></Action>')
+    try:
+        r = xml_to_data(xml.encode(), "t.xml", side, "s.yaml")
+        loads_model(yaml.safe_dump(r.data))
+    except ModelError as exc:
+        assert "\n" not in str(exc)
 
 
 # ============================================================================ real BehaviorTree.CPP

@@ -237,7 +237,12 @@ class _Importer:
             raise ModelError("variables", "expected a mapping of variable names to types", self.side_name)
         self.variables = dict(vars_)
         prims = side.get("primitives") or {}
-        self.side_prims = prims if isinstance(prims, dict) else {}
+        if not isinstance(prims, dict):
+            raise ModelError("primitives", "expected a mapping of primitive names to outcome lists", self.side_name)
+        self.side_prims = prims
+        main = side.get("main_tree")
+        if main is not None and not isinstance(main, str):
+            raise ModelError("main_tree", "expected the ID of a BehaviorTree", self.side_name)
         self.primitives: dict = {}  # generated primitives (undeclared and built-in leaves)
         self.trees: dict = {}
         self.models: dict = {}  # TreeNodesModel: ID -> (kind, {port: (direction, type)}, description, element)
@@ -363,7 +368,7 @@ class _Importer:
         shown = name_attr or ident
         if ident in CONTROLS or ident in DECORATORS:
             return self.inner(el, ident, path, scope, stack, prefix)
-        decl = self.declaration(shown, ident)
+        decl = self.declaration(prefix + shown, shown, ident)
         if ident in REFUSED and decl is None and shown not in self.side_prims and ident not in self.side_prims:
             raise self.fail(el, f"{ident} {REFUSED[ident]}: not modelled by btfsm (declare '{shown}' under "
                                 f"nodes: or primitives: in the side file to model it explicitly)")
@@ -371,7 +376,7 @@ class _Importer:
             if decl is not None and isinstance(decl, dict) and decl.get("abstract") == "child":
                 if len(el.children) != 1:
                     raise self.fail(el, "abstract: child needs exactly one child node")
-                self.used_nodes.add(self.node_key(shown, ident))
+                self.used_nodes.add(self.node_key(prefix + shown, shown, ident))
                 return self.node(el.children[0], path, scope, stack, prefix)
             model = self.models.get(ident)
             what = f"declared as a {model[0]} in TreeNodesModel" if model else "not a BehaviorTree.CPP 4 control or decorator"
@@ -379,14 +384,14 @@ class _Importer:
                                 f"decorators: {', '.join(list(CONTROLS) + list(DECORATORS))}")
         return self.leaf(el, ident, kind, shown, path, scope, prefix)
 
-    def declaration(self, name, ident):
-        for key in (name, ident):
-            if key in self.nodes:
-                return self.nodes[key]
-        return None
+    def node_key(self, full, name, ident):
+        """The ``nodes`` key that declares a node: its full name (SubTree prefix included),
+        its name, its ID; None when there is none."""
+        return next((k for k in (full, name, ident) if k in self.nodes), None)
 
-    def node_key(self, name, ident):
-        return name if name in self.nodes else ident
+    def declaration(self, full, name, ident):
+        key = self.node_key(full, name, ident)
+        return None if key is None else self.nodes[key]
 
     def inner(self, el, tag, path, scope, stack, prefix):
         key, attrs = (CONTROLS if tag in CONTROLS else DECORATORS)[tag]
@@ -493,9 +498,9 @@ class _Importer:
             args[a] = "{" + var + "}"
             if model is not None and model[1][a][0] in ("output", "inout"):
                 written.append(var)
-        decl = self.declaration(shown, ident)
+        decl = self.declaration(prefix + shown, shown, ident)
         if decl is not None:
-            key = self.node_key(shown, ident)
+            key = self.node_key(prefix + shown, shown, ident)
             self.used_nodes.add(key)
             return self.declared(el, name, ident, key, decl, args)
         for key in (shown, ident):
