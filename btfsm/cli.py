@@ -118,7 +118,8 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def _args_model(sp):
-    sp.add_argument("model", type=input_file, help="model file (.yaml/.json) or built-in model name")
+    sp.add_argument("model", type=input_file, help="model file (.yaml/.json), FILE.py:FUNCTION or package.module:FUNCTION (a function "
+                         "returning a Model), or a built-in model name")
     sp.add_argument("--semantics", choices=SEMANTICS, default=None,
                     help="tick rules of this engine instead of the model's own (btfsm, btcpp: BehaviorTree.CPP 4, "
                          "pytrees: py_trees 2.6; see docs/semantics.md section 8)")

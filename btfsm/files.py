@@ -48,7 +48,7 @@ from .status import Status
 from .world import Bool, Enum, Int, Var
 
 __all__ = [
-    "FORMATS", "load_model", "loads_model", "load_data", "loads_data", "expand_templates",
+    "FORMATS", "load_model", "load_cli_model", "python_model_ref", "load_python_model", "loads_model", "load_data", "loads_data", "expand_templates",
     "model_from_data", "model_to_data", "dump_model", "dumps_model", "builtin_models",
     "format_of", "cli_validate", "read_model_bytes", "MAX_FILE_BYTES", "MAX_NODES",
 ]
@@ -1255,7 +1255,12 @@ def _load_model(ref, file_name) -> Model:
     text = os.fspath(ref) if isinstance(ref, os.PathLike) else ref
     if not isinstance(text, str) or not text:
         raise _err("", f"expected a model file or a built-in model name, got {text!r}")
+    python = python_model_ref(text)
+    if python is not None:
+        return _with_source(load_python_model(*python, shown=file_name or text), file_name or text)
     suffix = Path(text).suffix.lower()
+    if suffix == ".py" and not os.path.isdir(text):
+        raise _err("", "a model written in Python is named FILE.py:FUNCTION (the function returns a Model)", file_name or text)
     registry = {} if suffix in FORMATS or os.sep in text or "/" in text else builtin_models()
     if text in registry:
         return _with_source(_load_builtin(text, registry[text], file_name), file_name or text)
@@ -1265,6 +1270,81 @@ def _load_model(ref, file_name) -> Model:
         return _with_source(model_from_data(load_data(text, file_name=file_name), file_name or text), file_name or text)
     names = ", ".join(sorted(builtin_models())) or "none installed"
     raise _err("", f"no such file or built-in model '{text}' (model files end in .yaml, .yml or .json; built-in models: {names})")
+
+
+_IDENT = re.compile(r"[A-Za-z_][A-Za-z0-9_]*\Z")
+_MODULE = re.compile(r"[A-Za-z_][A-Za-z0-9_]*(\.[A-Za-z_][A-Za-z0-9_]*)*\Z")
+
+
+def python_model_ref(text: str) -> "tuple | None":
+    """``(file or module, function)`` when ``text`` names a model written in Python:
+    ``path/to/file.py:function`` or ``package.module:function``; None otherwise (an existing
+    file of that exact name stays a file).
+
+    >>> python_model_ref("models/examples/two_area.py:two_area")
+    ('models/examples/two_area.py', 'two_area')
+    >>> python_model_ref("btfsm.models.pickplace:pickplace")
+    ('btfsm.models.pickplace', 'pickplace')
+    >>> python_model_ref("model.yaml") is None, python_model_ref("a:b:c") is None
+    (True, True)
+    """
+    where, colon, func = text.rpartition(":")
+    if not colon or not _IDENT.match(func) or os.path.exists(text):
+        return None
+    if where.lower().endswith(".py") or _MODULE.match(where):
+        return where, func
+    return None
+
+
+def load_python_model(where: str, func: str, *, shown: "str | None" = None) -> Model:
+    """Call ``func`` of the Python file or module ``where`` (the user's explicit choice to
+    run their code) and return the Model it builds; anything else is a one-line ModelError."""
+    import importlib.util
+    import sys
+
+    shown = shown or f"{where}:{func}"
+    try:
+        if where.lower().endswith(".py"):
+            if not os.path.isfile(where):
+                raise _err("", f"no such Python file '{where}'", shown)
+            name = "_btfsm_user_model_" + re.sub(r"\W", "_", os.path.abspath(where))
+            spec = importlib.util.spec_from_file_location(name, where)
+            if spec is None or spec.loader is None:
+                raise _err("", f"cannot load '{where}' as a Python module", shown)
+            module = importlib.util.module_from_spec(spec)
+            folder = os.path.dirname(os.path.abspath(where))
+            sys.path.insert(0, folder)  # its sibling modules import as they would when run as a script
+            try:
+                spec.loader.exec_module(module)
+            finally:
+                if sys.path and sys.path[0] == folder:
+                    del sys.path[0]
+        else:
+            module = importlib.import_module(where)
+    except ModelError:
+        raise
+    except ModuleNotFoundError as exc:
+        raise _err("", f"cannot import '{where}': no module named '{exc.name}'", shown) from None
+    except SyntaxError as exc:
+        raise _err("", f"{exc.filename or where}: line {exc.lineno}: syntax error: {exc.msg}", shown) from None
+    except MemoryError:
+        raise
+    except (Exception, SystemExit) as exc:  # the user's module raised while it was imported
+        raise _err("", f"importing '{where}' raised {type(exc).__name__}: {exc}", shown) from None
+    fn = getattr(module, func, None)
+    if not callable(fn):
+        raise _err("", f"'{where}' has no function '{func}'", shown)
+    try:
+        model = fn()
+    except ModelError as exc:
+        raise (exc if exc.file else exc.at(file=shown)) from None
+    except MemoryError:
+        raise
+    except (Exception, SystemExit) as exc:
+        raise _err("", f"{func}() raised {type(exc).__name__}: {exc}", shown) from None
+    if not isinstance(model, Model):
+        raise _err("", f"{func}() returned {type(model).__name__}, not a btfsm Model", shown)
+    return model
 
 
 def _with_source(model: Model, shown: str) -> Model:
