@@ -15,7 +15,7 @@ import time
 
 from btfsm.errors import UsageError
 
-__all__ = ["cli_experiment", "cli_sim", "cli_conform", "select_ks", "variant_of"]
+__all__ = ["cli_experiment", "cli_sim", "cli_conform", "select_ks"]
 
 
 def select_ks(ks, trials) -> list:
@@ -32,16 +32,6 @@ def select_ks(ks, trials) -> list:
     if trials == 1:
         return [1]
     return sorted({round(1 + i * 39 / (trials - 1)) for i in range(trials)})
-
-
-def variant_of(model) -> str:
-    """Which experiment variant a model is (the cell binding runs the ARIAC models)."""
-    from .binding import CellBinding
-
-    missing = CellBinding.unsupported(model)
-    if missing:
-        raise UsageError(f"{model.name}: the kitting cell cannot run this model ({missing})")
-    return "baseline" if model.name.endswith("baseline") or model.name == "original" else "preemptive"
 
 
 def cli_experiment(args) -> int:
@@ -96,6 +86,7 @@ def cli_sim(args) -> int:
     from btfsm.files import load_cli_model
     from btfsm.outputs import atomic_path
 
+    from .conformance import variant_of
     from .experiment import TrialSpec
     from .render import Recorder, render_png
     from .trial import run_trial
@@ -144,47 +135,39 @@ def cli_sim(args) -> int:
 def cli_conform(args) -> int:
     from btfsm.files import load_cli_model
 
-    from .conformance import PathMonitor, random_scenarios, run_scenario
+    from .conformance import conform, variant_of
 
     model = load_cli_model(args)
-    variant = variant_of(model)
-    monitor = None
-    if not args.no_path:
-        from btfsm.verify.explore import explore
-
-        ts = explore(model, max_states=args.max_states)
-        if not ts.complete:
-            print(f"btfsm conform: incomplete: exploring {model.name} hit --max-states {args.max_states:,}; "
-                  f"raise it or use --no-path", file=sys.stderr)
-            return 3
-        monitor = PathMonitor(ts)
-        monitor_states = len(ts.states)
-        if not getattr(args, "json", False):
-            print(f"{model.name}: checked system has {monitor_states:,} states; monitoring runtime paths against it")
-    from .binding import CellBinding
-
-    parts = model.var(CellBinding.dialect_of(model).tray_var).hi
-    scenarios = random_scenarios(args.scenarios, args.seed, variant, parts=parts,
-                                 time_limit=args.time, drops=args.drops)
-    failed = 0
     as_json = getattr(args, "json", False)
+    variant_of(model)  # a model the cell cannot run is an error before anything is explored
     rows = []
-    for i, sc in enumerate(scenarios):
-        res = run_scenario(sc, model, monitor)
-        status = "ok" if res.mismatch is None else "MISMATCH"
+
+    def explored(states):
+        if not as_json:
+            print(f"{model.name}: checked system has {states:,} states; monitoring runtime paths against it")
+
+    def show(i, sc, res):
         rows.append({"scenario": i, "seed": sc.seed, "belt_parts": len(sc.detections),
                      "drop_regions": [list(d) if isinstance(d, (tuple, list)) else str(d) for d in sc.drop_regions],
                      "ticks": res.ticks, "conforms": res.mismatch is None,
                      "mismatch": None if res.mismatch is None else str(res.mismatch)})
         if not as_json:
+            status = "ok" if res.mismatch is None else "MISMATCH"
             print(f"scenario {i}: seed {sc.seed}, {len(sc.detections)} belt parts, "
                   f"{'drop region ' + str(sc.drop_regions[0]) if sc.drop_regions else 'no drop region'}: "
                   f"{res.ticks} ticks, {status}" + (f"\n  first mismatch at {res.mismatch}" if res.mismatch else ""))
-        failed += res.mismatch is not None
+
+    out = conform(model, args.scenarios, args.seed, args.time, args.drops, path=not args.no_path,
+                  max_states=args.max_states, on_explored=explored, on_result=show)
+    if out.incomplete:
+        print(f"btfsm conform: incomplete: exploring {model.name} hit --max-states {args.max_states:,}; "
+              f"raise it or use --no-path", file=sys.stderr)
+        return 3
+    failed = len(out.failed)
     if as_json:
-        print(json.dumps({"model": model.name, "checked_states": None if monitor is None else monitor_states,
-                          "scenarios": rows, "conforming": len(scenarios) - failed, "total": len(scenarios)},
+        print(json.dumps({"model": model.name, "checked_states": out.checked_states,
+                          "scenarios": rows, "conforming": len(rows) - failed, "total": len(rows)},
                          default=str))
     else:
-        print(f"{len(scenarios) - failed} of {len(scenarios)} scenarios conform")
+        print(f"{len(rows) - failed} of {len(rows)} scenarios conform")
     return 1 if failed else 0

@@ -15,7 +15,8 @@ from __future__ import annotations
 import random
 from dataclasses import dataclass, field
 
-__all__ = ["PathMonitor", "Scenario", "Mismatch", "run_scenario", "random_scenarios"]
+__all__ = ["PathMonitor", "Scenario", "Mismatch", "run_scenario", "random_scenarios", "Conformance",
+           "conform", "variant_of"]
 
 
 class PathMonitor:
@@ -133,3 +134,72 @@ def random_scenarios(n: int, seed: int = 0, variant: str = "preemptive", parts: 
             regions = ((x, y, x + 0.15, y + 0.15),)
         out.append(Scenario(variant, rng.randrange(10**6), tuple(times), regions, time_limit, parts))
     return out
+
+
+def variant_of(model) -> str:
+    """Which experiment variant a model is (the cell binding runs the ARIAC models);
+    UsageError naming what is missing when the kitting cell cannot run it."""
+    from btfsm.errors import UsageError
+
+    from .binding import CellBinding
+
+    missing = CellBinding.unsupported(model)
+    if missing:
+        raise UsageError(f"{model.name}: the kitting cell cannot run this model ({missing})")
+    return "baseline" if model.name.endswith("baseline") or model.name == "original" else "preemptive"
+
+
+@dataclass
+class Conformance:
+    """The outcome of ``conform``: every scenario's result, or an incomplete path check."""
+
+    model: str
+    scenarios: list
+    results: list
+    checked_states: "int | None" = None
+    incomplete: bool = False  # exploring the model for the path monitor hit max_states
+
+    @property
+    def failed(self) -> list:
+        return [r for r in self.results if r.mismatch is not None]
+
+    @property
+    def conforms(self) -> bool:
+        return not self.incomplete and not self.failed
+
+    def first_mismatch(self) -> "tuple | None":
+        """(scenario index, Mismatch) of the first scenario that did not conform."""
+        for i, r in enumerate(self.results):
+            if r.mismatch is not None:
+                return i, r.mismatch
+        return None
+
+
+def conform(model, scenarios: int = 10, seed: int = 0, time_limit: float = 700.0, drops: bool = False,
+            path: bool = True, max_states: "int | None" = 2_000_000, on_explored=None, on_result=None) -> Conformance:
+    """Run ``scenarios`` seeded random scenarios of ``model`` in the cell under the
+    conformance monitor (the path check against the explored system unless ``path`` is
+    false). ``on_explored(states)`` is called once the checked system is explored,
+    ``on_result(index, scenario, result)`` after each scenario."""
+    variant = variant_of(model)
+    monitor = checked = None
+    if path:
+        from btfsm.verify.explore import explore
+
+        ts = explore(model, max_states=max_states)
+        if not ts.complete:
+            return Conformance(model.name, [], [], None, incomplete=True)
+        monitor, checked = PathMonitor(ts), len(ts.states)
+        if on_explored is not None:
+            on_explored(checked)
+    from .binding import CellBinding
+
+    parts = model.var(CellBinding.dialect_of(model).tray_var).hi
+    cases = random_scenarios(scenarios, seed, variant, parts=parts, time_limit=time_limit, drops=drops)
+    results = []
+    for i, sc in enumerate(cases):
+        res = run_scenario(sc, model, monitor)
+        results.append(res)
+        if on_result is not None:
+            on_result(i, sc, res)
+    return Conformance(model.name, cases, results, checked)
