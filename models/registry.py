@@ -28,6 +28,7 @@ BUILTIN: dict = {
     "two-area": "btfsm.models.examples.two_area:two_area",
     "two-area-file": "btfsm.models.examples.files:two_area_file",
     "templated": "btfsm.models.examples.files:templated",
+    "bt-cpp-1031": "btfsm.models.examples.files:bt_cpp_1031",  # BehaviorTree.CPP #1031 (semantics btcpp)
     "spectrum-continue": "btfsm.models.examples.spectrum:continue_",
     "spectrum-hold": "btfsm.models.examples.spectrum:hold",
     "spectrum-reverse": "btfsm.models.examples.spectrum:reverse",
