@@ -798,12 +798,16 @@ def _exclusive_end(ctx, groups):
     """Rule 'Exclusive resources' at the end of a tick: two leaves of one resource running."""
     s = ctx.s
     for res, flags in groups:
-        running = [name for flag, name in flags if s[flag]]
-        if len(running) > 1:
-            a, b = running[0], running[1]
-            ctx.violations.append(("exclusive", res, a, b, "end"))
-            if ctx.rec is not None:
-                ctx.rec.append(("violation", a, f"exclusive {res}: runs with {b} at the end of the tick"))
+        a = None
+        for flag, name in flags:
+            if s[flag]:
+                if a is None:
+                    a = name
+                    continue
+                ctx.violations.append(("exclusive", res, a, name, "end"))
+                if ctx.rec is not None:
+                    ctx.rec.append(("violation", a, f"exclusive {res}: runs with {name} at the end of the tick"))
+                break
 
 
 def _apply(ctx, eff):
