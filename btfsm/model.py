@@ -250,7 +250,7 @@ class Model:
                 if m in members[:k]:
                     raise ModelError(f"{where}[{k}]", f"'{m}' is listed twice")
             if len(members) == 1:
-                warnings.append(f"{where}: only '{members[0]}' uses it: nothing can run beside it")
+                warnings.append((where, f"only '{members[0]}' uses it: nothing can run beside it"))
         return warnings
 
     def _check_reentrant_requests(self):
