@@ -47,6 +47,7 @@ BUILTIN: dict = {
     "defect-contract": "btfsm.models.examples.defects:contract",
     "defect-domain": "btfsm.models.examples.defects:domain",
     "defect-shadowed-marker": "btfsm.models.examples.defects:shadowed_marker",
+    "defect-exclusive": "btfsm.models.examples.defects:exclusive",
 }
 
 # defect model -> the property it is seeded to violate (the catalogue's table)
@@ -61,6 +62,7 @@ DEFECTS: dict = {
     "defect-contract": "contracts",
     "defect-domain": "domain",
     "defect-shadowed-marker": "lints",
+    "defect-exclusive": "exclusive-actions",
 }
 
 

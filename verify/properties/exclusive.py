@@ -47,16 +47,43 @@ def check(ctx) -> Result:
     notes = [f"resources: {groups}",
              f"{n_ticks} transition(s) run two leaves of one resource at once "
              f"({', '.join(sorted({p[1][1] for p in found}))})"]
+    why = _why(model, leaf, other)
     if when == "start":
-        text = (f"in the last tick '{leaf}' started while '{other}' was still running; both use resource "
-                f"'{res}'. A reactive node that starts a new child before it halts the running one "
-                "(BehaviorTree.CPP issue #1031; semantics btcpp/pytrees) does this; btfsm's halt-before-start "
-                "halts the running branch first. Leaves that cannot return RUNNING start on every tick.")
+        text = f"in the last tick '{leaf}' started while '{other}' was still running; both use resource '{res}'. {why}"
         summary = f"'{leaf}' can start while '{other}' runs (both use '{res}')"
     else:
-        text = (f"at the end of the last tick '{leaf}' and '{other}' are both running; both use resource "
-                f"'{res}' (a Parallel over them, or leaves in different subtrees)")
+        text = f"at the end of the last tick '{leaf}' and '{other}' are both running; both use resource '{res}'. {why}"
         summary = f"'{leaf}' and '{other}' can both be running (both use '{res}')"
     viol = {"kind": "exclusive", "resource": res, "node": leaf, "other": other, "when": when, "text": text}
     ce = path_counterexample(ts, ts.path_to(int(ts.src[t])) + [t], NAME, summary, viol)
     return Result(NAME, False, ce, notes)
+
+
+def _why(model, a: str, b: str) -> str:
+    """Why two leaves can overlap, from their lowest common ancestor."""
+    from btfsm.bt import Parallel, walk
+
+    parent: dict = {}
+    for _, root in model.roots():
+        for n in walk(root):
+            for c in n.children_of():
+                parent[c.name] = n
+    chain, x = [], a
+    while x is not None:
+        chain.append(x)
+        x = parent[x].name if x in parent else None
+    y = b
+    while y is not None and y not in chain:
+        y = parent[y].name if y in parent else None
+    if y is None:
+        return ("They are in different trees (an FSM state's subtree and the tree that requests it, or two "
+                "subtrees): nothing halts one before the other starts.")
+    node = next(n for _, r in model.roots() for n in walk(r) if n.name == y)
+    if isinstance(node, Parallel):
+        return f"Their lowest common ancestor '{y}' is a Parallel: its children run side by side and never halt each other."
+    if model.semantics != "btfsm":
+        return (f"Under {model.semantics} semantics '{y}' starts a new child before it halts the running one "
+                "(BehaviorTree.CPP issue #1031); btfsm's halt before start (the default profile) halts the "
+                "running branch first.")
+    return ("An action that cannot return RUNNING halts nothing before it is ticked (docs/semantics.md section 4): "
+            "it runs on every tick beside the running one.")
