@@ -319,3 +319,57 @@ def test_halt_before_start_keeps_async_leaves_exclusive(model):
     m = dataclasses.replace(model, semantics="btfsm", resources={"all": group})
     r = _prop(m)
     assert r.holds is not False, r.counterexample.format_text() if r.counterexample else r.notes
+
+
+# ---------------------------------------------------------------------- the real engine
+def test_real_btcpp_starts_before_it_halts_on_the_example():
+    """models/examples/bt_cpp_1031.yaml in real BehaviorTree.CPP 4 (behaviortreepy): the tick
+    that sees the part calls pick_from_conveyor's onStart before place_on_agv's onHalted,
+    exactly as the btcpp profile's counterexample says; btfsm's order is the reverse."""
+    bt = pytest.importorskip("behaviortreepy")
+    from btfsm.runtime import Runtime
+
+    xml = """<root BTCPP_format="4" main_tree_to_execute="Main"><BehaviorTree ID="Main">
+      <ReactiveFallback name="root">
+        <ReactiveSequence name="conveyor_first">
+          <PartOnBelt name="part_on_belt"/><PickFromConveyor name="pick_from_conveyor"/>
+        </ReactiveSequence>
+        <PlaceOnAgv name="place_on_agv"/>
+      </ReactiveFallback></BehaviorTree></root>"""
+    tick, log = [0], []
+    f = bt.BehaviorTreeFactory()
+    f.register_simple_condition("PartOnBelt", lambda node: bt.NodeStatus.SUCCESS if tick[0] >= 2 else bt.NodeStatus.FAILURE)
+    for tag, name in (("PickFromConveyor", "pick_from_conveyor"), ("PlaceOnAgv", "place_on_agv")):
+        f.register_simple_stateful_action(
+            tag, lambda node, n=name: (log.append((tick[0], n, "start")), bt.NodeStatus.RUNNING)[1],
+            lambda node, n=name: (log.append((tick[0], n, "running")), bt.NodeStatus.RUNNING)[1],
+            lambda node, n=name: log.append((tick[0], n, "halt")))
+    tree = f.create_tree_from_text(xml)
+    for k in (1, 2, 3):
+        tick[0] = k
+        tree.tick_exactly_once()
+
+    def ours(semantics):
+        out = []
+
+        class Leaf:
+            def __init__(self, name):
+                self.name = name
+
+            def tick(self, call):
+                out.append((call.tick + 1, self.name, "start" if call.first else "running"))
+                return "running"
+
+            def halt(self, call):
+                out.append((call.tick + 1, self.name, "halt"))
+        m = load_builtin("bt-cpp-1031")
+        rt = Runtime(dataclasses.replace(m, semantics=semantics), {n: Leaf(n) for n in ("pick_from_conveyor", "place_on_agv")})
+        viol = [rt.tick(["part_arrives"] if k == 2 else []).violations for k in (1, 2, 3)]
+        return out, viol
+    cpp_log, viol = ours("btcpp")
+    assert cpp_log == log
+    assert log[1:3] == [(2, "pick_from_conveyor", "start"), (2, "place_on_agv", "halt")]
+    assert viol == [[], [("exclusive", "arm", "pick_from_conveyor", "place_on_agv", "start")], []]
+    btfsm_log, viol = ours("btfsm")
+    assert btfsm_log[1:3] == [(2, "place_on_agv", "halt"), (2, "pick_from_conveyor", "start")]
+    assert viol == [[], [], []]
