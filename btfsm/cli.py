@@ -499,6 +499,12 @@ def cli_run(args) -> int:
                 break
             counts[step.status.name] += 1
             if step.violations:
+                exclusive = [v for v in step.violations if v[0] == "exclusive"]
+                if exclusive:
+                    v = exclusive[0]
+                    problem = (f"tick {tick}: exclusive resource '{v[1]}': '{v[2]}' "
+                               + (f"started while '{v[3]}' was running" if v[4] == "start" else f"and '{v[3]}' are both running"))
+                    break
                 nodes = ", ".join(f"'{v[1]}'" for v in step.violations)
                 problem = (f"tick {tick}: contract violation: {nodes} replied SUCCESS while its post-condition "
                            "is false")

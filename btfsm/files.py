@@ -756,7 +756,7 @@ _NODE_REQUIRED = {"Guard": ("condition", "child"), "Condition": ("expr",), "Skil
                   "Retry": ("child",), "Repeat": ("child",), "Effects": ("child",)}
 TRIGGER_KEYS = ("when", "on", True)  # "on" and True (YAML 1.1's reading of on:) are older spellings
 TOP_FIELDS = ("name", "description", "semantics", "tick_rate", "variables", "primitives", "fsms", "tree",
-              "environment", "invariants", "workable", "terminal")
+              "environment", "invariants", "workable", "terminal", "resources")
 FSM_FIELDS = ("goals", "states", "initial", "edges", "markers", "params", "retarget", "withdraw_goal", "terminal")
 
 
@@ -1159,6 +1159,25 @@ class _Reader:
                 out.append(self.event(ev, p, obj, i, "environment"))
         return tuple(out)
 
+    def resources(self, obj, data) -> tuple:
+        """``resources: {arm: [pick_a, pick_b]}``: resource name -> node names."""
+        if not isinstance(obj, dict):
+            raise self.fail("resources", f"expected a mapping of resource names to lists of node names, got {_kind(obj)}",
+                            data, "resources")
+        out = []
+        for name, members in obj.items():
+            self.string(name, "resources", obj, name, "a resource name")
+            path = _join("resources", name)
+            self.alias(path, path, obj, name)
+            if isinstance(members, str):
+                members = [members]
+            if not isinstance(members, list):
+                raise self.fail(path, f"expected a list of node names, got {_kind(members)}", obj, name)
+            for i, m in enumerate(members):
+                self.string(m, f"{path}[{i}]", members, i, "a node name")
+            out.append((name, tuple(members)))
+        return tuple(out)
+
     # ---------------------------------------------------------------- the model
     def model(self, data) -> Model:
         self.fields(data, "", TOP_FIELDS, ("name",), "a mapping with the model")
@@ -1196,6 +1215,8 @@ class _Reader:
         for key in ("workable", "terminal"):
             if data.get(key) is not None:
                 kw[key] = self.expr(data[key], key, data, key)
+        if data.get("resources") is not None:
+            kw["resources"] = self.resources(data["resources"], data)
         self.alias_declared_outcomes(kw)
         try:
             return Model(**kw)
@@ -1574,6 +1595,8 @@ def model_to_data(model: Model) -> dict:
     for key in ("workable", "terminal"):
         if getattr(model, key) is not None:
             out[key] = _expr_data(getattr(model, key))
+    if model.resources:
+        out["resources"] = {name: list(members) for name, members in model.resources}
     return out
 
 

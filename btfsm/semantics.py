@@ -112,6 +112,7 @@ class Program:
         self.prims = model.all_primitives()
         self._layout_fsms()
         self._layout_nodes()
+        self.exclusive = self._exclusive_groups()
         self._compile_fsms()
         self.env = [self._compile_env(i, ev) for i, ev in enumerate(model.environment)]
         self.root = self.nodes[model.tree.name].tick if model.tree is not None else None
@@ -600,7 +601,7 @@ class Program:
         if isinstance(n, Action):
             site = self._site("action", n.name, None, None, n.primitive, n.args, where)
             info.node_site = site
-            run = self._primitive_runner(site)
+            run = self._exclusive_start(info, self._primitive_runner(site))
 
             def tick(ctx):
                 if flag is not None and not ctx.s[flag]:
@@ -622,6 +623,7 @@ class Program:
                 pfns.append((fn, p.lo, p.hi, p.kind == "bool", p.name))
             pfns = tuple(pfns)
             prog = self
+            rivals = self._rivals(info)
 
             def tick(ctx):
                 s = ctx.s
@@ -632,6 +634,8 @@ class Program:
                     if s[flag]:  # a running request ends: withdraw its goal
                         prog.fsm_ticks[fi].withdraw(ctx, name)
                     return finish(FAILURE, ctx)
+                if starting and rivals:
+                    _exclusive_check(ctx, rivals)
                 pvals = tuple(_param(fn(s), lo, hi, is_bool, pname, name) for fn, lo, hi, is_bool, pname in pfns)
                 st = prog.fsm_ticks[fi](ctx, g, pvals, name, starting)
                 if st == SUCCESS and post is not None and not post(s):
@@ -656,6 +660,43 @@ class Program:
             seen.add(branch.name)
             b = self.nodes[branch.name]
             out.append((b.flag, b.halt))
+        return tuple(out)
+
+    def _rivals(self, info):
+        """Rule 'Exclusive resources': for each running leaf that shares a resource with
+        ``info``'s leaf, the (flag, violation, event) to report when this leaf starts
+        while that one runs."""
+        me, out = info.node.name, []
+        for res, members in self.model.resources:
+            if me in members:
+                for m in members:
+                    other = self.nodes[m]
+                    if m != me and other.flag is not None:
+                        out.append((other.flag, ("exclusive", res, me, m, "start"),
+                                    ("violation", me, f"exclusive {res}: starts while {m} runs")))
+        return tuple(out)
+
+    def _exclusive_start(self, info, run):
+        """``run`` preceded by the rule 'Exclusive resources' check when the leaf starts
+        (ticked while idle; a leaf that cannot return RUNNING starts on every tick)."""
+        rivals, flag = self._rivals(info), info.flag
+        if not rivals:
+            return run
+
+        def checked(ctx):
+            if flag is None or not ctx.s[flag]:
+                _exclusive_check(ctx, rivals)
+            return run(ctx)
+        return checked
+
+    def _exclusive_groups(self):
+        """Per resource with two leaves that can run: ((flag, name), ...) checked at the end
+        of every tick (rule 'Exclusive resources')."""
+        out = []
+        for res, members in self.model.resources:
+            flags = tuple((self.nodes[m].flag, m) for m in members if self.nodes[m].flag is not None)
+            if len(flags) > 1:
+                out.append((res, flags))
         return tuple(out)
 
     def _lint_reactive_sequences(self):
@@ -686,6 +727,8 @@ class Program:
                 if eff is not None:
                     _record_writes(ctx, eff)
         status = self.root(ctx) if self.root is not None else SUCCESS
+        if self.exclusive:
+            _exclusive_end(ctx, self.exclusive)
         return Step(tuple(s), status, ctx.rec, ctx.violations)
 
     def fsm_step(self, state, fsm: "str | int", goal: "str | int", params, oracle, record: bool = False) -> Step:
@@ -740,6 +783,31 @@ def _halt_before_start(ctx, conflicts):
     for flag, halt in conflicts:
         if s[flag]:
             halt(ctx)
+
+
+def _exclusive_check(ctx, rivals):
+    s = ctx.s
+    for flag, violation, event in rivals:
+        if s[flag]:
+            ctx.violations.append(violation)
+            if ctx.rec is not None:
+                ctx.rec.append(event)
+
+
+def _exclusive_end(ctx, groups):
+    """Rule 'Exclusive resources' at the end of a tick: two leaves of one resource running."""
+    s = ctx.s
+    for res, flags in groups:
+        a = None
+        for flag, name in flags:
+            if s[flag]:
+                if a is None:
+                    a = name
+                    continue
+                ctx.violations.append(("exclusive", res, a, name, "end"))
+                if ctx.rec is not None:
+                    ctx.rec.append(("violation", a, f"exclusive {res}: runs with {name} at the end of the tick"))
+                break
 
 
 def _apply(ctx, eff):

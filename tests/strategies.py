@@ -12,7 +12,7 @@ from hypothesis import strategies as st
 
 from btfsm import (FSM, Action, Condition, Edge, EnvChoice, EnvEvent, Marker, Model, ModelError,
                    Outcome, Primitive, State)
-from btfsm.bt import NODE_TYPES
+from btfsm.bt import NODE_TYPES, SkillRequest, walk
 from btfsm.world import Bool, Enum, Int
 
 __all__ = ["random_models"]
@@ -214,6 +214,17 @@ def _event(draw, name, variables):
     return EnvEvent(name, guard, _effects(draw, variables))
 
 
+def _resources(draw, tree, fsms) -> tuple:
+    """Up to two resources over the Action and SkillRequest leaves (tree and FSM subtrees)."""
+    roots = [tree] if tree is not None else []
+    roots += [stt.subtree for f in fsms for stt in f.states if stt.subtree is not None]
+    leaves = [n.name for r in roots for n in walk(r) if isinstance(n, (Action, SkillRequest))]
+    if not leaves or draw(st.integers(0, 2)) == 0:
+        return ()
+    return tuple((f"r{k}", tuple(draw(st.lists(st.sampled_from(leaves), min_size=1, max_size=4, unique=True))))
+                 for k in range(draw(st.integers(1, 2))))
+
+
 @st.composite
 def random_models(draw, max_vars: int = 4, max_fsms: int = 2, tree_depth: int = 3):
     """Valid random Models exercising every field of the modelling API."""
@@ -236,8 +247,9 @@ def random_models(draw, max_vars: int = 4, max_fsms: int = 2, tree_depth: int = 
     workable = draw(st.one_of(st.none(), st.just(_bool_expr(draw, variables, state_refs))))
     terminal = draw(st.one_of(st.none(), st.just(_bool_expr(draw, variables, state_refs))))
     tick_rate = draw(st.one_of(st.just(10.0), st.integers(1, 100), st.floats(0.01, 1e4, allow_nan=False)))
+    resources = _resources(draw, tree, ctx["fsms"])
     try:
         return Model(draw(st.sampled_from(["m", "two area", "cell-1"])), variables, prims, ctx["fsms"], tree, tuple(env),
-                     invariants, workable, terminal, tick_rate, draw(_TEXT))
+                     invariants, workable, terminal, tick_rate, draw(_TEXT), resources=resources)
     except ModelError as exc:  # a combination the strategy does not rule out; say which
         raise AssertionError(f"random_models built an invalid model: {exc}") from None
