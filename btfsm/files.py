@@ -697,17 +697,19 @@ def _check_fields(ctx, obj, path, allowed, required=(), what="a mapping"):
 
 
 def _find_placeholder(obj, path):
-    """(path, text) of the first string still holding ``${``, or None."""
+    """(path, text) of the first string still holding a placeholder ``${NAME}``, or None.
+    Descriptions are free text and are not searched."""
     stack = [(obj, path)]
     while stack:
         x, p = stack.pop()
-        if isinstance(x, str) and "${" in x:
+        if isinstance(x, str) and _PLACEHOLDER.search(x):
             return p, x
         if isinstance(x, dict):
             for k, v in reversed(list(x.items())):
-                if isinstance(k, str) and "${" in k:
+                if isinstance(k, str) and _PLACEHOLDER.search(k):
                     return _join(p, k), k
-                stack.append((v, _join(p, k)))
+                if k != "description":
+                    stack.append((v, _join(p, k)))
         elif isinstance(x, list):
             stack.extend((v, f"{p}[{i}]") for i, v in reversed(list(enumerate(x))))
     return None
