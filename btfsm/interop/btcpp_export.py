@@ -13,11 +13,14 @@ BehaviorTree.CPP and Groot2 load it once the leaves are registered. The node map
 * decorators: ``Inverter``, ``ForceSuccess``, ``ForceFailure``, ``Retry`` ->
   ``RetryUntilSuccessful num_attempts``, ``Repeat num_cycles``,
   ``KeepRunningUntilFailure``, ``RunOnce then_skip``;
-* leaves are callbacks the user registers by ID: an ``Action`` is ``<Action
-  ID="primitive" name="node">`` with its args as input ports; a ``Condition`` is
-  ``<Condition ID="node" name="node">`` (its btfsm expression is the description of its
-  TreeNodesModel entry); a ``SkillRequest`` is ``<Action ID="node" name="node">`` (a
-  stateful action in BehaviorTree.CPP).
+* leaves are callbacks the user registers by ID, written in the compact form ``<ID
+  name="node" .../>`` (BehaviorTree.CPP's parser looks the tag of a ReactiveSequence's
+  children up as a registered ID, so ``<Action ID=...>`` is refused there): an ``Action``
+  is ``<primitive name="node">`` with its args as input ports; a ``Condition`` is
+  ``<node name="node">`` (its btfsm expression is the description of its TreeNodesModel
+  entry); a ``SkillRequest`` is ``<node name="node">`` (a stateful action in
+  BehaviorTree.CPP). An ID must therefore be an XML name (``[A-Za-z_][A-Za-z0-9_.-]*``):
+  anything else is a ModelError naming the node.
 
 ``Guard`` and ``Effects`` have no BehaviorTree.CPP counterpart with the same rules: the
 export refuses them (``ModelError`` naming the node), as it refuses a model without a tree.
@@ -31,8 +34,8 @@ Every name and value is XML-escaped.
 <root BTCPP_format="4" main_tree_to_execute="demo">
   <BehaviorTree ID="demo">
     <ReactiveFallback name="root">
-      <Condition ID="is_done" name="is_done"/>
-      <Action ID="work" name="work"/>
+      <is_done name="is_done"/>
+      <work name="work"/>
     </ReactiveFallback>
   </BehaviorTree>
   <TreeNodesModel>
@@ -44,6 +47,8 @@ Every name and value is XML-escaped.
 </root>
 """
 from __future__ import annotations
+
+import re
 
 from ..bt import (Action, Condition, Effects, ForceFailure, ForceSuccess, Guard, IfThenElse, Inverter,
                   KeepRunningUntilFailure, MemoryFallback, MemorySequence, Parallel, ParallelAll,
@@ -64,6 +69,7 @@ TAGS = {
 }
 """btfsm node type -> BehaviorTree.CPP XML tag (controls and decorators)."""
 
+_XML_NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_.-]*\Z")
 _ESCAPES = {"&": "&amp;", "<": "&lt;", ">": "&gt;", '"': "&quot;", "'": "&apos;",
             "\n": "&#10;", "\r": "&#13;", "\t": "&#9;"}
 
@@ -127,6 +133,13 @@ def _declare(leaves, ident, kind, ports, desc, node):
     old[1].extend(p for p in ports if p not in old[1])
 
 
+def _leaf_tag(ident, where) -> str:
+    if not _XML_NAME.match(ident) or ident.lower().startswith("xml"):
+        raise ModelError(where, f"BehaviorTree.CPP ID '{ident}' is not an XML name ([A-Za-z_][A-Za-z0-9_.-]*); "
+                                "rename it to export the tree")
+    return ident
+
+
 def _node(n, depth, lines, leaves):
     pad = "  " * depth
     where = f"tree.{n.name}"
@@ -135,17 +148,17 @@ def _node(n, depth, lines, leaves):
         ports = [k for k, _ in n.args]
         attrs = "".join(f' {xml_attr(k, where)}="{xml_attr(_value(v), where)}"' for k, v in n.args)
         _declare(leaves, n.primitive, "Action", ports, None, n.name)
-        lines.append(f'{pad}<Action ID="{xml_attr(n.primitive, where)}" name="{name}"{attrs}/>')
+        lines.append(f'{pad}<{_leaf_tag(n.primitive, where)} name="{name}"{attrs}/>')
         return
     if isinstance(n, Condition):
         _declare(leaves, n.name, "Condition", (), to_text(n.expr), n.name)
-        lines.append(f'{pad}<Condition ID="{name}" name="{name}"/>')
+        lines.append(f'{pad}<{_leaf_tag(n.name, where)} name="{name}"/>')
         return
     if isinstance(n, SkillRequest):
         params = ", ".join(f"{k}={to_text(e)}" for k, e in n.params)
         desc = f"btfsm SkillRequest: fsm {n.fsm}, goal {n.goal}" + (f", params {params}" if params else "")
         _declare(leaves, n.name, "Action", (), desc, n.name)
-        lines.append(f'{pad}<Action ID="{name}" name="{name}"/>')
+        lines.append(f'{pad}<{_leaf_tag(n.name, where)} name="{name}"/>')
         return
     if isinstance(n, (Guard, Effects)):
         raise ModelError(where, f"{type(n).__name__} has no BehaviorTree.CPP counterpart with the same rules; "
