@@ -75,3 +75,106 @@ def _show(spec, a, b, xml):
 def test_peer_btcpp_random_trees(spec):
     a, b, xml = compare(spec, TICKS)
     assert a == b, _show(spec, a, b, xml)
+
+
+# ---------------------------------------------------------------- the exporter
+
+
+_EVERY_NODE = """
+name: every-node
+semantics: btcpp
+variables: {t: {int: [0, 3], init: 3}}
+environment: [{event: clock, effects: {t: (t + 1) % 4}}]
+primitives:
+  go: [success, failure, running]
+  beep: [success, failure]
+tree:
+  ReactiveSequence: root
+  children:
+    - Condition: ready
+      expr: t != 2
+    - Parallel: par
+      success_threshold: -1
+      failure_threshold: 2
+      children:
+        - IfThenElse: ite
+          children:
+            - {Action: a1, primitive: go}
+            - {Inverter: inv, child: {Action: a2, primitive: beep}}
+            - {ForceSuccess: fs, child: {Action: a3, primitive: go}}
+        - WhileDoElse: wde
+          children:
+            - {Condition: c2, expr: t < 2}
+            - {Retry: retry, attempts: 2, child: {Action: a4, primitive: go}}
+        - ParallelAll: pall
+          max_failures: 1
+          children:
+            - {Repeat: rep, times: 2, child: {Action: a5, primitive: beep}}
+            - {KeepRunningUntilFailure: krf, child: {Action: a6, primitive: go}}
+        - SequenceWithMemory: swm
+          children:
+            - {RunOnce: once, then_skip: false, child: {Action: a7, primitive: go}}
+            - {ForceFailure: ff, child: {Action: a8, primitive: beep}}
+        - MemoryFallback: fb
+          children:
+            - {MemorySequence: seq, children: [{Action: a9, primitive: go}]}
+            - {ReactiveFallback: rfb, children: [{Action: a10, primitive: beep}]}
+"""
+
+
+def _load_in_btcpp(xml, stateful=("go",), sync=("beep",), conditions=("ready", "c2")):
+    import behaviortreepy as bt
+
+    factory = bt.BehaviorTreeFactory()
+    for name in stateful:
+        factory.register_simple_stateful_action(name, lambda n: bt.NodeStatus.RUNNING, lambda n: bt.NodeStatus.SUCCESS)
+    for name in sync:
+        factory.register_simple_action(name, lambda n: bt.NodeStatus.SUCCESS)
+    for name in conditions:
+        factory.register_simple_condition(name, lambda n: bt.NodeStatus.SUCCESS)
+    return factory.create_tree_from_text(xml)
+
+
+def test_export_cli_btcpp_loads_in_real_engine(tmp_path, capsys):
+    """`btfsm export MODEL --format btcpp -o FILE` writes XML that BehaviorTree.CPP loads
+    and ticks (every control and decorator node, TreeNodesModel)."""
+    from btfsm.cli import main
+
+    model = tmp_path / "every.yaml"
+    model.write_text(_EVERY_NODE)
+    out = tmp_path / "every.xml"
+    assert main(["export", str(model), "--format", "btcpp", "-o", str(out)]) == 0
+    xml = out.read_text()
+    assert '<root BTCPP_format="4" main_tree_to_execute="every-node">' in xml
+    assert '<go name="a1"/>' in xml and '<beep name="a5"/>' in xml and '<Action ID="beep"/>' in xml
+    assert '<Condition ID="ready">' in xml and "<description>t != 2</description>" in xml
+    tree = _load_in_btcpp(xml)
+    for _ in range(4):
+        tree.tick_exactly_once()
+    assert main(["export", str(model), "--format", "btcpp"]) == 0
+    assert capsys.readouterr().out == xml
+
+
+def test_export_btcpp_escapes_and_refuses():
+    """Names and expressions are escaped; Guard/Effects and IDs that are not XML names are
+    ModelErrors naming the node."""
+    from btfsm import Action, Bool, Condition, Guard, MemorySequence, Model, Primitive
+    from btfsm.errors import ModelError
+    from btfsm.interop.btcpp_export import to_btcpp_xml
+
+    m = Model('a "quoted" & <odd> model', variables=[Bool("x")], primitives=[Primitive("work")],
+              tree=MemorySequence("s<&>'\"", [Condition("is_x", "x and not x"), Action("w 1", "work")]))
+    xml = to_btcpp_xml(m)
+    assert 'main_tree_to_execute="a &quot;quoted&quot; &amp; &lt;odd&gt; model"' in xml
+    assert '<Sequence name="s&lt;&amp;&gt;&apos;&quot;">' in xml and '<work name="w 1"/>' in xml
+    tree = _load_in_btcpp(xml, stateful=(), sync=("work",), conditions=("is_x",))
+    assert str(tree.tick_exactly_once()).endswith("SUCCESS")
+    args = to_btcpp_xml(Model("a", primitives=[Primitive("move")],
+                              tree=Action("m", "move", args={"speed": 3, "fast": True, "via": [1, 2]})))
+    assert '<move name="m" fast="true" speed="3" via="1;2"/>' in args
+    assert '<input_port name="fast" type="std::string"/>' in args  # a port per arg (register it with ports)
+    with pytest.raises(ModelError, match="Guard has no BehaviorTree.CPP counterpart"):
+        to_btcpp_xml(Model("g", variables=[Bool("x")], primitives=[Primitive("work")],
+                           tree=Guard("g", Action("w", "work"), "x")))
+    with pytest.raises(ModelError, match="not an XML name"):
+        to_btcpp_xml(Model("g", primitives=[Primitive("two words")], tree=Action("w", "two words")))
