@@ -18,7 +18,10 @@ running, halts from the step's recorded events.
 """
 from __future__ import annotations
 
-import behaviortreepy as bt
+try:
+    import behaviortreepy as bt
+except ImportError:  # the btfsm side (run_btfsm) still works; run_btcpp needs the engine
+    bt = None
 
 from btfsm import Action, Condition, EnvEvent, Int, Model, Outcome
 from btfsm.bt import NODE_TYPES
@@ -28,8 +31,8 @@ from btfsm.status import Status
 __all__ = ["build", "run_btcpp", "run_btfsm", "compare", "LEAF_KINDS"]
 
 LEAF_KINDS = ("async", "sync", "cond")
-_BT = {"S": bt.NodeStatus.SUCCESS, "F": bt.NodeStatus.FAILURE, "R": bt.NodeStatus.RUNNING}
-_NAME = {bt.NodeStatus.SUCCESS: "SUCCESS", bt.NodeStatus.FAILURE: "FAILURE", bt.NodeStatus.RUNNING: "RUNNING"}
+_BT = {} if bt is None else {"S": bt.NodeStatus.SUCCESS, "F": bt.NodeStatus.FAILURE, "R": bt.NodeStatus.RUNNING}
+_NAME = {v: k for k, v in (("SUCCESS", _BT.get("S")), ("FAILURE", _BT.get("F")), ("RUNNING", _BT.get("R")))}
 _STATUS = {"S": Status.SUCCESS, "F": Status.FAILURE, "R": Status.RUNNING}
 
 

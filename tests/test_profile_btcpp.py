@@ -123,3 +123,56 @@ def test_profile_halt_before_start():
     default = run_btfsm(model, leaves, 3)
     assert default[1][1] == [("b", "halt"), ("a", "start")]
     assert [s for s, _ in default] == [s for s, _ in real]
+
+
+# ---------------------------------------------------------------- one test per section-8 row
+
+
+def _both(spec, ticks):
+    """(real BT.CPP log, btfsm log under btcpp, btfsm log under the default profile)."""
+    real, ours, _ = compare(spec, ticks)
+    model, leaves = build(spec, ticks, semantics="btfsm")
+    return real, ours, run_btfsm(model, leaves, ticks)
+
+
+def test_profile_btcpp_parallel():
+    """parallel_memory: BT.CPP's Parallel stops at the first threshold reached in child order
+    and does not tick finished children again; btfsm ticks all and prefers success."""
+    real, ours, default = _both(("Parallel", "par", [S("bad", "FF"), S("good", "SS")],
+                                 {"success_threshold": 1, "failure_threshold": 1}), 2)
+    assert ours == real and real[0] == ("FAILURE", [("bad", "tick")])
+    assert default[0] == ("SUCCESS", [("bad", "tick"), ("good", "tick")])
+    spec = ("Parallel", "par", [A("a", "SSSS"), A("b", "RRSS")], {"success_threshold": -1})
+    real, ours, default = _both(spec, 2)
+    assert ours == real and real[1] == ("RUNNING", [("b", "run")])  # a finished: not ticked again
+    assert default[1] == ("RUNNING", [("a", "start"), ("b", "run")])
+
+
+def test_profile_btcpp_loop_wake_up():
+    """loop_wake_up: a child that finishes at once makes Retry/Repeat/SequenceWithMemory
+    return RUNNING; a child that had been running is ticked again in the same tick."""
+    real, ours, default = _both(("Retry", "retry", A("a", "RFRF"), {"attempts": 3}), 3)
+    assert ours == real
+    assert real[1] == ("RUNNING", [("a", "run"), ("a", "start")])  # failed after running: again at once
+    assert default[1] == ("RUNNING", [("a", "run")])
+    real, ours, default = _both(("SequenceWithMemory", "swm", [S("a", "SS"), S("b", "SS")]), 2)
+    assert ours == real and [s for s, _ in real] == ["RUNNING", "SUCCESS"]
+    assert [s for s, _ in default] == ["SUCCESS", "SUCCESS"]
+
+
+def test_profile_btcpp_stale_condition():
+    """stale_condition: an async condition of WhileDoElse keeps its SUCCESS while the branch
+    runs (BT.CPP does not tick it); btfsm ticks it again."""
+    spec = ("WhileDoElse", "wde", [A("c", "SFFF"), A("do", "RRRR"), A("else", "RRRR")])
+    real, ours, default = _both(spec, 2)
+    assert ours == real and real[1] == ("RUNNING", [("do", "run")])
+    assert default[1] == ("RUNNING", [("do", "halt"), ("c", "start"), ("else", "start")])  # halt before start
+
+
+def test_run_once_then_skip_refused():
+    """SKIPPED is out of scope: RunOnce(then_skip=True) is refused under every profile."""
+    from btfsm.errors import ModelError
+
+    for semantics in ("btfsm", "btcpp"):
+        with pytest.raises(ModelError, match="then_skip"):
+            build(("RunOnce", "once", S("a", "SS"), {"then_skip": True}), 2, semantics=semantics)
