@@ -50,12 +50,16 @@ class Profile:
     #: not ticked again until the node resets it (BehaviorTree.CPP's StatefulActionNode
     #: returns its last status when ticked while SUCCESS/FAILURE). Off: ticked afresh
     stale_condition: bool = False
+    #: a SkillRequest that finished and is ticked again in the same tick (a Retry/Repeat
+    #: loop) steps its FSM again, as BehaviorTree.CPP calls a stateful action's onStart
+    #: again. Off: it gets the reply of its first step (one step per request per tick)
+    restart_in_tick: bool = False
 
 
 PROFILES = {
     "btfsm": Profile("btfsm", "btfsm (docs/semantics.md sections 1-7)"),
     "btcpp": Profile("btcpp", "BehaviorTree.CPP 4.x", halt_before_start=False, parallel_memory=True,
-                     loop_wake_up=True, stale_condition=True),
+                     loop_wake_up=True, stale_condition=True, restart_in_tick=True),
     "pytrees": Profile("pytrees", "py_trees 2.6", halt_before_start=False),
 }
 SEMANTICS = tuple(PROFILES)

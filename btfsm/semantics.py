@@ -358,6 +358,7 @@ class Program:
         name = f.name
         withdraw = f.goals.index(f.withdraw_goal) if f.retarget == "withdraw" else None
         bound = len(ids)
+        restart = self.profile.restart_in_tick
 
         def move(ctx, row, target, eff, eid):
             row[6](ctx)  # leave the source state
@@ -414,7 +415,9 @@ class Program:
             once per request, share, hand-over, conflict."""
             done = ctx.fsm_done.get(fi)
             if done is not None:  # the FSM already stepped in this BT tick
-                if done[2] == requester or (done[0] == g and done[3] == pvals):
+                if restart and done[2] == requester and starting and done[1] != RUNNING:
+                    pass  # the request finished and starts again in this tick (profile switch restart_in_tick)
+                elif done[2] == requester or (done[0] == g and done[3] == pvals):
                     return done[1]  # the same request again, or an identical one: share the reply
                 if not starting or done[1] == RUNNING:
                     # two requests use the FSM in one tick: a conflict (reported by 'contracts')

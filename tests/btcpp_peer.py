@@ -7,6 +7,9 @@ A tree is given as a *spec* (nested tuples):
   action; logs ``start`` / ``run`` / ``halt``);
 * ``("sync", name, statuses)``: an instant action (BT.CPP: a simple action; logs ``tick``);
 * ``("cond", name, statuses)``: a condition (BT.CPP: a simple condition; logs ``cond``);
+* ``("skill", name, statuses)``: a ``SkillRequest`` on its own one-state FSM whose state's
+  primitive answers the table (markers reply SUCCESS/FAILURE, else RUNNING); BT.CPP: a
+  stateful action like ``async`` (a halt withdraws the goal, which halts the primitive);
 * ``(TYPE, name, [children], params)`` for a btfsm control node type, or
   ``(TYPE, name, child, params)`` for a decorator (params: the node's extra fields).
 
@@ -23,24 +26,30 @@ try:
 except ImportError:  # the btfsm side (run_btfsm) still works; run_btcpp needs the engine
     bt = None
 
-from btfsm import Action, Condition, EnvEvent, Int, Model, Outcome
+from btfsm import FSM, Action, Condition, EnvEvent, Int, Marker, Model, Outcome, SkillRequest, State
 from btfsm.bt import NODE_TYPES
 from btfsm.interop.btcpp_export import to_btcpp_xml
 from btfsm.status import Status
 
 __all__ = ["build", "run_btcpp", "run_btfsm", "compare", "LEAF_KINDS"]
 
-LEAF_KINDS = ("async", "sync", "cond")
+LEAF_KINDS = ("async", "sync", "cond", "skill")
 _BT = {} if bt is None else {"S": bt.NodeStatus.SUCCESS, "F": bt.NodeStatus.FAILURE, "R": bt.NodeStatus.RUNNING}
 _NAME = {v: k for k, v in (("SUCCESS", _BT.get("S")), ("FAILURE", _BT.get("F")), ("RUNNING", _BT.get("R")))}
 _STATUS = {"S": Status.SUCCESS, "F": Status.FAILURE, "R": Status.RUNNING}
 
 
-def _node(spec, leaves, period):
+def _node(spec, leaves, period, fsms):
     kind, name = spec[0], spec[1]
     if kind in LEAF_KINDS:
         table = spec[2]
         leaves[name] = (kind, table)
+        if kind == "skill":
+            outs = (Outcome(Status.SUCCESS), Outcome(Status.FAILURE), Outcome(Status.RUNNING))
+            fsms.append(FSM(f"{name}_fsm", (State("work", outcomes=outs),), "work", ("do",), (),
+                            (Marker("work", on=Status.SUCCESS, outcome=Status.SUCCESS),
+                             Marker("work", on=Status.FAILURE, outcome=Status.FAILURE))))
+            return SkillRequest(name, f"{name}_fsm", "do")
         if kind == "cond":
             ticks = [str(k) for k, c in enumerate(table[:max(period, 2)]) if c == "S"]
             expr = " or ".join(f"t == {k}" for k in ticks) if ticks else "false"
@@ -53,17 +62,18 @@ def _node(spec, leaves, period):
     params = dict(spec[3]) if len(spec) > 3 and spec[3] else {}
     body = spec[2]
     if isinstance(body, list):
-        return cls(name, tuple(_node(c, leaves, period) for c in body), **params)
-    return cls(name, child=_node(body, leaves, period), **params)
+        return cls(name, tuple(_node(c, leaves, period, fsms) for c in body), **params)
+    return cls(name, child=_node(body, leaves, period, fsms), **params)
 
 
 def build(spec, ticks: int, semantics: str = "btcpp"):
     """(Model, {leaf name: (kind, statuses)}) for a spec; the model's clock ``t`` counts
     ticks (0 on the first) so that conditions can read the tick number."""
     leaves: dict = {}
-    tree = _node(spec, leaves, ticks)
+    fsms: list = []
+    tree = _node(spec, leaves, ticks, fsms)
     n = max(ticks, 2)
-    model = Model("peer", variables=(Int("t", 0, n - 1, init=n - 1),),
+    model = Model("peer", variables=(Int("t", 0, n - 1, init=n - 1),), fsms=tuple(fsms),
                   environment=(EnvEvent("clock", effects={"t": f"(t + 1) % {n}"}),),
                   tree=tree, semantics=semantics)
     return model, leaves
@@ -77,7 +87,7 @@ def run_btcpp(model, leaves, ticks: int, xml: "str | None" = None):
     for name, (kind, table) in leaves.items():
         def answer(name=name, table=table):
             return _BT[table[now[0]]]
-        if kind == "async":
+        if kind in ("async", "skill"):
             factory.register_simple_stateful_action(
                 name,
                 lambda node, name=name, answer=answer: (log.append((name, "start")), answer())[1],
@@ -108,7 +118,8 @@ class _Oracle:
         return 0
 
     def outcome(self, site):
-        want = _STATUS[self.leaves[site.node][1][self.tick]]
+        leaf = site.node if site.kind == "action" else site.fsm[:-len("_fsm")]
+        want = _STATUS[self.leaves[leaf][1][self.tick]]
         return next(k for k, o in enumerate(site.outcomes) if o[0] == want)
 
     def halt(self, site):
@@ -126,7 +137,7 @@ def run_btfsm(model, leaves, ticks: int):
         log = []
         for ev in step.events:
             if ev[0] == "outcome":
-                name = ev[1]
+                name = ev[1].split("/")[0][:-len("_fsm")] if "/" in ev[1] else ev[1]
                 kind = leaves[name][0]
                 if kind == "sync":
                     log.append((name, "tick"))
@@ -141,6 +152,8 @@ def run_btfsm(model, leaves, ticks: int):
             elif ev[0] == "halt" and ev[1] in leaves:
                 log.append((ev[1], "halt"))
                 running.discard(ev[1])
+            elif ev[0] == "withdraw" and ev[2] in leaves:
+                pass  # the halt event of the SkillRequest node was logged just before
         out.append((Status(step.status).name, log))
         state = step.state
     return out

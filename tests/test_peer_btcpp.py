@@ -31,8 +31,8 @@ def trees(draw, depth=4):
 
     def node(d):
         if d == 0 or draw(st.integers(0, 3)) == 0:
-            kind = draw(st.sampled_from(("async", "async", "sync", "cond")))
-            alphabet = "SFR" if kind == "async" else "SF"
+            kind = draw(st.sampled_from(("async", "async", "sync", "cond", "skill")))
+            alphabet = "SFR" if kind in ("async", "skill") else "SF"
             table = "".join(draw(st.lists(st.sampled_from(alphabet), min_size=TICKS, max_size=TICKS)))
             return (kind, f"L{next(counter)}", table)
         name = f"n{next(counter)}"

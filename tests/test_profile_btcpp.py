@@ -176,3 +176,12 @@ def test_run_once_then_skip_refused():
     for semantics in ("btfsm", "btcpp"):
         with pytest.raises(ModelError, match="then_skip"):
             build(("RunOnce", "once", S("a", "SS"), {"then_skip": True}), 2, semantics=semantics)
+
+
+def test_profile_btcpp_skill_restart_in_tick():
+    """restart_in_tick: a SkillRequest under Repeat that finishes after running is started
+    again in the same tick (BT.CPP calls onStart again); btfsm shares its first reply."""
+    spec = ("Repeat", "rep", ("skill", "sk", "RSSS"), {"times": 3})
+    real, ours, default = _both(spec, 2)
+    assert ours == real and real[1] == ("RUNNING", [("sk", "run"), ("sk", "start")])
+    assert default[1] == ("RUNNING", [("sk", "run")])
