@@ -897,7 +897,7 @@ class Program:
             if other is info or other.root != info.root or not other.can_run or other.kids:
                 continue
             lca, branch = _lca(info, other)
-            if isinstance(lca.node, Parallel) or branch.name in seen:
+            if isinstance(lca.node, (Parallel, ParallelAll)) or branch.name in seen:
                 continue
             seen.add(branch.name)
             b = self.nodes[branch.name]

@@ -74,3 +74,11 @@ def test_run_once():
     assert _statuses(log) == "RFFF" and log[2][1] == [] and log[3][1] == []
     with pytest.raises(ModelError, match="then_skip"):
         build(("RunOnce", "once", ("sync", "a", "SS"), {"then_skip": True}), 2)
+
+
+def test_parallel_all_children_do_not_compete():
+    """Under btfsm, halt before start never halts a sibling under a ParallelAll (section 4)."""
+    spec = ("ParallelAll", "pa", [("KeepRunningUntilFailure", "k", ("async", "a", "SSSS")), ("async", "b", "RRRR")],
+            {"max_failures": 1})
+    log = _run(spec, 2)
+    assert log[1][1] == [("a", "start"), ("b", "run")]
