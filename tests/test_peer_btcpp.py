@@ -17,7 +17,7 @@ pytest.importorskip("behaviortreepy")
 
 from btcpp_peer import compare  # noqa: E402
 
-TICKS = 8
+TICKS = 10
 TREES = 1000
 
 _COMPOSITES = ("ReactiveSequence", "MemorySequence", "SequenceWithMemory", "ReactiveFallback", "MemoryFallback",
