@@ -185,3 +185,13 @@ def test_profile_btcpp_skill_restart_in_tick():
     real, ours, default = _both(spec, 2)
     assert ours == real and real[1] == ("RUNNING", [("sk", "run"), ("sk", "start")])
     assert default[1] == ("RUNNING", [("sk", "run")])
+
+
+def test_profile_btcpp_issue10_memory_sequence_resumes():
+    """Issue 10's first example: ReactiveFallback[A, MemorySequence[B, C]] where A can run but
+    fails at once while C runs: BT.CPP keeps C running and resumes it; btfsm halts the
+    sequence before A starts, so B runs again."""
+    spec = ("ReactiveFallback", "rf", [A("a", "FFFF"), ("MemorySequence", "seq", [A("b", "SSSS"), A("c", "RRRR")])])
+    real, ours, default = _both(spec, 2)
+    assert ours == real and real[1] == ("RUNNING", [("a", "start"), ("c", "run")])
+    assert default[1] == ("RUNNING", [("c", "halt"), ("a", "start"), ("b", "start"), ("c", "start")])
