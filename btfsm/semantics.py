@@ -98,6 +98,10 @@ class _N:
         self.mems: tuple = ()  # per-child memory (Parallel under parallel_memory, ParallelAll)
         self.tick = self.halt = self.on_halt = None
 
+    def state_slots(self) -> tuple:
+        """Every state slot this node owns: running flag and memories."""
+        return tuple(x for x in (self.flag, self.mem, self.keep, self.stale, *self.mems) if x is not None)
+
 
 class Program:
     """A model compiled for execution and exploration. Build it with ``model.program``."""

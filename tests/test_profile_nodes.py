@@ -82,3 +82,22 @@ def test_parallel_all_children_do_not_compete():
             {"max_failures": 1})
     log = _run(spec, 2)
     assert log[1][1] == [("a", "start"), ("b", "run")]
+
+
+def test_kept_memories_are_fsm_state():
+    """Memories a halt keeps (RunOnce, SequenceWithMemory) are part of an FSM's open-system
+    state when they sit in a state's subtree: the scalar and traced engines agree (a
+    regression: only flags and resettable memories were stored)."""
+    from test_verify_traced import assert_same
+
+    from btfsm import FSM, Action, Bool, Marker, Model, Outcome, RunOnce, State
+    from btfsm.status import Status
+    from btfsm.verify.explore import explore_fsm
+
+    once = RunOnce("once", Action("act", outcomes=(Outcome(Status.SUCCESS),)), then_skip=False)
+    fsm = FSM("f", (State("home", outcomes=(Outcome(Status.SUCCESS),)), State("work", subtree=once)), "work", ("go",), (),
+              (Marker("work", ("go",), Status.FAILURE, Status.SUCCESS), Marker("home", ("go",), Status.SUCCESS, Status.SUCCESS)))
+    model = Model("m", variables=(Bool("v"),), fsms=(fsm,))
+    for budget in (1, 2, 3, 50):
+        assert_same(explore_fsm(model, "f", engine="scalar", max_states=budget),
+                    explore_fsm(model, "f", engine="traced", max_states=budget))
