@@ -189,7 +189,8 @@ def _args_check(sp):
 
 def _args_export(sp):
     _args_model(sp)
-    sp.add_argument("--format", choices=("promela", "smv", "dot"), required=True)
+    sp.add_argument("--format", choices=("promela", "smv", "dot", "btcpp"), required=True,
+                    help="btcpp: the tree as BehaviorTree.CPP XML v4 (docs/semantics.md 8.1)")
     sp.add_argument("--fsm", type=input_text,
                     help="FSM to export at FSM level (default: the whole model when its tree is one "
                          "SkillRequest, the first FSM when there is no tree)")

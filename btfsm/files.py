@@ -37,7 +37,8 @@ from pathlib import Path
 
 import yaml
 
-from .bt import NODE_TYPES, Action, Composite, Condition, Decorator, Effects, Guard, Parallel, Repeat, Retry, SkillRequest, walk
+from .bt import (NODE_TYPES, Action, Composite, Condition, Decorator, Effects, Guard, Parallel, ParallelAll, Repeat, Retry,
+                 RunOnce, SkillRequest, walk)
 from .errors import ModelError
 from .expr import Const, Expr, as_expr, to_text
 from .fsm import FSM, Edge, Marker, State
@@ -747,6 +748,9 @@ _NODE_FIELDS = {
     "ReactiveSequence": ("children",), "MemorySequence": ("children",),
     "ReactiveFallback": ("children",), "MemoryFallback": ("children",),
     "Parallel": ("success_threshold", "failure_threshold", "children"),
+    "SequenceWithMemory": ("children",), "ParallelAll": ("max_failures", "children"),
+    "IfThenElse": ("children",), "WhileDoElse": ("children",),
+    "KeepRunningUntilFailure": ("child",), "RunOnce": ("then_skip", "child"),
     "Inverter": ("child",), "ForceSuccess": ("child",), "ForceFailure": ("child",),
     "Retry": ("attempts", "child"), "Repeat": ("times", "child"), "Guard": ("condition", "child"),
     "Effects": ("on_start", "on_success", "on_failure", "on_halt", "child"),
@@ -755,7 +759,9 @@ _NODE_FIELDS = {
 }
 _NODE_REQUIRED = {"Guard": ("condition", "child"), "Condition": ("expr",), "SkillRequest": ("fsm", "goal"),
                   "Inverter": ("child",), "ForceSuccess": ("child",), "ForceFailure": ("child",),
-                  "Retry": ("child",), "Repeat": ("child",), "Effects": ("child",)}
+                  "Retry": ("child",), "Repeat": ("child",), "Effects": ("child",),
+                  "KeepRunningUntilFailure": ("child",), "RunOnce": ("child",),
+                  "IfThenElse": ("children",), "WhileDoElse": ("children",)}
 TRIGGER_KEYS = ("when", "on", True)  # "on" and True (YAML 1.1's reading of on:) are older spellings
 TOP_FIELDS = ("name", "description", "semantics", "tick_rate", "variables", "primitives", "fsms", "tree",
               "environment", "invariants", "workable", "terminal", "resources")
@@ -988,9 +994,13 @@ class _Reader:
             kw["children"] = tuple(self.node(c, f"{path}.children[{i}]", root, kids, i, depth + 1) for i, c in enumerate(kids))
         if "child" in obj:
             kw["child"] = self.node(obj["child"], f"{path}.child", root, obj, "child", depth + 1)
-        for f in ("attempts", "times", "failure_threshold"):
+        for f in ("attempts", "times", "failure_threshold", "max_failures"):
             if f in obj:
                 kw[f] = self.integer(obj[f], f"{path}.{f}", obj, f)
+        if "then_skip" in obj:
+            if not isinstance(obj["then_skip"], bool):
+                raise self.fail(f"{path}.then_skip", f"expected true or false, got {_kind(obj['then_skip'])}", obj, "then_skip")
+            kw["then_skip"] = obj["then_skip"]
         if obj.get("success_threshold") is not None:
             kw["success_threshold"] = self.integer(obj["success_threshold"], f"{path}.success_threshold", obj, "success_threshold")
         for f in ("condition", "expr", "pre", "post"):
@@ -1452,6 +1462,10 @@ def _node_data(n) -> dict:
             out["success_threshold"] = n.success_threshold
         if n.failure_threshold != 1:
             out["failure_threshold"] = n.failure_threshold
+    if isinstance(n, ParallelAll) and n.max_failures != 1:
+        out["max_failures"] = n.max_failures
+    if isinstance(n, RunOnce):
+        out["then_skip"] = n.then_skip
     if isinstance(n, Retry) and n.attempts != 1:
         out["attempts"] = n.attempts
     if isinstance(n, Repeat) and n.times != 1:

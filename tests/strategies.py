@@ -3,7 +3,7 @@
 ``random_models()``: valid ``btfsm.Model`` objects that use every kind of element the
 modelling API has (bool/enum/int variables, declared and inline primitives, FSMs with
 parameters, direct edges, markers, guards and effects, every BT node type, environment
-events and choices, invariants, workable and terminal predicates). Expressions are drawn
+events and choices, invariants, workable and terminal predicates, every semantics profile). Expressions are drawn
 as strings or as plain bool/int constants, the forms a model file can hold.
 """
 from __future__ import annotations
@@ -13,6 +13,7 @@ from hypothesis import strategies as st
 from btfsm import (FSM, Action, Condition, Edge, EnvChoice, EnvEvent, Marker, Model, ModelError,
                    Outcome, Primitive, State)
 from btfsm.bt import NODE_TYPES, SkillRequest, walk
+from btfsm.profiles import SEMANTICS
 from btfsm.world import Bool, Enum, Int
 
 __all__ = ["random_models"]
@@ -134,14 +135,22 @@ def _node(draw, ctx, depth, leaves_only_fsm=False):
         kinds = [k for k in kinds if k != "SkillRequest"]
     t = draw(st.sampled_from(kinds))
     cls, name = NODE_TYPES[t], names("n")
-    if t in ("ReactiveSequence", "MemorySequence", "ReactiveFallback", "MemoryFallback", "Parallel"):
-        kids = [_node(draw, ctx, depth - 1, leaves_only_fsm) for _ in range(draw(st.integers(1, 3)))]
-        if t == "Parallel":
-            s = draw(st.one_of(st.none(), st.integers(1, len(kids))))
-            return cls(name, kids, s, draw(st.integers(1, len(kids))))
+    if t in ("ReactiveSequence", "MemorySequence", "ReactiveFallback", "MemoryFallback", "Parallel",
+             "SequenceWithMemory", "ParallelAll", "IfThenElse", "WhileDoElse"):
+        lo = 2 if t in ("IfThenElse", "WhileDoElse") else 1
+        kids = [_node(draw, ctx, depth - 1, leaves_only_fsm) for _ in range(draw(st.integers(lo, 3)))]
+        n = len(kids)
+        if t == "Parallel":  # negative thresholds count from the end (-1: all children)
+            s = draw(st.one_of(st.none(), st.integers(1, n), st.integers(-n, -1)))
+            return cls(name, kids, s, draw(st.one_of(st.integers(1, n), st.integers(-n, -1))))
+        if t == "ParallelAll":
+            return cls(name, kids, draw(st.one_of(st.integers(1, n), st.integers(-n, -1))))
         return cls(name, kids)
-    if t in ("Inverter", "ForceSuccess", "ForceFailure", "Retry", "Repeat", "Guard", "Effects"):
+    if t in ("Inverter", "ForceSuccess", "ForceFailure", "Retry", "Repeat", "Guard", "Effects",
+             "KeepRunningUntilFailure", "RunOnce"):
         child = _node(draw, ctx, depth - 1, leaves_only_fsm)
+        if t == "RunOnce":
+            return cls(name, child, then_skip=False)  # then_skip: true (SKIPPED) is refused
         if t == "Retry":
             return cls(name, child, draw(st.integers(1, 3)))
         if t == "Repeat":
@@ -250,6 +259,7 @@ def random_models(draw, max_vars: int = 4, max_fsms: int = 2, tree_depth: int = 
     resources = _resources(draw, tree, ctx["fsms"])
     try:
         return Model(draw(st.sampled_from(["m", "two area", "cell-1"])), variables, prims, ctx["fsms"], tree, tuple(env),
-                     invariants, workable, terminal, tick_rate, draw(_TEXT), resources=resources)
+                     invariants, workable, terminal, tick_rate, draw(_TEXT), draw(st.sampled_from(SEMANTICS)),
+                     resources=resources)
     except ModelError as exc:  # a combination the strategy does not rule out; say which
         raise AssertionError(f"random_models built an invalid model: {exc}") from None
