@@ -125,6 +125,12 @@ def _args_model(sp):
                          "pytrees: py_trees 2.6; see docs/semantics.md section 8)")
 
 
+def _args_scene(sp):
+    sp.add_argument("--scene", metavar="FILE", type=input_file, default=None,
+                    help="run in this scene file (docs/cell.md) instead of the kitting cell; default: the "
+                         "model's own scene (MODEL.scene.yaml beside it, or a shipped scene named after it)")
+
+
 def _args_json(sp, what="the result"):
     sp.add_argument("--json", action="store_true", help=f"print {what} (or the error) as one JSON object on stdout")
 
@@ -239,6 +245,8 @@ def _args_sim(sp):
     sp.add_argument("--fps", type=finite_float(0.01, 100.0), default=2.0,
                     help="animation frames per simulated second (0.01..100)")
     sp.add_argument("--max-frames", type=int_range(1, MAX_FRAMES), default=600)
+    _args_scene(sp)
+    sp.add_argument("--seed", type=seed_int, default=0, help="with a scene: the seed of its random arrivals and faults")
 
 
 def _args_conform(sp):
@@ -249,6 +257,7 @@ def _args_conform(sp):
                     help="time limit per scenario (simulated s)")
     sp.add_argument("--drops", action="store_true", help="add faulty-gripper drop regions to some scenarios")
     sp.add_argument("--no-path", action="store_true", help="skip the path check against the explored system")
+    _args_scene(sp)
     _args_max_states(sp, default=2_000_000)
     _args_json(sp, "the scenarios and the verdict")
 

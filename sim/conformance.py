@@ -16,7 +16,7 @@ import random
 from dataclasses import dataclass, field
 
 __all__ = ["PathMonitor", "Scenario", "Mismatch", "run_scenario", "random_scenarios", "Conformance",
-           "conform", "variant_of"]
+           "conform", "variant_of", "is_kitting_model"]
 
 
 class PathMonitor:
@@ -136,6 +136,13 @@ def random_scenarios(n: int, seed: int = 0, variant: str = "preemptive", parts: 
     return out
 
 
+def is_kitting_model(model) -> bool:
+    """True when the ARIAC kitting cell (``sim/cell.py``) can run ``model``."""
+    from .binding import CellBinding
+
+    return CellBinding.dialect_of(model) is not None
+
+
 def variant_of(model) -> str:
     """Which experiment variant a model is (the cell binding runs the ARIAC models);
     UsageError naming what is missing when the kitting cell cannot run it."""
@@ -176,11 +183,24 @@ class Conformance:
 
 
 def conform(model, scenarios: int = 10, seed: int = 0, time_limit: float = 700.0, drops: bool = False,
-            path: bool = True, max_states: "int | None" = 2_000_000, on_explored=None, on_result=None) -> Conformance:
+            path: bool = True, max_states: "int | None" = 2_000_000, on_explored=None, on_result=None,
+            scene=None) -> Conformance:
     """Run ``scenarios`` seeded random scenarios of ``model`` in the cell under the
     conformance monitor (the path check against the explored system unless ``path`` is
     false). ``on_explored(states)`` is called once the checked system is explored,
-    ``on_result(index, scenario, result)`` after each scenario."""
+    ``on_result(index, scenario, result)`` after each scenario.
+
+    ``scene`` (a Scene or a scene file) runs the model in that scene instead of the
+    kitting cell; a model the kitting cell cannot run uses its default scene
+    (``scene_trial.scene_for``) when it has one. In a scene each scenario is a seed (the
+    seed of the scene's random arrivals and faults); ``time_limit`` None means the
+    scene's ``time_limit``; ``drops`` does not apply (faults are part of the scene)."""
+    if scene is None and not is_kitting_model(model):
+        from .scene_trial import scene_for
+
+        scene = scene_for(model)
+    if scene is not None:
+        return _conform_scene(model, scene, scenarios, seed, time_limit, path, max_states, on_explored, on_result)
     variant = variant_of(model)
     monitor = checked = None
     if path:
@@ -199,6 +219,44 @@ def conform(model, scenarios: int = 10, seed: int = 0, time_limit: float = 700.0
     results = []
     for i, sc in enumerate(cases):
         res = run_scenario(sc, model, monitor)
+        results.append(res)
+        if on_result is not None:
+            on_result(i, sc, res)
+    return Conformance(model.name, cases, results, checked)
+
+
+def _explore_monitor(model, path, max_states, on_explored):
+    """(monitor, checked states, incomplete) for the path check."""
+    if not path:
+        return None, None, False
+    from btfsm.verify.explore import explore
+
+    ts = explore(model, max_states=max_states)
+    if not ts.complete:
+        return None, None, True
+    if on_explored is not None:
+        on_explored(len(ts.states))
+    return PathMonitor(ts), len(ts.states), False
+
+
+def _conform_scene(model, scene, scenarios, seed, time_limit, path, max_states, on_explored, on_result):
+    from .library import bind_model
+    from .scene import World, load_scene
+    from .scene_trial import run_scene
+
+    if isinstance(scene, str):
+        scene = load_scene(scene)
+    bind_model(scene, model, World(scene))  # a binding that does not fit is an error before anything runs
+    monitor, checked, incomplete = _explore_monitor(model, path, max_states, on_explored)
+    if incomplete:
+        return Conformance(model.name, [], [], None, incomplete=True)
+    rng = random.Random(seed)
+    limit = scene.time_limit if time_limit is None else time_limit
+    cases = [Scenario("scene", rng.randrange(10**6), (), (), limit, 0) for _ in range(scenarios)]
+    results = []
+    for i, sc in enumerate(cases):
+        run = run_scene(model, scene, sc.seed, limit, monitor=monitor, check_invariant=True)
+        res = ScenarioResult(sc, run.ticks, run.completed, run.mismatch, run.lost)
         results.append(res)
         if on_result is not None:
             on_result(i, sc, res)
