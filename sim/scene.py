@@ -180,15 +180,16 @@ class Scene:
         return _seg_dist(p, *r["rail"]) <= r["reach"] + _EPS
 
     def world_query(self, text: str, where: str) -> tuple:
-        """``holding(ROBOT)``, ``count(AREA)`` or ``sensor(NAME)`` as (kind, name)."""
+        """``holding(ROBOT)``, ``count(AREA)``, ``sensor(NAME)`` or ``door(NAME)`` as (kind, name)."""
         kind, _, rest = str(text).partition("(")
         name = rest[:-1] if rest.endswith(")") else None
-        table = {"holding": self.robots, "count": self.areas, "sensor": self.sensors}.get(kind.strip())
+        tables = {"holding": ("robot", self.robots), "count": ("area", self.areas),
+                  "sensor": ("sensor", self.sensors), "door": ("door", self.doors)}
+        what, table = tables.get(kind.strip(), (None, None))
         if table is None or name is None:
-            raise self.error(where, f"expected holding(ROBOT), count(AREA) or sensor(NAME), got '{text}'")
+            raise self.error(where, f"expected holding(ROBOT), count(AREA), sensor(NAME) or door(NAME), got '{text}'")
         if name not in table:
-            raise self.error(where, f"no {'robot' if kind == 'holding' else kind if kind == 'sensor' else 'area'} "
-                                    f"named '{name}' (known: {_names(table)})")
+            raise self.error(where, f"no {what} named '{name}' (known: {_names(table)})")
         return kind.strip(), name
 
 
@@ -501,6 +502,8 @@ class World:
             return self.robots[name].holding is not None
         if kind == "count":
             return self.count(name)
+        if kind == "door":
+            return self.doors[name] >= 1.0
         return len(self.inside[name])
 
     # ---- stepping
