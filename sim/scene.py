@@ -314,6 +314,7 @@ class World:
         self.door_goal = {n: (1.0 if d["open"] else 0.0) for n, d in scene.doors.items()}
         self.robots = {n: _Robot(n, spec) for n, spec in scene.robots.items()}
         self.inside = {n: set() for n in scene.sensors}
+        self._sensed_log = -1
         self.arrivals = {n: self._arrival_times(b) for n, b in scene.belts.items()}
         self.pending = {n: 0 for n in scene.belts}  # arrivals due but waiting for space
         for name, a in scene.areas.items():
@@ -598,24 +599,35 @@ class World:
                     self._move(p, LOST)
 
     def _sinks(self) -> None:
+        # resting parts were checked when they landed (``landing``): only belt parts move
         if not self.scene.sinks:
             return
-        for place in list(self.members):
-            if place.kind in ("GRIPPER", "LOST"):
-                continue
-            for pid in list(self.members[place]):
+        sinks = tuple(self.scene.sinks.values())
+        for name in self.scene.belts:
+            for pid in list(self.members.get(Place("BELT", name), ())):
                 p = self.parts[pid]
-                if any(_inside(r, (p.x, p.y)) for r in self.scene.sinks.values()):
+                if any(_inside(r, (p.x, p.y)) for r in sinks):
                     self._move(p, LOST)
 
     def _sense(self) -> None:
+        # parts move only on belts; other changes go through ``_move`` (which logs them)
+        moving = any(self.members.get(Place("BELT", n)) for n in self.scene.belts)
+        if not moving and len(self.log) == self._sensed_log:
+            return
+        self._sensed_log = len(self.log)
         for name, s in self.scene.sensors.items():
+            x0, y0, x1, y1 = s["region"]
             now = set()
             for place, ids in self.members.items():
                 if place.kind in ("GRIPPER", "LOST"):
                     continue
-                now.update(pid for pid in ids if _inside(s["region"], (self.parts[pid].x, self.parts[pid].y)))
+                for pid in ids:
+                    p = self.parts[pid]
+                    if x0 <= p.x <= x1 and y0 <= p.y <= y1:
+                        now.add(pid)
             old = self.inside[name]
+            if now == old:
+                continue
             if s["on_enter"]:
                 self.events.extend((self.time, name, s["on_enter"]) for _ in sorted(now - old))
             if s["on_exit"]:
