@@ -15,6 +15,8 @@ from __future__ import annotations
 import random
 from dataclasses import dataclass, field
 
+from .protocol import Mismatch
+
 __all__ = ["PathMonitor", "Scenario", "Mismatch", "run_scenario", "random_scenarios", "Conformance",
            "conform", "variant_of", "is_kitting_model"]
 
@@ -57,17 +59,6 @@ class Scenario:
     drop_regions: tuple = ()  # faulty gripper: ((x_min, y_min, x_max, y_max), ...)
     time_limit: float = 300.0
     parts: int = 18
-
-
-@dataclass
-class Mismatch:
-    tick: int
-    time: float
-    kind: str  # "path" | "abstraction" | "conformance"
-    what: str
-
-    def __str__(self) -> str:
-        return f"tick {self.tick} (t = {self.time:.2f} s): {self.kind} mismatch: {self.what}"
 
 
 @dataclass

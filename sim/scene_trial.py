@@ -51,7 +51,7 @@ def run_scene(model, scene, seed: "int | None" = None, time_limit: "float | None
     from btfsm.errors import ConformanceError, DomainError
     from btfsm.runtime import Runtime
 
-    from .conformance import Mismatch
+    from .protocol import Mismatch
     from .library import bind_model
     from .scene import World
 
