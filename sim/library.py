@@ -29,6 +29,8 @@ primitive         arguments                     outcomes
 ================  ============================  ========================================
 move_to           frame, speed=1.0              running (moving), success (arrived),
                                                 failure (blocked) when a door may be shut
+move_to_part      area, speed=1.0               running (moving), success (arrived): over
+                                                the area's first part (its centre if empty)
 grip              wait=false                    running (closing, fingers or wait),
                                                 success (gripped), failure (missed)
                                                 unless wait
@@ -42,7 +44,10 @@ close_door        door                          running (closing), success (clos
 succeed                                         success (done)
 ================  ============================  ========================================
 
-A region argument names a sensor or an area.
+A region argument names a sensor or an area. Sensor events are queued and given to the
+model one per tick, oldest first, when the model's guard allows (later ones wait). An
+environment choice (exactly one option each tick) must have exactly one option no sensor
+raises: it is reported on every tick where no sensor event chose another option.
 """
 from __future__ import annotations
 
@@ -89,6 +94,25 @@ def _move(world, robot, a):
     r = world.robots[robot]
     return _Act(lambda: "blocked" if r.blocked else "moving" if r.moving else "arrived",
                 lambda: world.stop(robot))
+
+
+def _move_part(world, robot, a):
+    ids = world.parts_in(world.area_place(a["area"]))
+    if ids:
+        p = world.parts[ids[0]]
+        target = (p.x, p.y)
+    else:
+        r = world.scene.areas[a["area"]]["region"]
+        target = ((r[0] + r[2]) / 2, (r[1] + r[3]) / 2)
+    return _move(world, robot, {"frame": target, "speed": a["speed"]})
+
+
+def _move_part_out(scene, robot, a):
+    region = scene.areas[a["area"]]["region"]
+    for corner in ((region[0], region[1]), (region[0], region[3]), (region[2], region[1]), (region[2], region[3])):
+        if not scene.reachable(robot, corner):
+            raise scene.error("", f"area '{a['area']}' is not entirely within robot '{robot}''s reach")
+    return _move_out(scene, robot, {"frame": ((region[0] + region[2]) / 2, (region[1] + region[3]) / 2)})
 
 
 def _grip_out(scene, robot, a):
@@ -172,6 +196,7 @@ def _door(open_):
 
 LIBRARY = {lib.name: lib for lib in (
     _Lib("move_to", {"frame": ("point", None), "speed": ("number", 1.0)}, _move_out, _move),
+    _Lib("move_to_part", {"area": ("area", None), "speed": ("number", 1.0)}, _move_part_out, _move_part),
     _Lib("grip", {"wait": ("bool", False)}, _grip_out, _grip),
     _Lib("release", {}, lambda s, r, a: [(_S, "released")], _release),
     _Lib("gripper", {"on": ("bool", None)}, _gripper_out, _gripper),
@@ -223,7 +248,7 @@ def _coerce(scene, robot, kind, value, where):
         if not isinstance(value, bool):
             raise scene.error(where, f"expected true or false, got {value!r}")
         return value
-    table = {"region": {**scene.sensors, **scene.areas}, "door": scene.doors}[kind]
+    table = {"region": {**scene.sensors, **scene.areas}, "door": scene.doors, "area": scene.areas}[kind]
     if value not in table:
         raise scene.error(where, f"no {'sensor or area' if kind == 'region' else kind} named {value!r} "
                                  f"(known: {', '.join(sorted(table)) or 'none'})")
@@ -255,7 +280,8 @@ class SceneBinding:
         self.active: dict = {}  # site index -> activity
         self.backlog: list = []  # events raised by sensors, not yet given to the model
         self._seen = 0
-        self.env = {}  # event name -> env index / guard
+        self.env = {}  # event name -> guard
+        self.idle = []  # (choice options, default option name, its guard): reported when no sensor chose
         self.checks = []
 
     # ---- runtime glue
@@ -290,13 +316,16 @@ class SceneBinding:
         while self._seen < len(w.events):
             self.backlog.append(w.events[self._seen][2])
             self._seen += 1
-        if not self.backlog:
-            return []
-        guard = self.env.get(self.backlog[0])
+        out = []
         s = list(state)
-        if guard is None or guard(s):
-            return [self.backlog.pop(0)]
-        return []
+        if self.backlog:
+            guard = self.env.get(self.backlog[0])
+            if guard is None or guard(s):
+                out.append(self.backlog.pop(0))
+        for options, name, guard in self.idle:
+            if not any(ev in options for ev in out) and (guard is None or guard(s)):
+                out.append(name)
+        return out
 
     def check(self, vars: dict) -> list:
         out = []
@@ -376,7 +405,10 @@ def bind_model(scene, model, world) -> SceneBinding:
                 if k not in args and default is None:
                     raise scene.error(f"{where}.args", f"'{lib.name}' needs argument '{k}'")
                 full[k] = _coerce(scene, robot, kind, args.get(k, default), f"{where}.args.{k}")
-            lib_outs = lib.outcomes(scene, robot, full)
+            try:
+                lib_outs = lib.outcomes(scene, robot, full)
+            except ModelError as exc:
+                raise scene.error(f"{where}.args", exc.problem) from None
 
             def start(world, lib=lib, robot=robot, full=full):
                 return lib.start(world, robot, full)
@@ -403,12 +435,19 @@ def bind_model(scene, model, world) -> SceneBinding:
         b.sites[site.index] = (start, omap)
     # sensor events must be model environment events (or options of a choice)
     env = {}
+    raised = {s.get(k) for s in scene.sensors.values() for k in ("on_enter", "on_exit")} - {None}
     for name, guard, _eff, options in prog.env:
         if options is None:
             env[name] = guard
-        else:
-            for oname, oguard, _e, _o in options:
-                env[oname] = oguard
+            continue
+        for oname, oguard, _e, _o in options:
+            env[oname] = oguard
+        quiet = [o for o in options if o[0] not in raised]
+        if len(quiet) != 1:
+            raise scene.error("sensors", f"environment choice '{name}' needs exactly one option that no sensor "
+                                         f"raises (reported on every tick no sensor chose another); "
+                                         f"{len(quiet)} of its options ({', '.join(o[0] for o in options)}) are")
+        b.idle.append((frozenset(o[0] for o in options), quiet[0][0], quiet[0][1]))
     for sname, s in scene.sensors.items():
         for key in ("on_enter", "on_exit"):
             ev = s.get(key)

@@ -13,7 +13,8 @@ docs/cell.md) names, in SI units (metres, seconds), seen from above:
 * ``sinks``: regions where a part that is not held is **lost**;
 * ``doors``: regions the tool may enter only while the door is open;
 * ``sensors``: regions that raise an environment event when a part enters (``on_enter``)
-  or leaves (``on_exit``) and count the parts inside (``sensor(NAME)`` in checks);
+  or leaves (``on_exit``; a part a gripper takes does not leave, it is taken) and count
+  the parts inside (``sensor(NAME)`` in checks);
 * ``faults``: regions where a held part drops (with a ``probability``, seeded);
 * ``robots``: a kinematic tool point on a ``rail`` or around a fixed ``base`` within
   ``reach``, with ``speed``/``acceleration`` limits (rest-to-rest trapezoidal profiles
@@ -379,6 +380,10 @@ class World:
     def parts_in(self, place: Place) -> list:
         return list(self.members.get(place, ()))
 
+    @staticmethod
+    def area_place(area: str) -> Place:
+        return Place("AREA", area)
+
     def count(self, area: str) -> int:
         return len(self.members.get(Place("AREA", area), ()))
 
@@ -630,8 +635,9 @@ class World:
                 continue
             if s["on_enter"]:
                 self.events.extend((self.time, name, s["on_enter"]) for _ in sorted(now - old))
-            if s["on_exit"]:
-                self.events.extend((self.time, name, s["on_exit"]) for _ in sorted(old - now))
+            if s["on_exit"]:  # a part taken by a gripper does not "leave": it is taken
+                self.events.extend((self.time, name, s["on_exit"]) for pid in sorted(old - now)
+                                   if self.parts[pid].place.kind != "GRIPPER")
             self.inside[name] = now
 
     # ---- invariant, digest, snapshot

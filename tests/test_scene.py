@@ -243,3 +243,19 @@ def test_assert_conforms_in_a_scene():
     with pytest.raises(AssertionError, match=r"scenario 0 \(seed \d+, in its scene\) does not conform: "
                                              r"first mismatch at tick \d+"):
         assert_conforms("two-area", scenarios=2, scene=scene_from_data(data), time_limit=300.0)
+
+
+def test_two_area_file_scene_choices_and_belt_losses():
+    model = load_model(os.path.join(ROOT, "models", "examples", "two_area.yaml"))
+    out = conform(model, 4, 0, None)  # default scene models/scenes/two_area_file.yaml
+    assert out.conforms and all(r.completed for r in out.results)
+    scene = load_scene(os.path.join(ROOT, "models", "scenes", "two_area_file.yaml"))
+    losses = [run_scene(model, scene, seed).lost for seed in range(6)]
+    assert any(losses) and not all(losses)  # parts that leave untaken are lost, and the model allows it
+    from btfsm.files import load_data
+
+    data = load_data(os.path.join(ROOT, "models", "scenes", "two_area_file.yaml"))
+    data["sensors"]["extra"] = {"region": [0.0, 0.0, 0.1, 0.1], "on_enter": "part_stays"}
+    with pytest.raises(ModelError, match=r"sensors: environment choice 'belt' needs exactly one option that no "
+                                         r"sensor raises"):
+        bind_model(scene_from_data(data), model, None)
