@@ -207,10 +207,15 @@ def cli_conform(args) -> int:
             print(f"{model.name}: checked system has {states:,} states; monitoring runtime paths against it")
 
     def show(i, sc, res):
-        rows.append({"scenario": i, "seed": sc.seed, "belt_parts": len(sc.detections),
-                     "drop_regions": [list(d) if isinstance(d, (tuple, list)) else str(d) for d in sc.drop_regions],
-                     "ticks": res.ticks, "conforms": res.mismatch is None,
-                     "mismatch": None if res.mismatch is None else str(res.mismatch)})
+        if scene is not None:
+            rows.append({"scenario": i, "seed": sc.seed, "scene": scene.name, "ticks": res.ticks,
+                         "completed": res.completed, "lost": res.lost, "conforms": res.mismatch is None,
+                         "mismatch": None if res.mismatch is None else str(res.mismatch)})
+        else:
+            rows.append({"scenario": i, "seed": sc.seed, "belt_parts": len(sc.detections),
+                         "drop_regions": [list(d) if isinstance(d, (tuple, list)) else str(d) for d in sc.drop_regions],
+                         "ticks": res.ticks, "conforms": res.mismatch is None,
+                         "mismatch": None if res.mismatch is None else str(res.mismatch)})
         if not as_json and scene is not None:
             status = "ok" if res.mismatch is None else "MISMATCH"
             print(f"scenario {i}: seed {sc.seed} in scene {scene.name}: {res.ticks} ticks, "

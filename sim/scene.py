@@ -200,8 +200,11 @@ def _names(d) -> str:
 
 def scene_from_data(data, file: "str | None" = None) -> Scene:
     """A Scene from plain data; ModelError ``file: element: problem`` when it is wrong."""
-    from btfsm.formats import FormatError, validate
+    from btfsm.formats import FormatError, describe, validate
 
+    if not isinstance(data, dict):
+        kind = f"a list of {len(data)} item(s)" if isinstance(data, list) else describe(data)
+        raise ModelError("", f"expected a mapping with the scene, got {kind}", file)
     try:
         validate(data, "scene", file or "<scene>")
     except FormatError as exc:
@@ -215,7 +218,13 @@ def load_scene(path) -> Scene:
     from btfsm.files import load_data
 
     name = str(path)
-    return scene_from_data(load_data(path, file_name=name), name)
+    try:
+        data = load_data(path, file_name=name)
+    except ModelError as exc:
+        if exc.problem.startswith("the file is empty"):
+            raise ModelError("", "the file is empty (expected a mapping with the scene)", name) from None
+        raise ModelError(exc.element, exc.problem.replace("model file", "scene file"), exc.file) from None
+    return scene_from_data(data, name)
 
 
 def builtin_scene(name: str) -> "str | None":

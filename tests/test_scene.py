@@ -259,3 +259,26 @@ def test_two_area_file_scene_choices_and_belt_losses():
     with pytest.raises(ModelError, match=r"sensors: environment choice 'belt' needs exactly one option that no "
                                          r"sensor raises"):
         bind_model(scene_from_data(data), model, None)
+
+
+def test_a_fault_region_is_caught_as_a_mismatch():
+    data = _two_area_data()
+    data["faults"] = {"slip": {"region": [-0.05, 0.5, 0.05, 0.7], "probability": 1.0}}  # on the way in -> out
+    res = run_scene(load_model("two-area"), scene_from_data(data), 0, check_invariant=True)
+    assert res.mismatch is not None and res.mismatch.kind == "abstraction", res
+    assert "holding is True but holding(arm) is False" in res.mismatch.what
+
+
+def test_scene_json_rows_and_file_errors(tmp_path):
+    r = _cli("conform", "two-area", "--scenarios", "1", "--json")
+    assert r.returncode == 0, r.stderr
+    row = json.loads(r.stdout)["scenarios"][0]
+    assert row["scene"] == "two-area" and row["conforms"] and row["completed"]
+    for text, problem in (("", "the file is empty (expected a mapping with the scene)"),
+                          ("[1, 2]", "expected a mapping with the scene, got a list of 2 item(s)")):
+        p = tmp_path / "s.yaml"
+        p.write_text(text, encoding="utf-8")
+        r = _cli("sim", "two-area", "--scene", str(p))
+        assert r.returncode == 2 and r.stderr.strip() == f"btfsm sim: error: {p}: {problem}"
+    r = _cli("conform", "two-area", "--drops")
+    assert r.returncode == 2 and "a scene has its own fault regions" in r.stderr
