@@ -169,7 +169,9 @@ def _args_replay(sp):
     sp.add_argument("trace", type=input_file,
                     help="a trace (.jsonl) or a counterexample (.json from btfsm check --counterexample-dir)")
     _args_model(sp)
-    sp.add_argument("--cell", action="store_true", help="also replay the counterexample's situation in the kitting cell")
+    sp.add_argument("--cell", action="store_true", help="also replay the counterexample's situation in the kitting cell "
+                                                         "(or in a scene: --scene, or the model's own scene)")
+    _args_scene(sp)
     sp.add_argument("--render", metavar="PNG", type=output_file(".png"), help="with --cell: draw the cell at the end")
     sp.add_argument("--gif", metavar="GIF", type=output_file(".gif"), help="with --cell: write an animation")
     sp.add_argument("--time", type=finite_float(0, MAX_SIM_TIME, lo_open=True), default=120.0,
@@ -602,13 +604,9 @@ def cli_replay(args) -> int:
         ok, text = replay_counterexample(ce, model)
         print(printable(text))
         if args.cell:
-            from btfsm.sim.binding import CellBinding
-            from btfsm.sim.replay import replay_in_cell
+            from btfsm.sim.replay import replay_for_cli
 
-            why = CellBinding.unsupported(model)
-            if why:
-                raise UsageError(f"{model.name}: the kitting cell cannot run this model ({why})")
-            print(replay_in_cell(model, ce.to_json(), time_limit=args.time, render=args.render, gif=args.gif).text())
+            print(replay_for_cli(model, ce.to_json(), args))
         return 0 if ok else 1
     if args.cell:
         raise UsageError("--cell replays counterexamples (.json), not traces")

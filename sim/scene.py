@@ -440,6 +440,29 @@ class World:
         part.x, part.y, part.s = x, y, s
         self._move(part, place)
 
+    def spawn(self, region) -> "int | None":
+        """Put a new part where it will enter ``region`` (a replay makes a sensor fire):
+        on a belt that crosses the region, just upstream of it, else on an area that
+        holds the region's centre, else None. Returns the part id."""
+        x0, y0, x1, y1 = region
+        for name, b in self.scene.belts.items():
+            (ax, ay), (bx, by), L = b["from"], b["to"], b["length"]
+            n = max(2, int(L / 0.005))
+            for i in range(n + 1):
+                s = L * i / n
+                px, py = ax + (bx - ax) * s / L, ay + (by - ay) * s / L
+                if x0 <= px <= x1 and y0 <= py <= y1:
+                    s = max(0.0, s - 0.01)
+                    part = self._new_part(b["part_type"], ax + (bx - ax) * s / L, ay + (by - ay) * s / L,
+                                          Place("BELT", name))
+                    part.s = s
+                    return part.id
+        cx, cy = (x0 + x1) / 2, (y0 + y1) / 2
+        for name, a in self.scene.areas.items():
+            if _inside(a["region"], (cx, cy)):
+                return self._new_part(DEFAULT_PART, cx, cy, Place("AREA", name)).id
+        return None
+
     # ---- robot commands (the primitive library calls these)
     def move_to(self, robot: str, p, speed: float = 1.0) -> bool:
         """Start a straight rest-to-rest move; False when the target is behind a closed door."""

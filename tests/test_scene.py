@@ -282,3 +282,20 @@ def test_scene_json_rows_and_file_errors(tmp_path):
         assert r.returncode == 2 and r.stderr.strip() == f"btfsm sim: error: {p}: {problem}"
     r = _cli("conform", "two-area", "--drops")
     assert r.returncode == 2 and "a scene has its own fault regions" in r.stderr
+
+
+def test_replay_a_counterexample_in_a_scene(tmp_path):
+    src = open(os.path.join(ROOT, "models", "examples", "two_area.yaml"), encoding="utf-8").read()
+    model_file = tmp_path / "lossy.yaml"  # same model, one more invariant: nothing is ever lost
+    model_file.write_text(src.replace("  release_only_when_holding:", "  nothing_lost: lost == 0\n"
+                                      "  release_only_when_holding:"), encoding="utf-8")
+    r = _cli("check", str(model_file), "--property", "invariants", "--counterexample-dir", str(tmp_path / "ce"), "-q")
+    assert r.returncode == 1, r.stdout + r.stderr
+    (ce,) = (tmp_path / "ce").iterdir()
+    r = _cli("replay", str(ce), str(model_file), "--cell", "--render", str(tmp_path / "end.png"))
+    assert r.returncode == 0, r.stdout + r.stderr
+    assert "scene replay of a counterexample on two-area-file in scene two-area-file: 2 environment event(s)" in r.stdout
+    assert "'part_arrives' (part 3 put where a sensor will see it; FSMs at arm=over_bins" in r.stdout
+    assert "'part_leaves' (left to the world" in r.stdout
+    assert "part 3 taken by the gripper" in r.stdout  # in this cell the arm is fast enough: nothing is lost
+    assert (tmp_path / "end.png").stat().st_size > 1000
