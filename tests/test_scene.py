@@ -203,7 +203,7 @@ def random_scenes(draw):
     return data, commands
 
 
-@settings(derandomize=True, max_examples=60, deadline=None, database=None,
+@settings(derandomize=True, max_examples=200, deadline=None, database=None,
           suppress_health_check=[HealthCheck.too_slow])
 @given(random_scenes())
 def test_every_part_is_in_exactly_one_place(case):
@@ -299,3 +299,47 @@ def test_replay_a_counterexample_in_a_scene(tmp_path):
     assert "'part_leaves' (left to the world" in r.stdout
     assert "part 3 taken by the gripper" in r.stdout  # in this cell the arm is fast enough: nothing is lost
     assert (tmp_path / "end.png").stat().st_size > 1000
+
+
+def test_library_primitives_one_by_one():
+    from btfsm.sim.library import LIBRARY
+
+    scene = scene_from_data({
+        "dt": 0.01, "frames": {"a": [0.5, 0.0], "inside": [0.0, 0.5]},
+        "areas": {"bin": {"region": {"at": "a", "size": [0.2, 0.2]}, "parts": 1},
+                  "box": {"region": {"at": "inside", "size": [0.2, 0.2]}}},
+        "doors": {"lid": {"region": {"at": "inside", "size": [0.3, 0.3]}, "open_time": 0.5}},
+        "sensors": {"eye": {"region": "bin"}},
+        "robots": {"r": {"base": [0, 0], "reach": 1.0, "home": [-0.5, 0], "speed": 1.0, "acceleration": 2.0,
+                         "gripper": {"type": "fingers", "radius": 0.05, "close_time": 0.3}}}})
+    w = World(scene)
+
+    def run(name, **args):
+        act = LIBRARY[name].start(w, "r", args)
+        answers = [act.tick()]
+        while answers[-1] in ("moving", "closing", "waiting", "opening") and len(answers) < 1000:
+            w.step(10)  # one 10 Hz tick
+            answers.append(act.tick())
+        return answers
+
+    assert run("detect", region="eye") == ["seen"] and run("detect", region="box") == ["nothing"]
+    assert run("wait", seconds=0.35)[-1] == "done" and len(run("wait", seconds=0.35)) == 5  # 4 ticks of 0.1 s
+    a = run("move_to", frame=(0.5, 0.0), speed=1.0)
+    assert a[-1] == "arrived" and 11 <= len(a) <= 16  # 1 m rest to rest at 1 m/s, 2 m/s^2: 1.5 s
+    g = run("grip", wait=False)
+    assert g[0] == "closing" and g[-1] == "gripped" and len(g) in (4, 5)  # fingers close in 0.3 s
+    assert run("move_to", frame=(0.0, 0.5), speed=1.0) == ["blocked"]  # behind the closed lid
+    assert run("open_door", door="lid")[-1] == "open"
+    assert run("move_to", frame=(0.0, 0.5), speed=1.0)[-1] == "arrived"
+    act = LIBRARY["close_door"].start(w, "r", {"door": "lid"})
+    for _ in range(10):
+        assert act.tick() == "closing"  # never on the tool
+        w.step(10)
+    assert run("release") == ["released"] and w.count("box") == 1
+    assert run("move_to", frame=(-0.5, 0.0), speed=1.0)[-1] == "arrived"
+    w.step(10)
+    assert act.tick() == "closing"
+    w.step(60)
+    assert act.tick() == "closed"
+    w.check_invariant()
+    assert run("grip", wait=False)[-1] == "missed" and w.robots["r"].closing is None
