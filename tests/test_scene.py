@@ -343,3 +343,18 @@ def test_library_primitives_one_by_one():
     assert act.tick() == "closed"
     w.check_invariant()
     assert run("grip", wait=False)[-1] == "missed" and w.robots["r"].closing is None
+
+
+def test_two_robots_each_bound_by_name():
+    data = _two_area_data()
+    data["robots"]["helper"] = {"base": [2.0, 0.0], "reach": 0.5, "home": [2.0, 0.2]}
+    data["bind"]["move"]["robot"] = "arm"
+    scene = scene_from_data(data)
+    res = run_scene(load_model("two-area"), scene, 0, check_invariant=True)
+    assert res.completed and res.mismatch is None  # the first robot is the default for unnamed bindings
+    data["bind"]["grasp"]["robot"] = "helper"  # the helper's cup is far from the input: it waits for ever
+    res = run_scene(load_model("two-area"), scene_from_data(data), 0, 60.0)
+    assert not res.completed and res.counts == {"out": 0} and res.mismatch is None
+    data["bind"]["grasp"]["robot"] = "nobody"
+    with pytest.raises(ModelError, match=r"bind.grasp.robot: no robot named 'nobody' \(robots: arm, helper\)"):
+        bind_model(scene_from_data(data), load_model("two-area"), None)
