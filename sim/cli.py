@@ -105,33 +105,32 @@ def _sim_scene(args, model, scene) -> int:
     from .scene_trial import run_scene
 
     frames, every = [], max(1, round(model.tick_rate / args.fps)) if args.gif else 0
+    seen = {}
 
     def on_tick(rt, world):
+        seen["world"] = world
         if args.gif and rt.clock.tick % every == 0 and len(frames) < args.max_frames:
             frames.append(world.snapshot())
 
-    run = run_scene(model, scene, args.seed, args.time, check_invariant=True, on_tick=on_tick if args.gif else None)
+    run = run_scene(model, scene, args.seed, args.time, check_invariant=True, on_tick=on_tick)
     counts = ", ".join(f"{k} {v}" for k, v in run.counts.items())
     print(f"{model.name} in scene {scene.name} (seed {run.seed}): "
           f"{'completed' if run.completed else 'NOT completed'} at t = {run.time:.1f} s after {run.ticks} ticks; "
           f"areas: {counts or '-'}; lost {run.lost}")
     if run.mismatch is not None:
         print(f"conformance: {run.mismatch}")
-    if args.render or args.gif:
-        from .scene_render import render_scene, write_gif
-        from .scene import World
+    if args.render:
+        from .scene_render import render_scene
 
-        if args.render:
-            world = World(scene, args.seed)
-            last = {}
-            run_scene(model, scene, args.seed, args.time, on_tick=lambda rt, w: last.update(snap=w.snapshot()))
-            with atomic_path(args.render) as tmp:
-                render_scene(scene, last.get("snap", world.snapshot()), tmp, title=f"{model.name} in {scene.name}")
-            print(f"picture: {args.render}")
-        if args.gif:
-            with atomic_path(args.gif) as tmp:
-                n = write_gif(scene, frames, tmp, fps=args.fps, title=f"{model.name} in {scene.name}")
-            print(f"animation: {args.gif} ({n} frames)")
+        with atomic_path(args.render) as tmp:
+            render_scene(scene, seen["world"].snapshot(), tmp, title=f"{model.name} in {scene.name}")
+        print(f"picture: {args.render}")
+    if args.gif and frames:
+        from .scene_render import write_gif
+
+        with atomic_path(args.gif) as tmp:
+            n = write_gif(scene, frames, tmp, fps=args.fps, title=f"{model.name} in {scene.name}")
+        print(f"animation: {args.gif} ({n} frames)")
     return 1 if run.mismatch is not None else 0
 
 
