@@ -208,6 +208,7 @@ def cli_conform(args) -> int:
     def show(i, sc, res):
         if scene is not None:
             rows.append({"scenario": i, "seed": sc.seed, "scene": scene.name, "ticks": res.ticks,
+                         "drop_regions": [list(d) for d in sc.drop_regions],
                          "completed": res.completed, "lost": res.lost, "conforms": res.mismatch is None,
                          "mismatch": None if res.mismatch is None else str(res.mismatch)})
         else:
@@ -217,7 +218,8 @@ def cli_conform(args) -> int:
                          "mismatch": None if res.mismatch is None else str(res.mismatch)})
         if not as_json and scene is not None:
             status = "ok" if res.mismatch is None else "MISMATCH"
-            print(f"scenario {i}: seed {sc.seed} in scene {scene.name}: {res.ticks} ticks, "
+            drop = f", drop region {sc.drop_regions[0]}" if sc.drop_regions else ""
+            print(f"scenario {i}: seed {sc.seed} in scene {scene.name}{drop}: {res.ticks} ticks, "
                   f"{'completed' if res.completed else 'not completed'}, lost {res.lost}, {status}"
                   + (f"\n  first mismatch at {res.mismatch}" if res.mismatch else ""))
         elif not as_json:
@@ -226,8 +228,6 @@ def cli_conform(args) -> int:
                   f"{'drop region ' + str(sc.drop_regions[0]) if sc.drop_regions else 'no drop region'}: "
                   f"{res.ticks} ticks, {status}" + (f"\n  first mismatch at {res.mismatch}" if res.mismatch else ""))
 
-    if scene is not None and args.drops:
-        raise UsageError("--drops applies to the kitting cell; a scene has its own fault regions (faults:)")
     time_limit = args.time if scene is None or args.time != 700.0 else None  # a scene's own limit by default
     out = conform(model, args.scenarios, args.seed, time_limit, args.drops, path=not args.no_path,
                   max_states=args.max_states, on_explored=explored, on_result=show, scene=scene)

@@ -185,13 +185,16 @@ def conform(model, scenarios: int = 10, seed: int = 0, time_limit: float = 700.0
     kitting cell; a model the kitting cell cannot run uses its default scene
     (``scene_trial.scene_for``) when it has one. In a scene each scenario is a seed (the
     seed of the scene's random arrivals and faults); ``time_limit`` None means the
-    scene's ``time_limit``; ``drops`` does not apply (faults are part of the scene)."""
+    scene's ``time_limit``; ``drops`` adds, to about half the scenarios, a fault region
+    (10 cm square, drop probability 1) on the straight line between two of the scene's
+    frames, where the robot is likely to carry parts."""
     if scene is None and not is_kitting_model(model):
         from .scene_trial import scene_for
 
         scene = scene_for(model)
     if scene is not None:
-        return _conform_scene(model, scene, scenarios, seed, time_limit, path, max_states, on_explored, on_result)
+        return _conform_scene(model, scene, scenarios, seed, time_limit, path, max_states, on_explored, on_result,
+                              drops)
     variant = variant_of(model)
     monitor = checked = None
     if path:
@@ -230,9 +233,12 @@ def _explore_monitor(model, path, max_states, on_explored):
     return PathMonitor(ts), len(ts.states), False
 
 
-def _conform_scene(model, scene, scenarios, seed, time_limit, path, max_states, on_explored, on_result):
+def _conform_scene(model, scene, scenarios, seed, time_limit, path, max_states, on_explored, on_result,
+                   drops=False):
+    import copy
+
     from .library import bind_model
-    from .scene import World, load_scene
+    from .scene import World, load_scene, scene_from_data
     from .scene_trial import run_scene
 
     if isinstance(scene, str):
@@ -243,10 +249,23 @@ def _conform_scene(model, scene, scenarios, seed, time_limit, path, max_states, 
         return Conformance(model.name, [], [], None, incomplete=True)
     rng = random.Random(seed)
     limit = scene.time_limit if time_limit is None else time_limit
-    cases = [Scenario("scene", rng.randrange(10**6), (), (), limit, 0) for _ in range(scenarios)]
+    frames = list(scene.frames.values())
+    cases, scenes = [], []
+    for _ in range(scenarios):
+        regions, where = (), scene
+        if drops and len(frames) >= 2 and rng.random() < 0.5:
+            (ax, ay), (bx, by) = rng.sample(frames, 2)
+            t = rng.uniform(0.2, 0.8)
+            x, y = ax + (bx - ax) * t, ay + (by - ay) * t
+            regions = ((round(x - 0.05, 4), round(y - 0.05, 4), round(x + 0.05, 4), round(y + 0.05, 4)),)
+            data = copy.deepcopy(scene.data)
+            data.setdefault("faults", {})["conform_drop"] = {"region": list(regions[0]), "probability": 1.0}
+            where = scene_from_data(data, scene.file)
+        cases.append(Scenario("scene", rng.randrange(10**6), (), regions, limit, 0))
+        scenes.append(where)
     results = []
     for i, sc in enumerate(cases):
-        run = run_scene(model, scene, sc.seed, limit, monitor=monitor, check_invariant=True)
+        run = run_scene(model, scenes[i], sc.seed, limit, monitor=monitor, check_invariant=True)
         res = ScenarioResult(sc, run.ticks, run.completed, run.mismatch, run.lost)
         results.append(res)
         if on_result is not None:
