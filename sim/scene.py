@@ -48,6 +48,7 @@ __all__ = ["Place", "FLOOR", "LOST", "Scene", "World", "load_scene", "scene_from
            "DEFAULT_PART", "builtin_scene"]
 
 DEFAULT_PART = "part"
+MAX_ARRIVALS = 100_000  # per belt and run
 _EPS = 1e-9
 
 
@@ -109,7 +110,7 @@ class Scene:
             kinds = [k for k in ("schedule", "period", "random") if k in arr]
             if len(kinds) > 1:
                 raise self.error(f"{where}.arrivals", f"give one of schedule, period or random, not {' and '.join(kinds)}")
-            self.belts[name] = {"from": p0, "to": p1, "length": length, "speed": float(b["speed"]),
+            self.belts[name] = {"name": name, "from": p0, "to": p1, "length": length, "speed": float(b["speed"]),
                                 "width": float(b.get("width", 0.3)), "end": b.get("end", "lost"),
                                 "part_type": ptype, "arrivals": dict(arr)}
         for name, r in data.get("sinks", {}).items():
@@ -343,15 +344,23 @@ class World:
             return sorted(float(t) for t in arr["schedule"])
         limit = self.scene.time_limit
         count = arr.get("count")
+        if count is not None and count > MAX_ARRIVALS:
+            raise self.scene.error(f"belts.{belt['name']}.arrivals.count", f"at most {MAX_ARRIVALS:,} arrivals per belt")
         if "period" in arr:
             p, t0 = float(arr["period"]), float(arr.get("first", 0.0))
             n = count if count is not None else int(limit / p) + 1
+            if n > MAX_ARRIVALS:
+                raise self.scene.error(f"belts.{belt['name']}.arrivals.period", f"{n:,} arrivals within time_limit "
+                                       f"{limit:g} s; at most {MAX_ARRIVALS:,} per belt (give a count or a longer period)")
             return [t0 + i * p for i in range(n)]
         if "random" in arr:
             r = arr["random"]
             mean, lo = float(r["mean_interval"]), float(r.get("min_interval", 0.0))
             t, out = float(arr.get("first", 0.0)), []
             while (count is None and t <= limit) or (count is not None and len(out) < count):
+                if len(out) >= MAX_ARRIVALS:
+                    raise self.scene.error(f"belts.{belt['name']}.arrivals.random", f"more than {MAX_ARRIVALS:,} "
+                                           f"arrivals within time_limit {limit:g} s (give a count or a longer mean_interval)")
                 out.append(round(t, 6))
                 t += lo + self.rng.expovariate(1.0 / max(mean - lo, _EPS))
             return out

@@ -359,3 +359,58 @@ def test_two_robots_each_bound_by_name():
     data["bind"]["grasp"]["robot"] = "nobody"
     with pytest.raises(ModelError, match=r"bind.grasp.robot: no robot named 'nobody' \(robots: arm, helper\)"):
         bind_model(scene_from_data(data), load_model("two-area"), None)
+
+
+# --------------------------------------------------------------------------- fuzz: never a traceback
+_json_values = st.recursive(
+    st.none() | st.booleans() | st.integers(-3, 3) | st.floats(-5, 5, allow_nan=False) |
+    st.sampled_from(["", "a", "in_approach", "{area}", "{nope}", "count(out)", "holding(arm)", "x(", "move_to",
+                     "grip", "stop", "lost", "vacuum", "arrive", "pkg.mod:fn", "os:getcwd"]),
+    lambda inner: st.lists(inner, max_size=4) | st.dictionaries(st.sampled_from(["at", "size", "region", "x", "on"]),
+                                                               inner, max_size=3),
+    max_leaves=8)
+
+
+def _paths(obj, prefix=()):
+    yield prefix
+    if isinstance(obj, dict):
+        for k, v in obj.items():
+            yield from _paths(v, prefix + (k,))
+    elif isinstance(obj, list):
+        for i, v in enumerate(obj):
+            yield from _paths(v, prefix + (i,))
+
+
+@settings(derandomize=True, max_examples=150, deadline=None, database=None,
+          suppress_health_check=[HealthCheck.too_slow])
+@given(st.data())
+def test_mutated_scenes_give_model_errors_never_tracebacks(data):
+    base = _two_area_data()
+    target = copy.deepcopy(base)
+    for _ in range(data.draw(st.integers(1, 3))):
+        paths = [p for p in _paths(target) if p]
+        path = data.draw(st.sampled_from(paths))
+        parent = target
+        for k in path[:-1]:
+            parent = parent[k]
+        action = data.draw(st.sampled_from(["replace", "delete", "add", "tweak", "tweak"]))
+        leaf = parent[path[-1]]
+        if action == "tweak" and isinstance(leaf, (int, float)) and not isinstance(leaf, bool):
+            parent[path[-1]] = data.draw(st.sampled_from([0, -1, 0.001, 1e-9, 0.5, 2, 1e6]))  # past the schema
+        elif action == "tweak" and isinstance(leaf, str):
+            parent[path[-1]] = data.draw(st.sampled_from(["in_approach", "out_place", "out", "feed", "arm", "{area}",
+                                                          "{pose}_{area}", "count(feed)", "sensor(at_end)",
+                                                          "door(x)", "placed", "holding", "wait", "detect",
+                                                          "release", "move_to_part", "arrive", "stop", "lost"]))
+        elif action == "delete" and isinstance(parent, dict):
+            del parent[path[-1]]
+        elif action == "add" and isinstance(parent, dict):
+            parent[data.draw(st.sampled_from(["extra", "x", "on", "when"]))] = data.draw(_json_values)
+        else:
+            parent[path[-1]] = data.draw(_json_values)
+    model = load_model("two-area")
+    try:
+        scene = scene_from_data(target, "fuzz.yaml")
+        run_scene(model, scene, 0, 5.0, check_invariant=True)
+    except ModelError as exc:
+        assert exc.file == "fuzz.yaml" and "\n" not in str(exc)
