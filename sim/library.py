@@ -281,7 +281,8 @@ class SceneBinding:
         self.backlog: list = []  # events raised by sensors, not yet given to the model
         self._seen = 0
         self.env = {}  # event name -> guard
-        self.idle = []  # (choice options, default option name, its guard): reported when no sensor chose
+        self.idle_of = {}  # choice name -> its quiet option (no sensor raises it)
+        self.prog_env = model.program.env
         self.checks = []
 
     # ---- runtime glue
@@ -311,20 +312,40 @@ class SceneBinding:
 
     def events(self, state) -> list:
         """Sensor events for the next tick: one per tick, oldest first, when the model's
-        guard allows it (later ones wait their turn)."""
+        guard allows it (later ones wait their turn); plus, for each environment choice
+        that no sensor event decides, its quiet option when enabled. Guards are evaluated
+        in the model's order, each after the effects of the events before it, as the
+        step function does."""
         w = self.world
         while self._seen < len(w.events):
             self.backlog.append(w.events[self._seen][2])
             self._seen += 1
-        out = []
+        head = self.backlog[0] if self.backlog else None
         s = list(state)
-        if self.backlog:
-            guard = self.env.get(self.backlog[0])
-            if guard is None or guard(s):
-                out.append(self.backlog.pop(0))
-        for options, name, guard in self.idle:
-            if not any(ev in options for ev in out) and (guard is None or guard(s)):
-                out.append(name)
+        out = []
+        try:
+            for name, guard, eff, options in self.prog_env:
+                if options is None:
+                    if name == head and (guard is None or guard(s)):
+                        out.append(self.backlog.pop(0))
+                        if eff is not None:
+                            eff(s)
+                    continue
+                enabled = [o for o in options if o[1] is None or o[1](s)]
+                chosen = next((o for o in enabled if o[0] == head), None)
+                if chosen is not None:
+                    out.append(self.backlog.pop(0))
+                else:
+                    quiet = self.idle_of[name]
+                    chosen = next((o for o in enabled if o[0] == quiet), None)
+                    if chosen is not None:
+                        out.append(quiet)
+                    elif len(enabled) == 1:
+                        chosen = enabled[0]  # the runtime takes the only enabled option unasked
+                if chosen is not None and chosen[2] is not None:
+                    chosen[2](s)
+        except Exception:  # an effect out of its domain: the runtime's tick reports it
+            pass
         return out
 
     def check(self, vars: dict) -> list:
@@ -447,7 +468,7 @@ def bind_model(scene, model, world) -> SceneBinding:
             raise scene.error("sensors", f"environment choice '{name}' needs exactly one option that no sensor "
                                          f"raises (reported on every tick no sensor chose another); "
                                          f"{len(quiet)} of its options ({', '.join(o[0] for o in options)}) are")
-        b.idle.append((frozenset(o[0] for o in options), quiet[0][0], quiet[0][1]))
+        b.idle_of[name] = quiet[0][0]
     for sname, s in scene.sensors.items():
         for key in ("on_enter", "on_exit"):
             ev = s.get(key)
