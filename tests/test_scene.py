@@ -414,3 +414,13 @@ def test_mutated_scenes_give_model_errors_never_tracebacks(data):
         run_scene(model, scene, 0, 5.0, check_invariant=True)
     except ModelError as exc:
         assert exc.file == "fuzz.yaml" and "\n" not in str(exc)
+
+
+def test_same_seed_same_world_across_processes():
+    code = ("from btfsm.files import load_model; from btfsm.sim.scene import load_scene; "
+            "from btfsm.sim.scene_trial import run_scene; import sys; "
+            f"r = run_scene(load_model({MACHINE_MODEL!r}), load_scene({MACHINE!r}), 7, check_invariant=True); "
+            "print(r.digest, r.ticks, r.time)")
+    outs = {subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120,
+                           env={**os.environ, "PYTHONHASHSEED": h}).stdout for h in ("0", "12345")}
+    assert len(outs) == 1 and len(next(iter(outs)).split()[0]) == 64, outs
