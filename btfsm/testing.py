@@ -62,20 +62,23 @@ def assert_holds(model, properties=None, *, semantics: "str | None" = None, goal
 
 def assert_conforms(model, *, scenarios: int = 10, seed: int = 0, time_limit: float = 700.0,
                     drops: bool = False, path: bool = True, max_states: "int | None" = 2_000_000,
-                    semantics: "str | None" = None):
+                    semantics: "str | None" = None, scene=None):
     """Run ``scenarios`` seeded scenarios in the cell (``btfsm conform``) and return the
-    ``Conformance``; AssertionError naming the first mismatch, its scenario and tick."""
+    ``Conformance``; AssertionError naming the first mismatch, its scenario and tick.
+    ``scene``: a scene file or Scene to run in (docs/cell.md); a model the kitting cell
+    cannot run uses its default scene."""
     from btfsm.sim.conformance import conform
 
     m = as_model(model, semantics)
-    out = conform(m, scenarios, seed, time_limit, drops, path=path, max_states=max_states)
+    out = conform(m, scenarios, seed, time_limit, drops, path=path, max_states=max_states, scene=scene)
     if out.incomplete:
         raise AssertionError(f"{m.name}: exploring the model for the path check hit max_states={max_states:,}")
     first = out.first_mismatch()
     if first is not None:
         i, mismatch = first
         sc = out.scenarios[i]
-        raise AssertionError(f"{m.name}: scenario {i} (seed {sc.seed}, belt parts at {list(sc.detections)}) "
+        where = "in its scene" if sc.variant == "scene" else f"belt parts at {list(sc.detections)}"
+        raise AssertionError(f"{m.name}: scenario {i} (seed {sc.seed}, {where}) "
                              f"does not conform: first mismatch at {mismatch}; {len(out.failed)} of "
                              f"{len(out.results)} scenarios failed")
     return out
