@@ -75,10 +75,22 @@ class MemoryFallback(Composite):
 @dataclass(frozen=True)
 class Parallel(Composite):
     """Ticks every child each tick; SUCCESS at ``success_threshold`` successes (default: all),
-    FAILURE at ``failure_threshold`` failures or when success became impossible."""
+    FAILURE at ``failure_threshold`` failures or when success became impossible.
+
+    ``synchronise``: a child that succeeded is not ticked again (it counts as a success)
+    until the parallel returns or is halted (py_trees' ``synchronise=True``).
+    ``selected``: names of children: SUCCESS once every one of them succeeded, instead of
+    a threshold (py_trees' ``SuccessOnSelected``); a selected child's failure makes
+    success impossible."""
 
     success_threshold: "int | None" = None
     failure_threshold: int = 1
+    synchronise: bool = False
+    selected: tuple = ()
+
+    def __post_init__(self):
+        super().__post_init__()
+        object.__setattr__(self, "selected", tuple(self.selected))
 
 
 @dataclass(frozen=True)

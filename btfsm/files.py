@@ -744,7 +744,7 @@ _STATUS = ("success", "failure", "running")
 _NODE_FIELDS = {
     "ReactiveSequence": ("children",), "MemorySequence": ("children",),
     "ReactiveFallback": ("children",), "MemoryFallback": ("children",),
-    "Parallel": ("success_threshold", "failure_threshold", "children"),
+    "Parallel": ("success_threshold", "failure_threshold", "synchronise", "selected", "children"),
     "Inverter": ("child",), "ForceSuccess": ("child",), "ForceFailure": ("child",),
     "Retry": ("attempts", "child"), "Repeat": ("times", "child"), "Guard": ("condition", "child"),
     "Effects": ("on_start", "on_success", "on_failure", "on_halt", "child"),
@@ -989,6 +989,12 @@ class _Reader:
         for f in ("attempts", "times", "failure_threshold"):
             if f in obj:
                 kw[f] = self.integer(obj[f], f"{path}.{f}", obj, f)
+        if obj.get("synchronise") is not None:
+            if not isinstance(obj["synchronise"], bool):
+                raise self.fail(f"{path}.synchronise", f"expected true or false, got {_kind(obj['synchronise'])}", obj, "synchronise")
+            kw["synchronise"] = obj["synchronise"]
+        if obj.get("selected") is not None:
+            kw["selected"] = self.names(obj["selected"], f"{path}.selected", obj, "selected", "children")
         if obj.get("success_threshold") is not None:
             kw["success_threshold"] = self.integer(obj["success_threshold"], f"{path}.success_threshold", obj, "success_threshold")
         for f in ("condition", "expr", "pre", "post"):
@@ -1349,6 +1355,10 @@ def _node_data(n) -> dict:
             out["success_threshold"] = n.success_threshold
         if n.failure_threshold != 1:
             out["failure_threshold"] = n.failure_threshold
+        if n.synchronise:
+            out["synchronise"] = True
+        if n.selected:
+            out["selected"] = list(n.selected)
     if isinstance(n, Retry) and n.attempts != 1:
         out["attempts"] = n.attempts
     if isinstance(n, Repeat) and n.times != 1:

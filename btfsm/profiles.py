@@ -34,12 +34,15 @@ class Profile:
     #: before an idle leaf that can run is ticked, halt the running branches it competes with
     #: (docs/semantics.md section 4); off: the engine halts only after a child returned
     halt_before_start: bool = True
+    #: a Parallel that reaches its failure rule and its success rule in one tick fails
+    #: (py_trees checks for a failed child first); off: success wins (docs/semantics.md 2)
+    parallel_failure_first: bool = False
 
 
 PROFILES = {
     "btfsm": Profile("btfsm", "btfsm (docs/semantics.md sections 1-7)"),
     "btcpp": Profile("btcpp", "BehaviorTree.CPP 4.x", halt_before_start=False),
-    "pytrees": Profile("pytrees", "py_trees 2.6", halt_before_start=False),
+    "pytrees": Profile("pytrees", "py_trees 2.6", halt_before_start=False, parallel_failure_first=True),
 }
 SEMANTICS = tuple(PROFILES)
 DEFAULT_SEMANTICS = "btfsm"

@@ -86,13 +86,14 @@ class _Ctx:
 class _N:
     """Compile-time facts about one node."""
 
-    __slots__ = ("node", "can_run", "flag", "mem", "kids", "parent", "tick", "halt", "on_halt", "root", "node_site")
+    __slots__ = ("node", "can_run", "flag", "mem", "done", "kids", "parent", "tick", "halt", "on_halt", "root", "node_site")
 
     def __init__(self, node, parent, root):
         self.node, self.parent, self.root = node, parent, root
         self.kids: list = []
         self.can_run = False
         self.flag = self.mem = None
+        self.done = ()  # a synchronised Parallel: one 'succeeded already' slot per child
         self.tick = self.halt = self.on_halt = None
 
 
@@ -171,6 +172,9 @@ class Program:
                 info.mem = self._slot(f"{n.name}:failures", "memory", max(n.attempts, 1))
             elif isinstance(n, Repeat):
                 info.mem = self._slot(f"{n.name}:done", "memory", max(n.times, 1))
+            elif isinstance(n, Parallel) and n.synchronise and info.can_run:
+                # rule 'parallel synchronise': which children succeeded since the parallel started
+                info.done = tuple(self._slot(f"{n.name}:succeeded:{k.node.name}", "memory", 2) for k in info.kids)
 
     def _collect(self, node: Node, parent, root):
         info = _N(node, parent, root)
@@ -452,6 +456,8 @@ class Program:
         elif info.mem is not None:
             mem = info.mem
             info.on_halt = lambda ctx: ctx.s.__setitem__(mem, 0)
+        elif info.done:
+            info.on_halt = lambda ctx, done=info.done: _clear(ctx.s, done)
         elif isinstance(n, Effects) and n.on_halt:
             eff = compile_effects(n.on_halt, self.scope, f"tree.{n.name}.on_halt")
             info.on_halt = lambda ctx: _apply(ctx, eff)
@@ -507,6 +513,9 @@ class Program:
                 s[mem] = 0
                 return finish(go_on, ctx)
             return tick
+
+        if isinstance(n, Parallel) and (n.synchronise or n.selected or self.profile.parallel_failure_first):
+            return self._compile_parallel(info, kids, finish, where)  # py_trees' options and order
 
         if isinstance(n, Parallel):
             count = len(kids)
@@ -642,6 +651,61 @@ class Program:
             return tick
         raise ModelError(where, f"unknown node type {type(n).__name__}")
 
+    def _compile_parallel(self, info, kids, finish, where):
+        """Rules 'Parallel' (docs/semantics.md section 2) and, per profile, 'parallel
+        failure first', 'parallel synchronise', 'parallel selected' (section 8)."""
+        n, count = info.node, len(kids)
+        names = [k.node.name for k in info.kids]
+        if n.selected:
+            bad_names = [x for x in n.selected if x not in names]
+            if bad_names or len(set(n.selected)) != len(n.selected):
+                raise ModelError(f"{where}.selected", f"must name distinct children of the parallel, got {', '.join(map(repr, n.selected))}")
+            if n.success_threshold is not None:
+                raise ModelError(f"{where}.selected", "a parallel has either a success_threshold or selected children, not both")
+            eligible = tuple(x in n.selected for x in names)
+            need = len(n.selected)
+        else:
+            eligible = (True,) * count
+            need = count if n.success_threshold is None else n.success_threshold
+        fail_at, pool = n.failure_threshold, sum(eligible)
+        if not 1 <= need <= count or fail_at < 1:
+            raise ModelError(where, f"thresholds must satisfy 1 <= success <= {count} and failure >= 1")
+        halts = tuple((k.flag, k.halt) for k in info.kids if k.can_run)
+        failure_first = self.profile.parallel_failure_first
+        done = info.done or (None,) * count
+        items = tuple(zip(kids, eligible, done))
+
+        def tick(ctx):
+            s = ctx.s
+            ok = bad = lost = 0  # successes that count, failures, failures that count
+            for child, counts, d in items:
+                if d is not None and s[d]:  # synchronised: succeeded earlier, not ticked
+                    ok += counts
+                    continue
+                st = child(ctx)
+                if st == SUCCESS:
+                    ok += counts
+                    if d is not None:
+                        s[d] = 1
+                elif st == FAILURE:
+                    bad += 1
+                    lost += counts
+            won = ok >= need
+            failed = bad >= fail_at or lost > pool - need
+            if won and not (failure_first and failed):
+                st = SUCCESS
+            elif failed:
+                st = FAILURE
+            else:
+                return finish(RUNNING, ctx)
+            for fl, h in halts:
+                if s[fl]:
+                    h(ctx)
+            for d in info.done:
+                s[d] = 0
+            return finish(st, ctx)
+        return tick
+
     def _conflicts(self, info):
         """Halt-before-start: branches to halt before this leaf starts (rule 'halt order')."""
         if not info.can_run or not self.profile.halt_before_start:
@@ -740,6 +804,11 @@ def _halt_before_start(ctx, conflicts):
     for flag, halt in conflicts:
         if s[flag]:
             halt(ctx)
+
+
+def _clear(s, slots):
+    for i in slots:
+        s[i] = 0
 
 
 def _apply(ctx, eff):
