@@ -13,6 +13,7 @@ from hypothesis import strategies as st
 from btfsm import (FSM, Action, Condition, Edge, EnvChoice, EnvEvent, Marker, Model, ModelError,
                    Outcome, Primitive, State)
 from btfsm.bt import NODE_TYPES
+from btfsm.profiles import SEMANTICS
 from btfsm.world import Bool, Enum, Int
 
 __all__ = ["random_models"]
@@ -138,7 +139,10 @@ def _node(draw, ctx, depth, leaves_only_fsm=False):
         kids = [_node(draw, ctx, depth - 1, leaves_only_fsm) for _ in range(draw(st.integers(1, 3)))]
         if t == "Parallel":
             s = draw(st.one_of(st.none(), st.integers(1, len(kids))))
-            return cls(name, kids, s, draw(st.integers(1, len(kids))))
+            # py_trees' options (docs/semantics.md 8.2): synchronise, SuccessOnSelected
+            selected = () if s is not None or not draw(st.booleans()) else tuple(
+                draw(st.lists(st.sampled_from([k.name for k in kids]), min_size=1, unique=True)))
+            return cls(name, kids, s, draw(st.integers(1, len(kids))), draw(st.booleans()), selected)
         return cls(name, kids)
     if t in ("Inverter", "ForceSuccess", "ForceFailure", "Retry", "Repeat", "Guard", "Effects"):
         child = _node(draw, ctx, depth - 1, leaves_only_fsm)
@@ -238,6 +242,6 @@ def random_models(draw, max_vars: int = 4, max_fsms: int = 2, tree_depth: int = 
     tick_rate = draw(st.one_of(st.just(10.0), st.integers(1, 100), st.floats(0.01, 1e4, allow_nan=False)))
     try:
         return Model(draw(st.sampled_from(["m", "two area", "cell-1"])), variables, prims, ctx["fsms"], tree, tuple(env),
-                     invariants, workable, terminal, tick_rate, draw(_TEXT))
+                     invariants, workable, terminal, tick_rate, draw(_TEXT), draw(st.sampled_from(SEMANTICS)))
     except ModelError as exc:  # a combination the strategy does not rule out; say which
         raise AssertionError(f"random_models built an invalid model: {exc}") from None

@@ -50,7 +50,6 @@ from typing import Callable
 
 try:
     import py_trees
-    from py_trees import common as _pt_common  # noqa: F401  (fail early if the install is broken)
 except ImportError as exc:  # pragma: no cover - exercised only without py_trees
     raise ImportError("btfsm.interop.pytrees needs py_trees 2.x: pip install 'py_trees>=2.2' "
                       "(or the btfsm 'test' / 'bench' extras)") from exc
