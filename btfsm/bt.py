@@ -15,7 +15,13 @@ ReactiveSequence   ``Sequence(memory=False)``      ``ReactiveSequence``
 MemorySequence     ``Sequence(memory=True)``       ``Sequence``
 ReactiveFallback   ``Selector(memory=False)``      ``ReactiveFallback``
 MemoryFallback     ``Selector(memory=True)``       ``Fallback``
+Parallel           ``Parallel`` (policies: below)  ``Parallel``
 ================== =============================== ==========================
+
+The reactive rows and py_trees' ``SuccessOnOne``/``SuccessOnSelected`` hold exactly under
+``semantics="pytrees"`` (docs/semantics.md section 8.2; ``btfsm.interop.pytrees`` converts
+both ways): ``Parallel(synchronise=s)`` is ``SuccessOnAll(synchronise=s)``,
+``success_threshold=1`` is ``SuccessOnOne()``, ``selected=names`` is ``SuccessOnSelected``.
 
 >>> tree = ReactiveFallback("root", [Condition("done", "count >= 3"), Action("work")])
 >>> [n.name for n in walk(tree)]

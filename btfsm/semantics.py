@@ -86,14 +86,14 @@ class _Ctx:
 class _N:
     """Compile-time facts about one node."""
 
-    __slots__ = ("node", "can_run", "flag", "mem", "done", "kids", "parent", "tick", "halt", "on_halt", "root", "node_site")
+    __slots__ = ("node", "can_run", "flag", "mem", "mems", "kids", "parent", "tick", "halt", "on_halt", "root", "node_site")
 
     def __init__(self, node, parent, root):
         self.node, self.parent, self.root = node, parent, root
         self.kids: list = []
         self.can_run = False
         self.flag = self.mem = None
-        self.done = ()  # a synchronised Parallel: one 'succeeded already' slot per child
+        self.mems: tuple = ()  # per-child memory (a synchronised Parallel: succeeded already)
         self.tick = self.halt = self.on_halt = None
 
 
@@ -174,7 +174,7 @@ class Program:
                 info.mem = self._slot(f"{n.name}:done", "memory", max(n.times, 1))
             elif isinstance(n, Parallel) and n.synchronise and info.can_run:
                 # rule 'parallel synchronise': which children succeeded since the parallel started
-                info.done = tuple(self._slot(f"{n.name}:succeeded:{k.node.name}", "memory", 2) for k in info.kids)
+                info.mems = tuple(self._slot(f"{n.name}:succeeded:{k.node.name}", "memory", 2) for k in info.kids)
 
     def _collect(self, node: Node, parent, root):
         info = _N(node, parent, root)
@@ -456,8 +456,8 @@ class Program:
         elif info.mem is not None:
             mem = info.mem
             info.on_halt = lambda ctx: ctx.s.__setitem__(mem, 0)
-        elif info.done:
-            info.on_halt = lambda ctx, done=info.done: _clear(ctx.s, done)
+        elif info.mems:
+            info.on_halt = lambda ctx, done=info.mems: _clear(ctx.s, done)
         elif isinstance(n, Effects) and n.on_halt:
             eff = compile_effects(n.on_halt, self.scope, f"tree.{n.name}.on_halt")
             info.on_halt = lambda ctx: _apply(ctx, eff)
@@ -672,7 +672,7 @@ class Program:
             raise ModelError(where, f"thresholds must satisfy 1 <= success <= {count} and failure >= 1")
         halts = tuple((k.flag, k.halt) for k in info.kids if k.can_run)
         failure_first = self.profile.parallel_failure_first
-        done = info.done or (None,) * count
+        done = info.mems or (None,) * count
         items = tuple(zip(kids, eligible, done))
 
         def tick(ctx):
@@ -701,7 +701,7 @@ class Program:
             for fl, h in halts:
                 if s[fl]:
                     h(ctx)
-            for d in info.done:
+            for d in info.mems:
                 s[d] = 0
             return finish(st, ctx)
         return tick

@@ -166,7 +166,7 @@ def _tree_footprint(prog, root, seen) -> tuple:
     reads, writes = set(), set()
     for n in walk(root):
         info = prog.nodes[n.name]
-        for slot in (info.flag, info.mem):
+        for slot in (info.flag, info.mem, *info.mems):
             if slot is not None:
                 writes.add(slot)
         if isinstance(n, Condition):
