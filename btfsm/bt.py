@@ -17,11 +17,17 @@ ReactiveSequence   ``Sequence(memory=False)``      ``ReactiveSequence``
 MemorySequence     ``Sequence(memory=True)``       ``Sequence``
 ReactiveFallback   ``Selector(memory=False)``      ``ReactiveFallback``
 MemoryFallback     ``Selector(memory=True)``       ``Fallback``
+Parallel           ``Parallel`` (policies: below)  ``Parallel``
 SequenceWithMemory                                 ``SequenceWithMemory``
 ParallelAll                                        ``ParallelAll``
 IfThenElse                                         ``IfThenElse``
 WhileDoElse                                        ``WhileDoElse``
 ================== =============================== ==========================
+
+The reactive rows and py_trees' ``SuccessOnOne``/``SuccessOnSelected`` hold exactly under
+``semantics="pytrees"`` (docs/semantics.md section 8.2; ``btfsm.interop.pytrees`` converts
+both ways): ``Parallel(synchronise=s)`` is ``SuccessOnAll(synchronise=s)``,
+``success_threshold=1`` is ``SuccessOnOne()``, ``selected=names`` is ``SuccessOnSelected``.
 
 >>> tree = ReactiveFallback("root", [Condition("done", "count >= 3"), Action("work")])
 >>> [n.name for n in walk(tree)]
@@ -89,10 +95,22 @@ class SequenceWithMemory(Composite):
 class Parallel(Composite):
     """Ticks every child each tick; SUCCESS at ``success_threshold`` successes (default: all),
     FAILURE at ``failure_threshold`` failures or when success became impossible.
-    A negative threshold counts from the end, as in BehaviorTree.CPP (-1: all children)."""
+    A negative threshold counts from the end, as in BehaviorTree.CPP (-1: all children).
+
+    ``synchronise``: a child that succeeded is not ticked again (it counts as a success)
+    until the parallel returns or is halted (py_trees' ``synchronise=True``).
+    ``selected``: names of children: SUCCESS once every one of them succeeded, instead of
+    a threshold (py_trees' ``SuccessOnSelected``); a selected child's failure makes
+    success impossible."""
 
     success_threshold: "int | None" = None
     failure_threshold: int = 1
+    synchronise: bool = False
+    selected: tuple = ()
+
+    def __post_init__(self):
+        super().__post_init__()
+        object.__setattr__(self, "selected", tuple(self.selected))
 
 
 @dataclass(frozen=True)

@@ -747,7 +747,7 @@ _STATUS = ("success", "failure", "running")
 _NODE_FIELDS = {
     "ReactiveSequence": ("children",), "MemorySequence": ("children",),
     "ReactiveFallback": ("children",), "MemoryFallback": ("children",),
-    "Parallel": ("success_threshold", "failure_threshold", "children"),
+    "Parallel": ("success_threshold", "failure_threshold", "synchronise", "selected", "children"),
     "SequenceWithMemory": ("children",), "ParallelAll": ("max_failures", "children"),
     "IfThenElse": ("children",), "WhileDoElse": ("children",),
     "KeepRunningUntilFailure": ("child",), "RunOnce": ("then_skip", "child"),
@@ -1001,6 +1001,12 @@ class _Reader:
             if not isinstance(obj["then_skip"], bool):
                 raise self.fail(f"{path}.then_skip", f"expected true or false, got {_kind(obj['then_skip'])}", obj, "then_skip")
             kw["then_skip"] = obj["then_skip"]
+        if obj.get("synchronise") is not None:
+            if not isinstance(obj["synchronise"], bool):
+                raise self.fail(f"{path}.synchronise", f"expected true or false, got {_kind(obj['synchronise'])}", obj, "synchronise")
+            kw["synchronise"] = obj["synchronise"]
+        if obj.get("selected") is not None:
+            kw["selected"] = self.names(obj["selected"], f"{path}.selected", obj, "selected", "children")
         if obj.get("success_threshold") is not None:
             kw["success_threshold"] = self.integer(obj["success_threshold"], f"{path}.success_threshold", obj, "success_threshold")
         for f in ("condition", "expr", "pre", "post"):
@@ -1462,6 +1468,10 @@ def _node_data(n) -> dict:
             out["success_threshold"] = n.success_threshold
         if n.failure_threshold != 1:
             out["failure_threshold"] = n.failure_threshold
+        if n.synchronise:
+            out["synchronise"] = True
+        if n.selected:
+            out["selected"] = list(n.selected)
     if isinstance(n, ParallelAll) and n.max_failures != 1:
         out["max_failures"] = n.max_failures
     if isinstance(n, RunOnce):

@@ -54,13 +54,16 @@ class Profile:
     #: loop) steps its FSM again, as BehaviorTree.CPP calls a stateful action's onStart
     #: again. Off: it gets the reply of its first step (one step per request per tick)
     restart_in_tick: bool = False
+    #: a Parallel that reaches its failure rule and its success rule in one tick fails
+    #: (py_trees checks for a failed child first); off: success wins (docs/semantics.md 2)
+    parallel_failure_first: bool = False
 
 
 PROFILES = {
     "btfsm": Profile("btfsm", "btfsm (docs/semantics.md sections 1-7)"),
     "btcpp": Profile("btcpp", "BehaviorTree.CPP 4.x", halt_before_start=False, parallel_memory=True,
                      loop_wake_up=True, stale_condition=True, restart_in_tick=True),
-    "pytrees": Profile("pytrees", "py_trees 2.6", halt_before_start=False),
+    "pytrees": Profile("pytrees", "py_trees 2.6", halt_before_start=False, parallel_failure_first=True),
 }
 SEMANTICS = tuple(PROFILES)
 DEFAULT_SEMANTICS = "btfsm"

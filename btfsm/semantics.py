@@ -188,6 +188,9 @@ class Program:
                 info.mem = self._slot(f"{n.name}:failures", "memory", max(n.attempts, 1))
             elif isinstance(n, Repeat):
                 info.mem = self._slot(f"{n.name}:done", "memory", max(n.times, 1))
+            elif isinstance(n, Parallel) and n.synchronise and info.can_run:
+                # rule 'parallel synchronise': which children succeeded since the parallel started
+                info.mems = tuple(self._slot(f"{n.name}:succeeded:{k.node.name}", "memory", 2) for k in info.kids)
             if (isinstance(n, (IfThenElse, WhileDoElse)) and self.profile.stale_condition and info.kids
                     and _stateful(info.kids[0])):
                 # the condition leaf's last status while the node keeps it (0: none)
@@ -541,6 +544,15 @@ class Program:
                 return finish(go_on, ctx)
             return tick
 
+        if isinstance(n, Parallel) and self.profile.parallel_memory and n.selected:
+            raise ModelError(f"{where}.selected", "selected children are py_trees' SuccessOnSelected policy; "
+                                                  "BehaviorTree.CPP's Parallel has thresholds only")
+        if isinstance(n, Parallel) and not self.profile.parallel_memory and (
+                n.synchronise or n.selected or self.profile.parallel_failure_first):
+            # py_trees' options and order (under parallel_memory finished children are never
+            # ticked again anyway, so synchronise changes nothing there)
+            return self._compile_parallel(info, kids, finish, where)
+
         if isinstance(n, Parallel):
             count = len(kids)
             need = count if n.success_threshold is None else _threshold(n.success_threshold, count)
@@ -893,6 +905,61 @@ class Program:
             for fl, h in halts:
                 if s[fl]:
                     h(ctx)
+            return finish(st, ctx)
+        return tick
+
+    def _compile_parallel(self, info, kids, finish, where):
+        """Rules 'Parallel' (docs/semantics.md section 2) and, per profile, 'parallel
+        failure first', 'parallel synchronise', 'parallel selected' (section 8)."""
+        n, count = info.node, len(kids)
+        names = [k.node.name for k in info.kids]
+        if n.selected:
+            bad_names = [x for x in n.selected if x not in names]
+            if bad_names or len(set(n.selected)) != len(n.selected):
+                raise ModelError(f"{where}.selected", f"must name distinct children of the parallel, got {', '.join(map(repr, n.selected))}")
+            if n.success_threshold is not None:
+                raise ModelError(f"{where}.selected", "a parallel has either a success_threshold or selected children, not both")
+            eligible = tuple(x in n.selected for x in names)
+            need = len(n.selected)
+        else:
+            eligible = (True,) * count
+            need = count if n.success_threshold is None else _threshold(n.success_threshold, count)
+        fail_at, pool = _threshold(n.failure_threshold, count), sum(eligible)
+        if not 1 <= need <= count or fail_at < 1:
+            raise ModelError(where, f"thresholds must satisfy 1 <= success <= {count} and failure >= 1")
+        halts = tuple((k.flag, k.halt) for k in info.kids if k.can_run)
+        failure_first = self.profile.parallel_failure_first
+        done = info.mems or (None,) * count
+        items = tuple(zip(kids, eligible, done))
+
+        def tick(ctx):
+            s = ctx.s
+            ok = bad = lost = 0  # successes that count, failures, failures that count
+            for child, counts, d in items:
+                if d is not None and s[d]:  # synchronised: succeeded earlier, not ticked
+                    ok += counts
+                    continue
+                st = child(ctx)
+                if st == SUCCESS:
+                    ok += counts
+                    if d is not None:
+                        s[d] = 1
+                elif st == FAILURE:
+                    bad += 1
+                    lost += counts
+            won = ok >= need
+            failed = bad >= fail_at or lost > pool - need
+            if won and not (failure_first and failed):
+                st = SUCCESS
+            elif failed:
+                st = FAILURE
+            else:
+                return finish(RUNNING, ctx)
+            for fl, h in halts:
+                if s[fl]:
+                    h(ctx)
+            for d in info.mems:
+                s[d] = 0
             return finish(st, ctx)
         return tick
 

@@ -142,7 +142,11 @@ def _node(draw, ctx, depth, leaves_only_fsm=False):
         n = len(kids)
         if t == "Parallel":  # negative thresholds count from the end (-1: all children)
             s = draw(st.one_of(st.none(), st.integers(1, n), st.integers(-n, -1)))
-            return cls(name, kids, s, draw(st.one_of(st.integers(1, n), st.integers(-n, -1))))
+            # py_trees' options (docs/semantics.md 8.2): synchronise, SuccessOnSelected (not under btcpp)
+            selected = () if s is not None or ctx.get("semantics") == "btcpp" or not draw(st.booleans()) else tuple(
+                draw(st.lists(st.sampled_from([k.name for k in kids]), min_size=1, unique=True)))
+            return cls(name, kids, s, draw(st.one_of(st.integers(1, n), st.integers(-n, -1))), draw(st.booleans()),
+                       selected)
         if t == "ParallelAll":
             return cls(name, kids, draw(st.one_of(st.integers(1, n), st.integers(-n, -1))))
         return cls(name, kids)
@@ -240,7 +244,8 @@ def random_models(draw, max_vars: int = 4, max_fsms: int = 2, tree_depth: int = 
     names = _Names()
     variables = tuple(_var(draw, f"v{i}") for i in range(draw(st.integers(0, max_vars))))
     prims = tuple(Primitive(f"p{i}", _outcomes(draw, variables)) for i in range(draw(st.integers(0, 3))))
-    ctx = {"names": names, "variables": variables, "prims": prims, "fsms": ()}
+    ctx = {"names": names, "variables": variables, "prims": prims, "fsms": (),
+           "semantics": draw(st.sampled_from(SEMANTICS))}
     ctx["fsms"] = tuple(_fsm(draw, ctx, i) for i in range(draw(st.integers(0, max_fsms))))
     tree = _node(draw, ctx, tree_depth) if draw(st.integers(0, 4)) else None
     env = []
@@ -259,7 +264,7 @@ def random_models(draw, max_vars: int = 4, max_fsms: int = 2, tree_depth: int = 
     resources = _resources(draw, tree, ctx["fsms"])
     try:
         return Model(draw(st.sampled_from(["m", "two area", "cell-1"])), variables, prims, ctx["fsms"], tree, tuple(env),
-                     invariants, workable, terminal, tick_rate, draw(_TEXT), draw(st.sampled_from(SEMANTICS)),
+                     invariants, workable, terminal, tick_rate, draw(_TEXT), ctx["semantics"],
                      resources=resources)
     except ModelError as exc:  # a combination the strategy does not rule out; say which
         raise AssertionError(f"random_models built an invalid model: {exc}") from None

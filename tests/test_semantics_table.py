@@ -28,10 +28,14 @@ from btfsm.oracles import RandomOracle, ScriptOracle
 from btfsm.runtime import Runtime
 from btfsm.trace import read_trace, replay
 
+from test_profile_pytrees import (test_profile_parallel_failure_first, test_profile_parallel_selected,
+                                  test_profile_parallel_synchronise)
 from core_strategies import (ModOracle, TableOracle, Tick, act, events, models, parents_of,
                              pick_events, run_rows, running_nodes, slot_of, to_reactive, trees,
                              variables)
 
+SECTION_8_PYTREES = (test_profile_parallel_failure_first, test_profile_parallel_selected,
+                     test_profile_parallel_synchronise)  # cited by section 8; they run here too
 R, S, F = int(Status.RUNNING), int(Status.SUCCESS), int(Status.FAILURE)
 PROPS = settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 ANSWERS = st.lists(st.integers(0, 11), min_size=8, max_size=64)  # ModOracle cycles through them
