@@ -8,7 +8,11 @@
   own cost, without the runtime);
 * reference: ``pymunk_cell_bench.py --view top`` run as a subprocess (it excludes a 2 s
   warm-up from its timing; ours times the whole run);
-* ``--experiment``: also time the full 80-trial experiment on ``--workers`` processes.
+* ``--experiment``: also time the full 80-trial experiment on ``--workers`` processes;
+* scenes (issue 11): the same kind of trial (checked model in the Runtime at 10 Hz) in a
+  scene-described cell (``btfsm.sim.scene``, kinematic, 100 Hz world steps): the
+  two-area example and the machine-tending cell, 10 seeds each, run to completion; the
+  table puts the hard-coded ARIAC trial (before) and the scene trials (after) side by side.
 
     python3 benchmarks/sim_cell.py [--sim-seconds 120] [--repeats 3] [--experiment] [--json out.json]
 """
@@ -135,6 +139,25 @@ def run_trial_bench(sim_seconds: float) -> dict:
             "ticks": r.ticks, "skills": r.skills, "tray": r.tray}
 
 
+SCENES = (("two-area", "models/scenes/two_area.yaml"),
+          ("models/examples/machine_tending.yaml", "models/scenes/machine_tending.yaml"))
+
+
+def run_scene_bench(model_ref: str, scene_file: str, seeds: int = 10) -> dict:
+    from btfsm.files import load_model
+    from btfsm.sim.scene import load_scene
+    from btfsm.sim.scene_trial import run_scene
+
+    model, scene = load_model(os.path.join(ROOT, model_ref) if model_ref.endswith(".yaml") else model_ref), \
+        load_scene(os.path.join(ROOT, scene_file))
+    t0 = time.perf_counter()
+    runs = [run_scene(model, scene, seed) for seed in range(seeds)]
+    wall = time.perf_counter() - t0
+    sim = sum(r.time for r in runs)
+    return {"sim_s_per_wall_s": sim / wall, "wall_s": wall, "sim_s": sim, "ticks": sum(r.ticks for r in runs),
+            "completed": sum(r.completed for r in runs), "runs": seeds, "scene": scene.name}
+
+
 def run_experiment_bench(workers: int) -> dict:
     from btfsm.sim.experiment import run_experiment, summarize, trial_specs
 
@@ -181,6 +204,16 @@ def main() -> None:
           f"{ours['steps_per_s']:9.0f} steps/s  (runs {ours['all']}; places {ours['places']}, "
           f"tray {ours['tray_count']}, lost {ours['lost']}, detections {ours['detections']})")
     result = {"sim_seconds": args.sim_seconds, "trial": trial, "ours": ours}
+    scenes = [median_run(lambda m=m, f=f: run_scene_bench(m, f), args.repeats) for m, f in SCENES]
+    print("\nbefore/after (issue 11): a trial of a checked model in the Runtime at 10 Hz, simulated s per wall s")
+    print(f"  {'cell':56} {'sim-s/wall-s':>12}  target >= 500x")
+    print(f"  {'before: ARIAC kitting cell (hard-coded, pymunk 240 Hz)':56} {trial['sim_s_per_wall_s']:12.1f}  "
+          f"{'met' if trial['sim_s_per_wall_s'] >= 500 else 'NOT met'}")
+    for sc in scenes:
+        label = f"after: scene {sc['scene']} (kinematic, 100 Hz)"
+        print(f"  {label:56} {sc['sim_s_per_wall_s']:12.1f}  {'met' if sc['sim_s_per_wall_s'] >= 500 else 'NOT met'}"
+              f"  (runs {sc['all']}; {sc['runs']} seeds, {sc['completed']} completed, {sc['sim_s']:.0f} sim s)")
+    result["scenes"] = scenes
     if os.path.exists(args.reference):
         ref = median_run(lambda: run_reference(args.reference, args.sim_seconds), args.repeats)
         print(f"reference cell:                               {ref['sim_s_per_wall_s']:8.1f} sim-s/wall-s  "

@@ -2,9 +2,10 @@
 
 The public modelling API. See docs/semantics.md for the tick rules.
 """
-from .bt import (Action, Condition, Effects, ForceFailure, ForceSuccess, Guard, Inverter,
-                 MemoryFallback, MemorySequence, Parallel, ReactiveFallback, ReactiveSequence,
-                 Repeat, Retry, SkillRequest, walk)
+from .bt import (Action, Condition, Effects, ForceFailure, ForceSuccess, Guard, IfThenElse, Inverter,
+                 KeepRunningUntilFailure, MemoryFallback, MemorySequence, Parallel, ParallelAll,
+                 ReactiveFallback, ReactiveSequence, Repeat, Retry, RunOnce, SequenceWithMemory,
+                 SkillRequest, WhileDoElse, walk)
 from .errors import ConformanceError, DomainError, ModelError
 from .expr import E, as_expr, parse, to_text, v
 from .fsm import FSM, Edge, Marker, State
@@ -19,6 +20,7 @@ __all__ = [
     "Action", "Condition", "Effects", "ForceFailure", "ForceSuccess", "Guard", "Inverter",
     "MemoryFallback", "MemorySequence", "Parallel", "ReactiveFallback", "ReactiveSequence",
     "Repeat", "Retry", "SkillRequest", "walk",
+    "IfThenElse", "KeepRunningUntilFailure", "ParallelAll", "RunOnce", "SequenceWithMemory", "WhileDoElse",
     "ConformanceError", "DomainError", "ModelError",
     "E", "as_expr", "parse", "to_text", "v",
     "FSM", "Edge", "Marker", "State", "EnvChoice", "EnvEvent", "Model",

@@ -1,12 +1,14 @@
 """Behavior-tree node types: immutable, named, and checked when the model is built.
 
-Composites: ``ReactiveSequence``, ``MemorySequence``, ``ReactiveFallback``,
-``MemoryFallback`` and ``Parallel``. Decorators: ``Inverter``, ``ForceSuccess``,
-``ForceFailure``, ``Retry``, ``Repeat``, ``Guard`` and ``Effects``. Leaves: ``Condition``,
+Composites: ``ReactiveSequence``, ``MemorySequence``, ``SequenceWithMemory``,
+``ReactiveFallback``, ``MemoryFallback``, ``Parallel``, ``ParallelAll``, ``IfThenElse`` and
+``WhileDoElse``. Decorators: ``Inverter``, ``ForceSuccess``, ``ForceFailure``, ``Retry``,
+``Repeat``, ``KeepRunningUntilFailure``, ``RunOnce``, ``Guard`` and ``Effects``. Leaves: ``Condition``,
 ``Action`` and ``SkillRequest``. Their tick rules are in docs/semantics.md and in exactly
 one implementation, ``btfsm.semantics``.
 
-Name mapping to other libraries:
+Name mapping to other libraries (the rules differ in places: docs/semantics.md sections 2
+and 8 state every difference; ``Model.semantics`` selects an engine's rules):
 
 ================== =============================== ==========================
 btfsm              py_trees 2.x                    BehaviorTree.CPP 4.x
@@ -15,7 +17,17 @@ ReactiveSequence   ``Sequence(memory=False)``      ``ReactiveSequence``
 MemorySequence     ``Sequence(memory=True)``       ``Sequence``
 ReactiveFallback   ``Selector(memory=False)``      ``ReactiveFallback``
 MemoryFallback     ``Selector(memory=True)``       ``Fallback``
+Parallel           ``Parallel`` (policies: below)  ``Parallel``
+SequenceWithMemory                                 ``SequenceWithMemory``
+ParallelAll                                        ``ParallelAll``
+IfThenElse                                         ``IfThenElse``
+WhileDoElse                                        ``WhileDoElse``
 ================== =============================== ==========================
+
+The reactive rows and py_trees' ``SuccessOnOne``/``SuccessOnSelected`` hold exactly under
+``semantics="pytrees"`` (docs/semantics.md section 8.2; ``btfsm.interop.pytrees`` converts
+both ways): ``Parallel(synchronise=s)`` is ``SuccessOnAll(synchronise=s)``,
+``success_threshold=1`` is ``SuccessOnOne()``, ``selected=names`` is ``SuccessOnSelected``.
 
 >>> tree = ReactiveFallback("root", [Condition("done", "count >= 3"), Action("work")])
 >>> [n.name for n in walk(tree)]
@@ -32,7 +44,9 @@ from .primitives import Outcome, effects_of
 __all__ = [
     "Node", "Composite", "Decorator", "Leaf",
     "ReactiveSequence", "MemorySequence", "ReactiveFallback", "MemoryFallback", "Parallel",
+    "SequenceWithMemory", "ParallelAll", "IfThenElse", "WhileDoElse",
     "Inverter", "ForceSuccess", "ForceFailure", "Retry", "Repeat", "Guard", "Effects",
+    "KeepRunningUntilFailure", "RunOnce",
     "Condition", "Action", "SkillRequest", "walk", "NODE_TYPES",
 ]
 
@@ -72,13 +86,51 @@ class MemoryFallback(Composite):
     """Resumes at the child that was running; starts again from the first after a result."""
 
 
+class SequenceWithMemory(Composite):
+    """BehaviorTree.CPP's ``SequenceWithMemory``: like ``MemorySequence``, but a FAILURE
+    keeps the index (the failed child is ticked again next time) and halting keeps it too."""
+
+
 @dataclass(frozen=True)
 class Parallel(Composite):
     """Ticks every child each tick; SUCCESS at ``success_threshold`` successes (default: all),
-    FAILURE at ``failure_threshold`` failures or when success became impossible."""
+    FAILURE at ``failure_threshold`` failures or when success became impossible.
+    A negative threshold counts from the end, as in BehaviorTree.CPP (-1: all children).
+
+    ``synchronise``: a child that succeeded is not ticked again (it counts as a success)
+    until the parallel returns or is halted (py_trees' ``synchronise=True``).
+    ``selected``: names of children: SUCCESS once every one of them succeeded, instead of
+    a threshold (py_trees' ``SuccessOnSelected``); a selected child's failure makes
+    success impossible."""
 
     success_threshold: "int | None" = None
     failure_threshold: int = 1
+    synchronise: bool = False
+    selected: tuple = ()
+
+    def __post_init__(self):
+        super().__post_init__()
+        object.__setattr__(self, "selected", tuple(self.selected))
+
+
+@dataclass(frozen=True)
+class ParallelAll(Composite):
+    """BehaviorTree.CPP's ``ParallelAll``: ticks the children that have not finished until all
+    have; then FAILURE if at least ``max_failures`` failed, else SUCCESS."""
+
+    max_failures: int = 1
+
+
+class IfThenElse(Composite):
+    """Two or three children: the first is the condition; SUCCESS runs the second, FAILURE
+    the third (or returns FAILURE with two children). The branch chosen is kept while it
+    runs (the condition is not ticked again until the branch finishes)."""
+
+
+class WhileDoElse(Composite):
+    """Two or three children: the condition (the first) is ticked every tick; SUCCESS ticks
+    the second (halting the third), FAILURE the third (halting the second) or returns
+    FAILURE with two children."""
 
 
 @dataclass(frozen=True)
@@ -114,6 +166,19 @@ class Repeat(Decorator):
     """Runs the child to SUCCESS ``times`` times (RUNNING in between); FAILURE stops it."""
 
     times: int = 1
+
+
+class KeepRunningUntilFailure(Decorator):
+    """Child SUCCESS -> RUNNING, FAILURE -> FAILURE, RUNNING -> RUNNING."""
+
+
+@dataclass(frozen=True)
+class RunOnce(Decorator):
+    """Ticks the child until it finishes once; afterwards returns that status without
+    ticking it (``then_skip=False``). ``then_skip=True`` (BehaviorTree.CPP's default) would
+    return SKIPPED, which btfsm does not model: the model is refused when compiled."""
+
+    then_skip: bool = True
 
 
 @dataclass(frozen=True)
@@ -215,5 +280,6 @@ def walk(node: Node) -> Iterator[Node]:
 
 NODE_TYPES = {cls.__name__: cls for cls in (
     ReactiveSequence, MemorySequence, ReactiveFallback, MemoryFallback, Parallel,
-    Inverter, ForceSuccess, ForceFailure, Retry, Repeat, Guard, Effects,
+    SequenceWithMemory, ParallelAll, IfThenElse, WhileDoElse,
+    Inverter, ForceSuccess, ForceFailure, Retry, Repeat, KeepRunningUntilFailure, RunOnce, Guard, Effects,
     Condition, Action, SkillRequest)}

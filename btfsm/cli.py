@@ -119,10 +119,17 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def _args_model(sp):
-    sp.add_argument("model", type=input_file, help="model file (.yaml/.json) or built-in model name")
+    sp.add_argument("model", type=input_file, help="model file (.yaml/.json), FILE.py:FUNCTION or package.module:FUNCTION (a function "
+                         "returning a Model), or a built-in model name")
     sp.add_argument("--semantics", choices=SEMANTICS, default=None,
                     help="tick rules of this engine instead of the model's own (btfsm, btcpp: BehaviorTree.CPP 4, "
                          "pytrees: py_trees 2.6; see docs/semantics.md section 8)")
+
+
+def _args_scene(sp):
+    sp.add_argument("--scene", metavar="FILE", type=input_file, default=None,
+                    help="run in this scene file (docs/cell.md) instead of the kitting cell; default: the "
+                         "model's own scene (MODEL.scene.yaml beside it, or a shipped scene named after it)")
 
 
 def _args_json(sp, what="the result"):
@@ -163,7 +170,9 @@ def _args_replay(sp):
     sp.add_argument("trace", type=input_file,
                     help="a trace (.jsonl) or a counterexample (.json from btfsm check --counterexample-dir)")
     _args_model(sp)
-    sp.add_argument("--cell", action="store_true", help="also replay the counterexample's situation in the kitting cell")
+    sp.add_argument("--cell", action="store_true", help="also replay the counterexample's situation in the kitting cell "
+                                                         "(or in a scene: --scene, or the model's own scene)")
+    _args_scene(sp)
     sp.add_argument("--render", metavar="PNG", type=output_file(".png"), help="with --cell: draw the cell at the end")
     sp.add_argument("--gif", metavar="GIF", type=output_file(".gif"), help="with --cell: write an animation")
     sp.add_argument("--time", type=finite_float(0, MAX_SIM_TIME, lo_open=True), default=120.0,
@@ -189,7 +198,8 @@ def _args_check(sp):
 
 def _args_export(sp):
     _args_model(sp)
-    sp.add_argument("--format", choices=("promela", "smv", "dot"), required=True)
+    sp.add_argument("--format", choices=("promela", "smv", "dot", "btcpp"), required=True,
+                    help="btcpp: the tree as BehaviorTree.CPP XML v4 (docs/semantics.md 8.1)")
     sp.add_argument("--fsm", type=input_text,
                     help="FSM to export at FSM level (default: the whole model when its tree is one "
                          "SkillRequest, the first FSM when there is no tree)")
@@ -239,6 +249,8 @@ def _args_sim(sp):
     sp.add_argument("--fps", type=finite_float(0.01, 100.0), default=2.0,
                     help="animation frames per simulated second (0.01..100)")
     sp.add_argument("--max-frames", type=int_range(1, MAX_FRAMES), default=600)
+    _args_scene(sp)
+    sp.add_argument("--seed", type=seed_int, default=0, help="with a scene: the seed of its random arrivals and faults")
 
 
 def _args_conform(sp):
@@ -249,6 +261,7 @@ def _args_conform(sp):
                     help="time limit per scenario (simulated s)")
     sp.add_argument("--drops", action="store_true", help="add faulty-gripper drop regions to some scenarios")
     sp.add_argument("--no-path", action="store_true", help="skip the path check against the explored system")
+    _args_scene(sp)
     _args_max_states(sp, default=2_000_000)
     _args_json(sp, "the scenarios and the verdict")
 
@@ -543,6 +556,12 @@ def cli_run(args) -> int:
                 break
             counts[step.status.name] += 1
             if step.violations:
+                exclusive = [v for v in step.violations if v[0] == "exclusive"]
+                if exclusive:
+                    v = exclusive[0]
+                    problem = (f"tick {tick}: exclusive resource '{v[1]}': '{v[2]}' "
+                               + (f"started while '{v[3]}' was running" if v[4] == "start" else f"and '{v[3]}' are both running"))
+                    break
                 nodes = ", ".join(f"'{v[1]}'" for v in step.violations)
                 problem = (f"tick {tick}: contract violation: {nodes} replied SUCCESS while its post-condition "
                            "is false")
@@ -637,13 +656,9 @@ def cli_replay(args) -> int:
         ok, text = replay_counterexample(ce, model)
         print(printable(text))
         if args.cell:
-            from btfsm.sim.binding import CellBinding
-            from btfsm.sim.replay import replay_in_cell
+            from btfsm.sim.replay import replay_for_cli
 
-            why = CellBinding.unsupported(model)
-            if why:
-                raise UsageError(f"{model.name}: the kitting cell cannot run this model ({why})")
-            print(replay_in_cell(model, ce.to_json(), time_limit=args.time, render=args.render, gif=args.gif).text())
+            print(replay_for_cli(model, ce.to_json(), args))
         return 0 if ok else 1
     if args.cell:
         raise UsageError("--cell replays counterexamples (.json), not traces")

@@ -37,7 +37,8 @@ from pathlib import Path
 
 import yaml
 
-from .bt import NODE_TYPES, Action, Composite, Condition, Decorator, Effects, Guard, Parallel, Repeat, Retry, SkillRequest, walk
+from .bt import (NODE_TYPES, Action, Composite, Condition, Decorator, Effects, Guard, Parallel, ParallelAll, Repeat, Retry,
+                 RunOnce, SkillRequest, walk)
 from .errors import ModelError
 from .expr import Const, Expr, as_expr, to_text
 from .fsm import FSM, Edge, Marker, State
@@ -48,7 +49,7 @@ from .status import Status
 from .world import Bool, Enum, Int, Var
 
 __all__ = [
-    "FORMATS", "load_model", "loads_model", "load_data", "loads_data", "expand_templates",
+    "FORMATS", "load_model", "load_cli_model", "python_model_ref", "load_python_model", "loads_model", "load_data", "loads_data", "expand_templates",
     "model_from_data", "model_to_data", "dump_model", "dumps_model", "builtin_models",
     "format_of", "cli_validate", "read_model_bytes", "MAX_FILE_BYTES", "MAX_NODES", "load_xml_model",
 ]
@@ -697,17 +698,19 @@ def _check_fields(ctx, obj, path, allowed, required=(), what="a mapping"):
 
 
 def _find_placeholder(obj, path):
-    """(path, text) of the first string still holding ``${``, or None."""
+    """(path, text) of the first string still holding a placeholder ``${NAME}``, or None.
+    Descriptions are free text and are not searched."""
     stack = [(obj, path)]
     while stack:
         x, p = stack.pop()
-        if isinstance(x, str) and "${" in x:
+        if isinstance(x, str) and _PLACEHOLDER.search(x):
             return p, x
         if isinstance(x, dict):
             for k, v in reversed(list(x.items())):
-                if isinstance(k, str) and "${" in k:
+                if isinstance(k, str) and _PLACEHOLDER.search(k):
                     return _join(p, k), k
-                stack.append((v, _join(p, k)))
+                if k != "description":
+                    stack.append((v, _join(p, k)))
         elif isinstance(x, list):
             stack.extend((v, f"{p}[{i}]") for i, v in reversed(list(enumerate(x))))
     return None
@@ -744,7 +747,10 @@ _STATUS = ("success", "failure", "running")
 _NODE_FIELDS = {
     "ReactiveSequence": ("children",), "MemorySequence": ("children",),
     "ReactiveFallback": ("children",), "MemoryFallback": ("children",),
-    "Parallel": ("success_threshold", "failure_threshold", "children"),
+    "Parallel": ("success_threshold", "failure_threshold", "synchronise", "selected", "children"),
+    "SequenceWithMemory": ("children",), "ParallelAll": ("max_failures", "children"),
+    "IfThenElse": ("children",), "WhileDoElse": ("children",),
+    "KeepRunningUntilFailure": ("child",), "RunOnce": ("then_skip", "child"),
     "Inverter": ("child",), "ForceSuccess": ("child",), "ForceFailure": ("child",),
     "Retry": ("attempts", "child"), "Repeat": ("times", "child"), "Guard": ("condition", "child"),
     "Effects": ("on_start", "on_success", "on_failure", "on_halt", "child"),
@@ -753,10 +759,12 @@ _NODE_FIELDS = {
 }
 _NODE_REQUIRED = {"Guard": ("condition", "child"), "Condition": ("expr",), "SkillRequest": ("fsm", "goal"),
                   "Inverter": ("child",), "ForceSuccess": ("child",), "ForceFailure": ("child",),
-                  "Retry": ("child",), "Repeat": ("child",), "Effects": ("child",)}
+                  "Retry": ("child",), "Repeat": ("child",), "Effects": ("child",),
+                  "KeepRunningUntilFailure": ("child",), "RunOnce": ("child",),
+                  "IfThenElse": ("children",), "WhileDoElse": ("children",)}
 TRIGGER_KEYS = ("when", "on", True)  # "on" and True (YAML 1.1's reading of on:) are older spellings
 TOP_FIELDS = ("name", "description", "semantics", "tick_rate", "variables", "primitives", "fsms", "tree",
-              "environment", "invariants", "workable", "terminal")
+              "environment", "invariants", "workable", "terminal", "resources")
 FSM_FIELDS = ("goals", "states", "initial", "edges", "markers", "params", "retarget", "withdraw_goal", "terminal")
 
 
@@ -986,9 +994,19 @@ class _Reader:
             kw["children"] = tuple(self.node(c, f"{path}.children[{i}]", root, kids, i, depth + 1) for i, c in enumerate(kids))
         if "child" in obj:
             kw["child"] = self.node(obj["child"], f"{path}.child", root, obj, "child", depth + 1)
-        for f in ("attempts", "times", "failure_threshold"):
+        for f in ("attempts", "times", "failure_threshold", "max_failures"):
             if f in obj:
                 kw[f] = self.integer(obj[f], f"{path}.{f}", obj, f)
+        if "then_skip" in obj:
+            if not isinstance(obj["then_skip"], bool):
+                raise self.fail(f"{path}.then_skip", f"expected true or false, got {_kind(obj['then_skip'])}", obj, "then_skip")
+            kw["then_skip"] = obj["then_skip"]
+        if obj.get("synchronise") is not None:
+            if not isinstance(obj["synchronise"], bool):
+                raise self.fail(f"{path}.synchronise", f"expected true or false, got {_kind(obj['synchronise'])}", obj, "synchronise")
+            kw["synchronise"] = obj["synchronise"]
+        if obj.get("selected") is not None:
+            kw["selected"] = self.names(obj["selected"], f"{path}.selected", obj, "selected", "children")
         if obj.get("success_threshold") is not None:
             kw["success_threshold"] = self.integer(obj["success_threshold"], f"{path}.success_threshold", obj, "success_threshold")
         for f in ("condition", "expr", "pre", "post"):
@@ -1159,6 +1177,25 @@ class _Reader:
                 out.append(self.event(ev, p, obj, i, "environment"))
         return tuple(out)
 
+    def resources(self, obj, data) -> tuple:
+        """``resources: {arm: [pick_a, pick_b]}``: resource name -> node names."""
+        if not isinstance(obj, dict):
+            raise self.fail("resources", f"expected a mapping of resource names to lists of node names, got {_kind(obj)}",
+                            data, "resources")
+        out = []
+        for name, members in obj.items():
+            self.string(name, "resources", obj, name, "a resource name")
+            path = _join("resources", name)
+            self.alias(path, path, obj, name)
+            if isinstance(members, str):
+                members = [members]
+            if not isinstance(members, list):
+                raise self.fail(path, f"expected a list of node names, got {_kind(members)}", obj, name)
+            for i, m in enumerate(members):
+                self.string(m, f"{path}[{i}]", members, i, "a node name")
+            out.append((name, tuple(members)))
+        return tuple(out)
+
     # ---------------------------------------------------------------- the model
     def model(self, data) -> Model:
         self.fields(data, "", TOP_FIELDS, ("name",), "a mapping with the model")
@@ -1196,6 +1233,8 @@ class _Reader:
         for key in ("workable", "terminal"):
             if data.get(key) is not None:
                 kw[key] = self.expr(data[key], key, data, key)
+        if data.get("resources") is not None:
+            kw["resources"] = self.resources(data["resources"], data)
         self.alias_declared_outcomes(kw)
         try:
             return Model(**kw)
@@ -1257,7 +1296,12 @@ def _load_model(ref, file_name) -> Model:
     text = os.fspath(ref) if isinstance(ref, os.PathLike) else ref
     if not isinstance(text, str) or not text:
         raise _err("", f"expected a model file or a built-in model name, got {text!r}")
+    python = python_model_ref(text)
+    if python is not None:
+        return _with_source(load_python_model(*python, shown=file_name or text), file_name or text)
     suffix = Path(text).suffix.lower()
+    if suffix == ".py" and not os.path.isdir(text):
+        raise _err("", "a model written in Python is named FILE.py:FUNCTION (the function returns a Model)", file_name or text)
     registry = {} if suffix in FORMATS or os.sep in text or "/" in text else builtin_models()
     if text in registry:
         return _with_source(_load_builtin(text, registry[text], file_name), file_name or text)
@@ -1287,6 +1331,81 @@ def load_xml_model(path, *, leaves=None, file_name: "str | None" = None) -> Mode
     except ModelError as exc:
         raise result.locate(exc, shown) from None
     object.__setattr__(model, "warnings", model.warnings + tuple(result.warnings))
+    return model
+
+
+_IDENT = re.compile(r"[A-Za-z_][A-Za-z0-9_]*\Z")
+_MODULE = re.compile(r"[A-Za-z_][A-Za-z0-9_]*(\.[A-Za-z_][A-Za-z0-9_]*)*\Z")
+
+
+def python_model_ref(text: str) -> "tuple | None":
+    """``(file or module, function)`` when ``text`` names a model written in Python:
+    ``path/to/file.py:function`` or ``package.module:function``; None otherwise (an existing
+    file of that exact name stays a file).
+
+    >>> python_model_ref("models/examples/two_area.py:two_area")
+    ('models/examples/two_area.py', 'two_area')
+    >>> python_model_ref("btfsm.models.pickplace:pickplace")
+    ('btfsm.models.pickplace', 'pickplace')
+    >>> python_model_ref("model.yaml") is None, python_model_ref("a:b:c") is None
+    (True, True)
+    """
+    where, colon, func = text.rpartition(":")
+    if not colon or not _IDENT.match(func) or os.path.exists(text):
+        return None
+    if where.lower().endswith(".py") or _MODULE.match(where):
+        return where, func
+    return None
+
+
+def load_python_model(where: str, func: str, *, shown: "str | None" = None) -> Model:
+    """Call ``func`` of the Python file or module ``where`` (the user's explicit choice to
+    run their code) and return the Model it builds; anything else is a one-line ModelError."""
+    import importlib.util
+    import sys
+
+    shown = shown or f"{where}:{func}"
+    try:
+        if where.lower().endswith(".py"):
+            if not os.path.isfile(where):
+                raise _err("", f"no such Python file '{where}'", shown)
+            name = "_btfsm_user_model_" + re.sub(r"\W", "_", os.path.abspath(where))
+            spec = importlib.util.spec_from_file_location(name, where)
+            if spec is None or spec.loader is None:
+                raise _err("", f"cannot load '{where}' as a Python module", shown)
+            module = importlib.util.module_from_spec(spec)
+            folder = os.path.dirname(os.path.abspath(where))
+            sys.path.insert(0, folder)  # its sibling modules import as they would when run as a script
+            try:
+                spec.loader.exec_module(module)
+            finally:
+                if sys.path and sys.path[0] == folder:
+                    del sys.path[0]
+        else:
+            module = importlib.import_module(where)
+    except ModelError:
+        raise
+    except ModuleNotFoundError as exc:
+        raise _err("", f"cannot import '{where}': no module named '{exc.name}'", shown) from None
+    except SyntaxError as exc:
+        raise _err("", f"{exc.filename or where}: line {exc.lineno}: syntax error: {exc.msg}", shown) from None
+    except MemoryError:
+        raise
+    except (Exception, SystemExit) as exc:  # the user's module raised while it was imported
+        raise _err("", f"importing '{where}' raised {type(exc).__name__}: {exc}", shown) from None
+    fn = getattr(module, func, None)
+    if not callable(fn):
+        raise _err("", f"'{where}' has no function '{func}'", shown)
+    try:
+        model = fn()
+    except ModelError as exc:
+        raise (exc if exc.file else exc.at(file=shown)) from None
+    except MemoryError:
+        raise
+    except (Exception, SystemExit) as exc:
+        raise _err("", f"{func}() raised {type(exc).__name__}: {exc}", shown) from None
+    if not isinstance(model, Model):
+        raise _err("", f"{func}() returned {type(model).__name__}, not a btfsm Model", shown)
     return model
 
 
@@ -1372,6 +1491,14 @@ def _node_data(n) -> dict:
             out["success_threshold"] = n.success_threshold
         if n.failure_threshold != 1:
             out["failure_threshold"] = n.failure_threshold
+        if n.synchronise:
+            out["synchronise"] = True
+        if n.selected:
+            out["selected"] = list(n.selected)
+    if isinstance(n, ParallelAll) and n.max_failures != 1:
+        out["max_failures"] = n.max_failures
+    if isinstance(n, RunOnce):
+        out["then_skip"] = n.then_skip
     if isinstance(n, Retry) and n.attempts != 1:
         out["attempts"] = n.attempts
     if isinstance(n, Repeat) and n.times != 1:
@@ -1517,6 +1644,8 @@ def model_to_data(model: Model) -> dict:
     for key in ("workable", "terminal"):
         if getattr(model, key) is not None:
             out[key] = _expr_data(getattr(model, key))
+    if model.resources:
+        out["resources"] = {name: list(members) for name, members in model.resources}
     return out
 
 

@@ -64,6 +64,10 @@ class Model:
     token on its initial state). ``invariants``: ``(name, expr)`` that must hold in every
     reachable state. ``terminal``: states where stopping is intended. ``tick_rate`` in Hz.
     ``semantics``: the engine whose tick rules apply (``btfsm.profiles``: btfsm, btcpp, pytrees).
+    ``resources``: ``(resource name, (node names...))`` pairs (or a mapping): Action and
+    SkillRequest nodes that share a physical resource (an arm, a gripper); two of one
+    resource must never run at once (property ``exclusive-actions``, docs/semantics.md
+    rule 'Exclusive resources').
     """
 
     name: str
@@ -78,6 +82,7 @@ class Model:
     tick_rate: float = 10.0
     description: str = ""
     semantics: str = "btfsm"
+    resources: tuple = ()
     warnings: tuple = field(default=(), compare=False, repr=False)
 
     def __post_init__(self):
@@ -88,6 +93,7 @@ class Model:
         for f in ("workable", "terminal"):
             val = getattr(self, f)
             object.__setattr__(self, f, None if val is None else as_expr(val))
+        object.__setattr__(self, "resources", _resources(self.resources))
         object.__setattr__(self, "warnings", tuple(self._validate()))
 
     # ------------------------------------------------------------------ lookups
@@ -177,6 +183,7 @@ class Model:
                 raise ModelError(f"primitives.{p.name}", "declares no outcome")
             _unique_outcomes(p.outcomes, f"primitives.{p.name}")
         inline = self._check_nodes(declared)
+        resource_warnings = self._check_resources()
         for f in self.fsms:
             for st in f.states:
                 if st.outcomes is None:
@@ -218,6 +225,32 @@ class Model:
             warnings += f.validate(statuses)
         self._check_reentrant_requests()
         self.program  # compiles and type-checks every expression
+        return warnings + resource_warnings
+
+    def _check_resources(self) -> list:
+        """Each resource names distinct Action or SkillRequest nodes of the model."""
+        nodes = {n.name: n for n in self.nodes()}
+        seen, warnings = set(), []
+        for name, members in self.resources:
+            check_label(name, "resources", "resource name")
+            where = f"resources.{name}"
+            if name in seen:
+                raise ModelError(where, f"resource '{name}' is declared twice")
+            seen.add(name)
+            if not members:
+                raise ModelError(where, "lists no node")
+            for k, m in enumerate(members):
+                if not isinstance(m, str):
+                    raise ModelError(f"{where}[{k}]", f"expected a node name, got {type(m).__name__}")
+                node = nodes.get(m)
+                if node is None:
+                    raise ModelError(f"{where}[{k}]", f"unknown node '{m}'")
+                if not isinstance(node, (Action, SkillRequest)):
+                    raise ModelError(f"{where}[{k}]", f"'{m}' is a {type(node).__name__}; a resource lists Action and SkillRequest nodes")
+                if m in members[:k]:
+                    raise ModelError(f"{where}[{k}]", f"'{m}' is listed twice")
+            if len(members) == 1:
+                warnings.append((where, f"only '{members[0]}' uses it: nothing can run beside it"))
         return warnings
 
     def _check_reentrant_requests(self):
@@ -274,6 +307,19 @@ class Model:
                     if given != pnames:
                         raise ModelError(f"{where}.params", f"{f.name} takes parameters {sorted(pnames)}, got {sorted(given)}")
         return inline
+
+
+def _resources(x) -> tuple:
+    """``((name, (node, ...)), ...)`` from a mapping or pairs; a lone node name is a list of one."""
+    items = x.items() if hasattr(x, "items") else x
+    try:
+        out = []
+        for pair in items:
+            name, members = pair
+            out.append((name, (members,) if isinstance(members, str) else tuple(members)))
+        return tuple(out)
+    except (TypeError, ValueError):
+        raise ModelError("resources", "expected a mapping of resource names to lists of node names") from None
 
 
 def _unique_outcomes(outcomes, where):

@@ -34,12 +34,36 @@ class Profile:
     #: before an idle leaf that can run is ticked, halt the running branches it competes with
     #: (docs/semantics.md section 4); off: the engine halts only after a child returned
     halt_before_start: bool = True
+    #: Parallel keeps which children finished (one memory slot per child), does not tick
+    #: them again, and returns as soon as a threshold is reached (later children are not
+    #: ticked in that tick; success is checked before failure after each child). Off: every
+    #: child is ticked every tick and success wins (docs/semantics.md section 2)
+    parallel_memory: bool = False
+    #: Retry, Repeat and SequenceWithMemory: a child that was idle and finishes at once
+    #: (with attempts/cycles/children left) makes the node return RUNNING (BehaviorTree.CPP's
+    #: wake-up signal); a child that had been running and finishes is ticked again (or the
+    #: next child is) in the same tick. Off: Retry/Repeat return RUNNING after every
+    #: attempt, SequenceWithMemory moves on within the tick
+    loop_wake_up: bool = False
+    #: IfThenElse / WhileDoElse whose condition is a stateful leaf (an Action that can
+    #: return RUNNING, a SkillRequest): once it finished, the leaf keeps its status and is
+    #: not ticked again until the node resets it (BehaviorTree.CPP's StatefulActionNode
+    #: returns its last status when ticked while SUCCESS/FAILURE). Off: ticked afresh
+    stale_condition: bool = False
+    #: a SkillRequest that finished and is ticked again in the same tick (a Retry/Repeat
+    #: loop) steps its FSM again, as BehaviorTree.CPP calls a stateful action's onStart
+    #: again. Off: it gets the reply of its first step (one step per request per tick)
+    restart_in_tick: bool = False
+    #: a Parallel that reaches its failure rule and its success rule in one tick fails
+    #: (py_trees checks for a failed child first); off: success wins (docs/semantics.md 2)
+    parallel_failure_first: bool = False
 
 
 PROFILES = {
     "btfsm": Profile("btfsm", "btfsm (docs/semantics.md sections 1-7)"),
-    "btcpp": Profile("btcpp", "BehaviorTree.CPP 4.x", halt_before_start=False),
-    "pytrees": Profile("pytrees", "py_trees 2.6", halt_before_start=False),
+    "btcpp": Profile("btcpp", "BehaviorTree.CPP 4.x", halt_before_start=False, parallel_memory=True,
+                     loop_wake_up=True, stale_condition=True, restart_in_tick=True),
+    "pytrees": Profile("pytrees", "py_trees 2.6", halt_before_start=False, parallel_failure_first=True),
 }
 SEMANTICS = tuple(PROFILES)
 DEFAULT_SEMANTICS = "btfsm"

@@ -19,9 +19,10 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from .bt import (Action, Condition, Effects, ForceFailure, ForceSuccess, Guard, Inverter,
-                 MemoryFallback, MemorySequence, Node, Parallel, ReactiveFallback,
-                 ReactiveSequence, Repeat, Retry, SkillRequest)
+from .bt import (Action, Condition, Effects, ForceFailure, ForceSuccess, Guard, IfThenElse, Inverter,
+                 KeepRunningUntilFailure, MemoryFallback, MemorySequence, Node, Parallel, ParallelAll,
+                 ReactiveFallback, ReactiveSequence, Repeat, Retry, RunOnce, SequenceWithMemory,
+                 SkillRequest, WhileDoElse)
 from .errors import ModelError
 from .expr import BOOL, Scope, Slot, Type, compile_effects, compile_fn
 from .profiles import profile
@@ -86,14 +87,20 @@ class _Ctx:
 class _N:
     """Compile-time facts about one node."""
 
-    __slots__ = ("node", "can_run", "flag", "mem", "kids", "parent", "tick", "halt", "on_halt", "root", "node_site")
+    __slots__ = ("node", "can_run", "flag", "mem", "mems", "keep", "stale", "kids", "parent", "tick", "halt",
+                 "on_halt", "root", "node_site")
 
     def __init__(self, node, parent, root):
         self.node, self.parent, self.root = node, parent, root
         self.kids: list = []
         self.can_run = False
-        self.flag = self.mem = None
+        self.flag = self.mem = self.keep = self.stale = None  # keep: memory that a halt keeps
+        self.mems: tuple = ()  # per-child memory (Parallel under parallel_memory, ParallelAll)
         self.tick = self.halt = self.on_halt = None
+
+    def state_slots(self) -> tuple:
+        """Every state slot this node owns: running flag and memories."""
+        return tuple(x for x in (self.flag, self.mem, self.keep, self.stale, *self.mems) if x is not None)
 
 
 class Program:
@@ -112,6 +119,7 @@ class Program:
         self.prims = model.all_primitives()
         self._layout_fsms()
         self._layout_nodes()
+        self.exclusive = self._exclusive_groups()
         self._compile_fsms()
         self.env = [self._compile_env(i, ev) for i, ev in enumerate(model.environment)]
         self.root = self.nodes[model.tree.name].tick if model.tree is not None else None
@@ -167,10 +175,26 @@ class Program:
                 info.flag = self._slot(f"{n.name}:running", "flag", 2)
             if isinstance(n, (MemorySequence, MemoryFallback)):
                 info.mem = self._slot(f"{n.name}:child", "memory", len(n.children))
+            elif isinstance(n, SequenceWithMemory):
+                info.keep = self._slot(f"{n.name}:child", "memory", max(len(n.children), 1))
+            elif isinstance(n, ParallelAll) or (isinstance(n, Parallel) and self.profile.parallel_memory):
+                # which children finished: 0 not yet, else their status (SUCCESS 1, FAILURE 2)
+                info.mems = tuple(self._slot(f"{n.name}:done{i}", "memory", 3) for i in range(len(n.children)))
+            elif isinstance(n, IfThenElse):
+                info.mem = self._slot(f"{n.name}:branch", "memory", 3)
+            elif isinstance(n, RunOnce):
+                info.keep = self._slot(f"{n.name}:result", "memory", 3)
             elif isinstance(n, Retry):
                 info.mem = self._slot(f"{n.name}:failures", "memory", max(n.attempts, 1))
             elif isinstance(n, Repeat):
                 info.mem = self._slot(f"{n.name}:done", "memory", max(n.times, 1))
+            elif isinstance(n, Parallel) and n.synchronise and info.can_run:
+                # rule 'parallel synchronise': which children succeeded since the parallel started
+                info.mems = tuple(self._slot(f"{n.name}:succeeded:{k.node.name}", "memory", 2) for k in info.kids)
+            if (isinstance(n, (IfThenElse, WhileDoElse)) and self.profile.stale_condition and info.kids
+                    and _stateful(info.kids[0])):
+                # the condition leaf's last status while the node keeps it (0: none)
+                info.stale = self._slot(f"{n.name}:condition", "memory", 3)
 
     def _collect(self, node: Node, parent, root):
         info = _N(node, parent, root)
@@ -196,6 +220,10 @@ class Program:
             if n.times < 1:
                 raise ModelError(f"tree.{n.name}.times", "must be at least 1")
             return n.times > 1 or info.kids[0].can_run
+        if isinstance(n, KeepRunningUntilFailure):
+            return True
+        if isinstance(n, SequenceWithMemory) and self.profile.loop_wake_up and len(info.kids) > 1:
+            return True  # RUNNING after a child that succeeded at once (the wake-up)
         # a Parallel of instant children decides every tick (S successes, or too many
         # failures for S): like every other composite it runs only through a child
         return any(k.can_run for k in info.kids)
@@ -338,6 +366,7 @@ class Program:
         name = f.name
         withdraw = f.goals.index(f.withdraw_goal) if f.retarget == "withdraw" else None
         bound = len(ids)
+        restart = self.profile.restart_in_tick
 
         def move(ctx, row, target, eff, eid):
             row[6](ctx)  # leave the source state
@@ -394,7 +423,9 @@ class Program:
             once per request, share, hand-over, conflict."""
             done = ctx.fsm_done.get(fi)
             if done is not None:  # the FSM already stepped in this BT tick
-                if done[2] == requester or (done[0] == g and done[3] == pvals):
+                if restart and done[2] == requester and starting and done[1] != RUNNING:
+                    pass  # the request finished and starts again in this tick (profile switch restart_in_tick)
+                elif done[2] == requester or (done[0] == g and done[3] == pvals):
                     return done[1]  # the same request again, or an identical one: share the reply
                 if not starting or done[1] == RUNNING:
                     # two requests use the FSM in one tick: a conflict (reported by 'contracts')
@@ -449,9 +480,14 @@ class Program:
         elif isinstance(n, SkillRequest):
             fi, name = self.fsm_index[n.fsm], n.name
             info.on_halt = lambda ctx: self.fsm_ticks[fi].withdraw(ctx, name)
-        elif info.mem is not None:
-            mem = info.mem
-            info.on_halt = lambda ctx: ctx.s.__setitem__(mem, 0)
+        elif info.mem is not None or info.mems or info.stale is not None:
+            resets = tuple(x for x in (info.mem, *info.mems, info.stale) if x is not None)
+
+            def on_halt(ctx):
+                s = ctx.s
+                for x in resets:
+                    s[x] = 0
+            info.on_halt = on_halt
         elif isinstance(n, Effects) and n.on_halt:
             eff = compile_effects(n.on_halt, self.scope, f"tree.{n.name}.on_halt")
             info.on_halt = lambda ctx: _apply(ctx, eff)
@@ -508,13 +544,27 @@ class Program:
                 return finish(go_on, ctx)
             return tick
 
+        if isinstance(n, Parallel) and self.profile.parallel_memory and n.selected:
+            raise ModelError(f"{where}.selected", "selected children are py_trees' SuccessOnSelected policy; "
+                                                  "BehaviorTree.CPP's Parallel has thresholds only")
+        if isinstance(n, Parallel) and not self.profile.parallel_memory and (
+                n.synchronise or n.selected or self.profile.parallel_failure_first):
+            # py_trees' options and order (under parallel_memory finished children are never
+            # ticked again anyway, so synchronise changes nothing there)
+            return self._compile_parallel(info, kids, finish, where)
+
         if isinstance(n, Parallel):
             count = len(kids)
-            need = count if n.success_threshold is None else n.success_threshold
-            fail_at = n.failure_threshold
-            if not 1 <= need <= count or fail_at < 1:
-                raise ModelError(where, f"thresholds must satisfy 1 <= success <= {count} and failure >= 1")
+            need = count if n.success_threshold is None else _threshold(n.success_threshold, count)
+            fail_at = _threshold(n.failure_threshold, count)
+            top = count if self.profile.parallel_memory else fail_at  # BT.CPP refuses failure > children
+            if not 1 <= need <= count or not 1 <= fail_at <= top:
+                bound = f" <= {count}" if self.profile.parallel_memory else ""
+                raise ModelError(where, f"thresholds must satisfy 1 <= success <= {count} and 1 <= failure{bound} "
+                                        f"(negative ones count from the end: -1 is all {count} children)")
             halts = tuple((k.flag, k.halt) for k in info.kids if k.can_run)
+            if info.mems:
+                return self._parallel_memory(info, kids, need, fail_at, halts, finish)
 
             def tick(ctx):
                 ok = bad = 0
@@ -537,6 +587,63 @@ class Program:
                 return finish(st, ctx)
             return tick
 
+        if isinstance(n, ParallelAll):
+            count, mems = len(kids), info.mems
+            most = _threshold(n.max_failures, count)
+            if not 1 <= most <= count:
+                raise ModelError(f"{where}.max_failures", f"must satisfy 1 <= max_failures <= {count} (negative ones count from the end)")
+            halts = tuple((k.flag, k.halt) for k in info.kids if k.can_run)
+            pairs = tuple(zip(kids, mems))
+
+            def tick(ctx):
+                s = ctx.s
+                for child, m in pairs:
+                    if not s[m]:
+                        st = child(ctx)
+                        if st != RUNNING:
+                            s[m] = st
+                bad = 0
+                for m in mems:
+                    if not s[m]:
+                        return finish(RUNNING, ctx)
+                    if s[m] == FAILURE:
+                        bad += 1
+                for m in mems:
+                    s[m] = 0
+                for fl, h in halts:
+                    if s[fl]:
+                        h(ctx)
+                return finish(FAILURE if bad >= most else SUCCESS, ctx)
+            return tick
+
+        if isinstance(n, SequenceWithMemory):
+            keep, count = info.keep, len(kids)
+            wake = self.profile.loop_wake_up
+            steps = tuple((child, k.flag) for child, k in zip(kids, info.kids))
+
+            def tick(ctx):
+                s = ctx.s
+                i = s[keep]
+                while i < count:
+                    child, fl = steps[i]
+                    was_running = fl is not None and s[fl]
+                    st = child(ctx)
+                    if st != SUCCESS:
+                        s[keep] = i  # RUNNING: resume here; FAILURE: tick this child again next time
+                        return finish(st, ctx)
+                    i += 1
+                    if wake and not was_running and i < count:
+                        s[keep] = i  # the wake-up: RUNNING now, the next child on the next tick
+                        return finish(RUNNING, ctx)
+                s[keep] = 0
+                return finish(SUCCESS, ctx)
+            return tick
+
+        if isinstance(n, (IfThenElse, WhileDoElse)):
+            if len(kids) not in (2, 3):
+                raise ModelError(where, f"{type(n).__name__} needs 2 or 3 children, got {len(kids)}")
+            return self._if_then_else(info, kids, finish) if isinstance(n, IfThenElse) else self._while_do_else(info, kids, finish)
+
         if isinstance(n, (Inverter, ForceSuccess, ForceFailure)):
             child = kids[0]
             table = _INVERT if isinstance(n, Inverter) else (
@@ -544,9 +651,32 @@ class Program:
             return lambda ctx: finish(table[child(ctx)], ctx)
 
         if isinstance(n, (Retry, Repeat)):
-            child, mem = kids[0], info.mem
+            child, mem, kid_flag = kids[0], info.mem, info.kids[0].flag
             again, stop = (FAILURE, SUCCESS) if isinstance(n, Retry) else (SUCCESS, FAILURE)
             limit = n.attempts if isinstance(n, Retry) else n.times
+
+            if self.profile.loop_wake_up:
+                def tick(ctx):
+                    s = ctx.s
+                    k = s[mem]
+                    for _ in range(2):  # a child that had been running may finish and start again
+                        was_running = kid_flag is not None and s[kid_flag]
+                        st = child(ctx)
+                        if st == RUNNING:
+                            s[mem] = k
+                            return finish(RUNNING, ctx)
+                        if st == stop:
+                            s[mem] = 0
+                            return finish(st, ctx)
+                        k += 1
+                        if k >= limit:
+                            s[mem] = 0
+                            return finish(st, ctx)
+                        if not was_running:  # the wake-up: RUNNING now, the next attempt next tick
+                            s[mem] = k
+                            return finish(RUNNING, ctx)
+                    raise AssertionError("unreachable: the second attempt started from idle")
+                return tick
 
             def tick(ctx):
                 st = child(ctx)
@@ -559,6 +689,28 @@ class Program:
                     s[mem] = 0
                 elif st == stop:
                     s[mem] = 0
+                return finish(st, ctx)
+            return tick
+
+        if isinstance(n, KeepRunningUntilFailure):
+            child = kids[0]
+            table = (RUNNING, RUNNING, FAILURE)
+            return lambda ctx: finish(table[child(ctx)], ctx)
+
+        if isinstance(n, RunOnce):
+            if n.then_skip:
+                raise ModelError(f"{where}.then_skip", "RunOnce with then_skip: true returns SKIPPED after its first "
+                                                       "run, which btfsm does not model; use then_skip: false")
+            child, keep = kids[0], info.keep
+
+            def tick(ctx):
+                s = ctx.s
+                done = s[keep]
+                if done:
+                    return finish(done, ctx)
+                st = child(ctx)
+                if st != RUNNING:
+                    s[keep] = st
                 return finish(st, ctx)
             return tick
 
@@ -600,7 +752,7 @@ class Program:
         if isinstance(n, Action):
             site = self._site("action", n.name, None, None, n.primitive, n.args, where)
             info.node_site = site
-            run = self._primitive_runner(site)
+            run = self._exclusive_start(info, self._primitive_runner(site))
 
             def tick(ctx):
                 if flag is not None and not ctx.s[flag]:
@@ -622,6 +774,7 @@ class Program:
                 pfns.append((fn, p.lo, p.hi, p.kind == "bool", p.name))
             pfns = tuple(pfns)
             prog = self
+            rivals = self._rivals(info)
 
             def tick(ctx):
                 s = ctx.s
@@ -632,6 +785,8 @@ class Program:
                     if s[flag]:  # a running request ends: withdraw its goal
                         prog.fsm_ticks[fi].withdraw(ctx, name)
                     return finish(FAILURE, ctx)
+                if starting and rivals:
+                    _exclusive_check(ctx, rivals)
                 pvals = tuple(_param(fn(s), lo, hi, is_bool, pname, name) for fn, lo, hi, is_bool, pname in pfns)
                 st = prog.fsm_ticks[fi](ctx, g, pvals, name, starting)
                 if st == SUCCESS and post is not None and not post(s):
@@ -642,6 +797,172 @@ class Program:
             return tick
         raise ModelError(where, f"unknown node type {type(n).__name__}")
 
+    def _parallel_memory(self, info, kids, need, fail_at, halts, finish):
+        """BehaviorTree.CPP's Parallel (profile switch ``parallel_memory``): finished children
+        are not ticked again; after each child, success then failure is checked."""
+        count, mems = len(kids), info.mems
+        pairs = tuple(zip(kids, mems))
+
+        def done(ctx, st):
+            s = ctx.s
+            for m in mems:
+                s[m] = 0
+            for fl, h in halts:
+                if s[fl]:
+                    h(ctx)
+            return finish(st, ctx)
+
+        def tick(ctx):
+            s = ctx.s
+            ok = bad = 0
+            for m in mems:
+                if s[m] == SUCCESS:
+                    ok += 1
+                elif s[m] == FAILURE:
+                    bad += 1
+            for child, m in pairs:
+                if not s[m]:
+                    st = child(ctx)
+                    if st == SUCCESS:
+                        s[m] = st
+                        ok += 1
+                    elif st == FAILURE:
+                        s[m] = st
+                        bad += 1
+                if ok >= need:
+                    return done(ctx, SUCCESS)
+                if count - bad < need or bad >= fail_at:
+                    return done(ctx, FAILURE)
+            return finish(RUNNING, ctx)
+        return tick
+
+    def _if_then_else(self, info, kids, finish):
+        mem, stale, count = info.mem, info.stale, len(kids)
+        halts = tuple((k.flag, k.halt) for k in info.kids if k.can_run)
+
+        def tick(ctx):
+            s = ctx.s
+            i = s[mem]
+            if i == 0:
+                if stale is not None and s[stale]:
+                    c = s[stale]  # the condition leaf kept its FAILURE (profile switch stale_condition)
+                else:
+                    c = kids[0](ctx)
+                if c == RUNNING:
+                    return finish(RUNNING, ctx)
+                if c == SUCCESS:
+                    i = 1
+                elif count == 3:
+                    i = 2
+                else:
+                    if stale is not None:
+                        s[stale] = c
+                    return finish(c, ctx)
+            st = kids[i](ctx)
+            if st == RUNNING:
+                s[mem] = i
+                return finish(RUNNING, ctx)
+            s[mem] = 0
+            if stale is not None:
+                s[stale] = 0
+            for fl, h in halts:
+                if s[fl]:
+                    h(ctx)
+            return finish(st, ctx)
+        return tick
+
+    def _while_do_else(self, info, kids, finish):
+        stale, count = info.stale, len(kids)
+        halts = tuple((k.flag, k.halt) for k in info.kids if k.can_run)
+        other = tuple((k.flag, k.halt) if k.can_run else None for k in info.kids)
+
+        def halt_kid(ctx, i):
+            if i < count and other[i] is not None and ctx.s[other[i][0]]:
+                other[i][1](ctx)
+
+        def tick(ctx):
+            s = ctx.s
+            if stale is not None and s[stale]:
+                c = s[stale]  # the condition leaf kept its status (profile switch stale_condition)
+            else:
+                c = kids[0](ctx)
+            if c == RUNNING:
+                return finish(RUNNING, ctx)
+            if c == SUCCESS:
+                halt_kid(ctx, 2)
+                st = kids[1](ctx)
+            elif count == 3:
+                halt_kid(ctx, 1)
+                st = kids[2](ctx)
+            else:
+                st = FAILURE
+            if st == RUNNING:
+                if stale is not None:
+                    s[stale] = c
+                return finish(RUNNING, ctx)
+            if stale is not None:
+                s[stale] = 0
+            for fl, h in halts:
+                if s[fl]:
+                    h(ctx)
+            return finish(st, ctx)
+        return tick
+
+    def _compile_parallel(self, info, kids, finish, where):
+        """Rules 'Parallel' (docs/semantics.md section 2) and, per profile, 'parallel
+        failure first', 'parallel synchronise', 'parallel selected' (section 8)."""
+        n, count = info.node, len(kids)
+        names = [k.node.name for k in info.kids]
+        if n.selected:
+            bad_names = [x for x in n.selected if x not in names]
+            if bad_names or len(set(n.selected)) != len(n.selected):
+                raise ModelError(f"{where}.selected", f"must name distinct children of the parallel, got {', '.join(map(repr, n.selected))}")
+            if n.success_threshold is not None:
+                raise ModelError(f"{where}.selected", "a parallel has either a success_threshold or selected children, not both")
+            eligible = tuple(x in n.selected for x in names)
+            need = len(n.selected)
+        else:
+            eligible = (True,) * count
+            need = count if n.success_threshold is None else _threshold(n.success_threshold, count)
+        fail_at, pool = _threshold(n.failure_threshold, count), sum(eligible)
+        if not 1 <= need <= count or fail_at < 1:
+            raise ModelError(where, f"thresholds must satisfy 1 <= success <= {count} and failure >= 1")
+        halts = tuple((k.flag, k.halt) for k in info.kids if k.can_run)
+        failure_first = self.profile.parallel_failure_first
+        done = info.mems or (None,) * count
+        items = tuple(zip(kids, eligible, done))
+
+        def tick(ctx):
+            s = ctx.s
+            ok = bad = lost = 0  # successes that count, failures, failures that count
+            for child, counts, d in items:
+                if d is not None and s[d]:  # synchronised: succeeded earlier, not ticked
+                    ok += counts
+                    continue
+                st = child(ctx)
+                if st == SUCCESS:
+                    ok += counts
+                    if d is not None:
+                        s[d] = 1
+                elif st == FAILURE:
+                    bad += 1
+                    lost += counts
+            won = ok >= need
+            failed = bad >= fail_at or lost > pool - need
+            if won and not (failure_first and failed):
+                st = SUCCESS
+            elif failed:
+                st = FAILURE
+            else:
+                return finish(RUNNING, ctx)
+            for fl, h in halts:
+                if s[fl]:
+                    h(ctx)
+            for d in info.mems:
+                s[d] = 0
+            return finish(st, ctx)
+        return tick
+
     def _conflicts(self, info):
         """Halt-before-start: branches to halt before this leaf starts (rule 'halt order')."""
         if not info.can_run or not self.profile.halt_before_start:
@@ -651,11 +972,48 @@ class Program:
             if other is info or other.root != info.root or not other.can_run or other.kids:
                 continue
             lca, branch = _lca(info, other)
-            if isinstance(lca.node, Parallel) or branch.name in seen:
+            if isinstance(lca.node, (Parallel, ParallelAll)) or branch.name in seen:
                 continue
             seen.add(branch.name)
             b = self.nodes[branch.name]
             out.append((b.flag, b.halt))
+        return tuple(out)
+
+    def _rivals(self, info):
+        """Rule 'Exclusive resources': for each running leaf that shares a resource with
+        ``info``'s leaf, the (flag, violation, event) to report when this leaf starts
+        while that one runs."""
+        me, out = info.node.name, []
+        for res, members in self.model.resources:
+            if me in members:
+                for m in members:
+                    other = self.nodes[m]
+                    if m != me and other.flag is not None:
+                        out.append((other.flag, ("exclusive", res, me, m, "start"),
+                                    ("violation", me, f"exclusive {res}: starts while {m} runs")))
+        return tuple(out)
+
+    def _exclusive_start(self, info, run):
+        """``run`` preceded by the rule 'Exclusive resources' check when the leaf starts
+        (ticked while idle; a leaf that cannot return RUNNING starts on every tick)."""
+        rivals, flag = self._rivals(info), info.flag
+        if not rivals:
+            return run
+
+        def checked(ctx):
+            if flag is None or not ctx.s[flag]:
+                _exclusive_check(ctx, rivals)
+            return run(ctx)
+        return checked
+
+    def _exclusive_groups(self):
+        """Per resource with two leaves that can run: ((flag, name), ...) checked at the end
+        of every tick (rule 'Exclusive resources')."""
+        out = []
+        for res, members in self.model.resources:
+            flags = tuple((self.nodes[m].flag, m) for m in members if self.nodes[m].flag is not None)
+            if len(flags) > 1:
+                out.append((res, flags))
         return tuple(out)
 
     def _lint_reactive_sequences(self):
@@ -686,6 +1044,8 @@ class Program:
                 if eff is not None:
                     _record_writes(ctx, eff)
         status = self.root(ctx) if self.root is not None else SUCCESS
+        if self.exclusive:
+            _exclusive_end(ctx, self.exclusive)
         return Step(tuple(s), status, ctx.rec, ctx.violations)
 
     def fsm_step(self, state, fsm: "str | int", goal: "str | int", params, oracle, record: bool = False) -> Step:
@@ -735,11 +1095,46 @@ class Program:
         return ids[state[tok]], (f.goals[state[goal] - 1] if state[goal] else None)
 
 
+def _stateful(info) -> bool:
+    """A leaf that keeps a status between ticks in BehaviorTree.CPP (a StatefulActionNode)."""
+    return isinstance(info.node, SkillRequest) or (isinstance(info.node, Action) and info.can_run)
+
+
+def _threshold(value: int, count: int) -> int:
+    """BehaviorTree.CPP's reading of a Parallel threshold: negative counts from the end."""
+    return value if value >= 0 else max(count + value + 1, 0)
+
+
 def _halt_before_start(ctx, conflicts):
     s = ctx.s
     for flag, halt in conflicts:
         if s[flag]:
             halt(ctx)
+
+
+def _exclusive_check(ctx, rivals):
+    s = ctx.s
+    for flag, violation, event in rivals:
+        if s[flag]:
+            ctx.violations.append(violation)
+            if ctx.rec is not None:
+                ctx.rec.append(event)
+
+
+def _exclusive_end(ctx, groups):
+    """Rule 'Exclusive resources' at the end of a tick: two leaves of one resource running."""
+    s = ctx.s
+    for res, flags in groups:
+        a = None
+        for flag, name in flags:
+            if s[flag]:
+                if a is None:
+                    a = name
+                    continue
+                ctx.violations.append(("exclusive", res, a, name, "end"))
+                if ctx.rec is not None:
+                    ctx.rec.append(("violation", a, f"exclusive {res}: runs with {name} at the end of the tick"))
+                break
 
 
 def _apply(ctx, eff):

@@ -25,7 +25,7 @@ import subprocess
 import sys
 from pathlib import Path
 
-from .bt import (Action, Condition, Decorator, Effects, ForceFailure, ForceSuccess, Guard, Inverter,
+from .bt import (Action, Composite, Condition, Decorator, Effects, ForceFailure, ForceSuccess, Guard, Inverter,
                  MemoryFallback, MemorySequence, Parallel, ReactiveFallback, ReactiveSequence, Repeat,
                  Retry, SkillRequest)
 from .cli import UsageError
@@ -76,7 +76,12 @@ def _node_look(n) -> dict:
         return {"shape": "box", "label": f"{_SYMBOL[cls]}\n{n.name}", "style": "filled", "fillcolor": "gray92"}
     if isinstance(n, Parallel):
         s = "all" if n.success_threshold is None else n.success_threshold
-        return {"shape": "box", "label": f"=>\n{n.name}\nS>={s} F>={n.failure_threshold}", "style": "filled", "fillcolor": "gray92"}
+        s = f"S={','.join(n.selected)}" if n.selected else f"S>={s}"
+        sync = " sync" if n.synchronise else ""
+        return {"shape": "box", "label": f"=>\n{n.name}\n{s} F>={n.failure_threshold}{sync}", "style": "filled", "fillcolor": "gray92"}
+    if isinstance(n, Composite):  # SequenceWithMemory, ParallelAll, IfThenElse, WhileDoElse
+        extra = f"\nfailures>={n.max_failures}" if hasattr(n, "max_failures") else ""
+        return {"shape": "box", "label": f"{type(n).__name__}\n{n.name}{extra}", "style": "filled", "fillcolor": "gray92"}
     if isinstance(n, Decorator):
         if isinstance(n, Retry):
             head = f"Retry x{n.attempts}"

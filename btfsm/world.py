@@ -37,6 +37,9 @@ def check_name(name: object, element: str, what: str = "name") -> str:
 MAX_LABEL = 256  # characters of a label
 
 
+_PLACEHOLDER = re.compile(r"\$\{[A-Za-z_][A-Za-z0-9_]*\}")
+
+
 def check_label(text: object, element: str, what: str = "name", limit: "int | None" = MAX_LABEL) -> str:
     """Return ``text`` if it is a usable label, else raise ModelError at ``element``.
 
@@ -61,6 +64,9 @@ def check_label(text: object, element: str, what: str = "name", limit: "int | No
         bad = next(c for c in text if not c.isprintable())
         raise ModelError(element, f"{what} {text!r} holds the non-printable character U+{ord(bad):04X} "
                                   "(a name is one line of printable text)")
+    if _PLACEHOLDER.search(text):
+        raise ModelError(element, f"{what} {text!r} holds a template placeholder ${{...}} "
+                                  "(model files replace those; a name cannot keep one)")
     return text
 
 

@@ -33,7 +33,7 @@ from btfsm import (FSM, Action, Bool, Condition, Edge, Effects, Int, Marker, Mem
                    MemorySequence, Model, Parallel, Primitive, ReactiveFallback, ReactiveSequence,
                    SkillRequest, State, EnvEvent, failure, running, success)
 
-__all__ = ["AREAS", "ROTATIONS", "SKILLS", "PRIMITIVES", "generate_fsm", "unite", "arm_fsm",
+__all__ = ["AREAS", "ROTATIONS", "SKILLS", "PRIMITIVES", "ARM_REQUESTS", "generate_fsm", "unite", "arm_fsm",
            "tree", "preemptive", "baseline", "states_of", "HUBS"]
 
 AREAS = ("agv", "bins", "conveyor")
@@ -197,6 +197,9 @@ def _at_tray() -> str:
     return f"arm.state in ({near})"
 
 
+ARM_REQUESTS = ("pick_part", "place_on_location", "pick_part_from_queue", "place_on_intermediate_location")
+
+
 def tree(n_tray: int = 18, variant: str = "preemptive"):
     """The executive tree (the paper's BT with explicit pre/post-conditions)."""
     s1 = SkillRequest("pick_part", fsm="arm", goal="pick_bins", post="gripper_full")
@@ -256,6 +259,8 @@ def _model(variant: str, n_tray: int, queue_max: int, grasp_attempts: int) -> Mo
             "release_holds_a_part": f"gripper_full or not (arm.state in ({releases}))",
         },
         workable=f"arm.state in ({hubs}) and arm.goal == 'none'",
+        # the four skill requests drive the one arm: never two at once (exclusive-actions)
+        resources={"arm": ARM_REQUESTS},
         tick_rate=10.0,
         description=(f"ARIAC kitting, {variant}: {n_tray} parts on the tray, at most {queue_max} belt parts "
                      f"waiting, {grasp_attempts} grasp attempts per pick"),

@@ -28,6 +28,7 @@ BUILTIN: dict = {
     "two-area": "btfsm.models.examples.two_area:two_area",
     "two-area-file": "btfsm.models.examples.files:two_area_file",
     "templated": "btfsm.models.examples.files:templated",
+    "bt-cpp-1031": "btfsm.models.examples.files:bt_cpp_1031",  # BehaviorTree.CPP #1031 (semantics btcpp)
     "spectrum-continue": "btfsm.models.examples.spectrum:continue_",
     "spectrum-hold": "btfsm.models.examples.spectrum:hold",
     "spectrum-reverse": "btfsm.models.examples.spectrum:reverse",
@@ -46,6 +47,7 @@ BUILTIN: dict = {
     "defect-contract": "btfsm.models.examples.defects:contract",
     "defect-domain": "btfsm.models.examples.defects:domain",
     "defect-shadowed-marker": "btfsm.models.examples.defects:shadowed_marker",
+    "defect-exclusive": "btfsm.models.examples.defects:exclusive",
 }
 
 # defect model -> the property it is seeded to violate (the catalogue's table)
@@ -60,6 +62,7 @@ DEFECTS: dict = {
     "defect-contract": "contracts",
     "defect-domain": "domain",
     "defect-shadowed-marker": "lints",
+    "defect-exclusive": "exclusive-actions",
 }
 
 

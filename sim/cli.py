@@ -15,7 +15,7 @@ import time
 
 from btfsm.errors import UsageError
 
-__all__ = ["cli_experiment", "cli_sim", "cli_conform", "select_ks", "variant_of"]
+__all__ = ["cli_experiment", "cli_sim", "cli_conform", "select_ks"]
 
 
 def select_ks(ks, trials) -> list:
@@ -32,16 +32,6 @@ def select_ks(ks, trials) -> list:
     if trials == 1:
         return [1]
     return sorted({round(1 + i * 39 / (trials - 1)) for i in range(trials)})
-
-
-def variant_of(model) -> str:
-    """Which experiment variant a model is (the cell binding runs the ARIAC models)."""
-    from .binding import CellBinding
-
-    missing = CellBinding.unsupported(model)
-    if missing:
-        raise UsageError(f"{model.name}: the kitting cell cannot run this model ({missing})")
-    return "baseline" if model.name.endswith("baseline") or model.name == "original" else "preemptive"
 
 
 def cli_experiment(args) -> int:
@@ -92,15 +82,73 @@ def _ks_text(ks) -> str:
     return f"{ks[0]}..{ks[-1]}" if ks == list(range(ks[0], ks[-1] + 1)) and len(ks) > 2 else ", ".join(map(str, ks))
 
 
+def _scene_of(args, model):
+    """The Scene a command runs ``model`` in: ``--scene``, else the model's default scene
+    when the kitting cell cannot run it, else None (the kitting cell)."""
+    from .conformance import is_kitting_model
+    from .scene import load_scene
+    from .scene_trial import scene_for
+
+    path = getattr(args, "scene", None)
+    if path is None:
+        if is_kitting_model(model):
+            return None
+        path = scene_for(model, args.model)
+        if path is None:
+            return None
+    return load_scene(path)
+
+
+def _sim_scene(args, model, scene) -> int:
+    from btfsm.outputs import atomic_path
+
+    from .scene_trial import run_scene
+
+    frames, every = [], max(1, round(model.tick_rate / args.fps)) if args.gif else 0
+    seen = {}
+
+    def on_tick(rt, world):
+        seen["world"] = world
+        if args.gif and rt.clock.tick % every == 0 and len(frames) < args.max_frames:
+            frames.append(world.snapshot())
+
+    run = run_scene(model, scene, args.seed, args.time, check_invariant=True, on_tick=on_tick)
+    counts = ", ".join(f"{k} {v}" for k, v in run.counts.items())
+    print(f"{model.name} in scene {scene.name} (seed {run.seed}): "
+          f"{'completed' if run.completed else 'NOT completed'} at t = {run.time:.1f} s after {run.ticks} ticks; "
+          f"areas: {counts or '-'}; lost {run.lost}")
+    if run.mismatch is not None:
+        print(f"conformance: {run.mismatch}")
+    if args.render:
+        from .scene_render import render_scene
+
+        with atomic_path(args.render) as tmp:
+            render_scene(scene, seen["world"].snapshot(), tmp, title=f"{model.name} in {scene.name}")
+        print(f"picture: {args.render}")
+    if args.gif and frames:
+        from .scene_render import write_gif
+
+        with atomic_path(args.gif) as tmp:
+            n = write_gif(scene, frames, tmp, fps=args.fps, title=f"{model.name} in {scene.name}")
+        print(f"animation: {args.gif} ({n} frames)")
+    return 1 if run.mismatch is not None else 0
+
+
 def cli_sim(args) -> int:
     from btfsm.files import load_cli_model
     from btfsm.outputs import atomic_path
 
+    from .conformance import variant_of
     from .experiment import TrialSpec
     from .render import Recorder, render_png
     from .trial import run_trial
 
     model = load_cli_model(args)
+    if args.gif and not (args.fps > 0 and args.max_frames >= 1):
+        raise UsageError("--gif needs --fps > 0 and --max-frames >= 1")
+    scene = _scene_of(args, model)
+    if scene is not None:
+        return _sim_scene(args, model, scene)
     variant = variant_of(model)
     if not 1 <= args.k <= 40:
         raise UsageError("--k must be in 1..40")
@@ -144,47 +192,54 @@ def cli_sim(args) -> int:
 def cli_conform(args) -> int:
     from btfsm.files import load_cli_model
 
-    from .conformance import PathMonitor, random_scenarios, run_scenario
+    from .conformance import conform, variant_of
 
     model = load_cli_model(args)
-    variant = variant_of(model)
-    monitor = None
-    if not args.no_path:
-        from btfsm.verify.explore import explore
-
-        ts = explore(model, max_states=args.max_states)
-        if not ts.complete:
-            print(f"btfsm conform: incomplete: exploring {model.name} hit --max-states {args.max_states:,}; "
-                  f"raise it or use --no-path", file=sys.stderr)
-            return 3
-        monitor = PathMonitor(ts)
-        monitor_states = len(ts.states)
-        if not getattr(args, "json", False):
-            print(f"{model.name}: checked system has {monitor_states:,} states; monitoring runtime paths against it")
-    from .binding import CellBinding
-
-    parts = model.var(CellBinding.dialect_of(model).tray_var).hi
-    scenarios = random_scenarios(args.scenarios, args.seed, variant, parts=parts,
-                                 time_limit=args.time, drops=args.drops)
-    failed = 0
     as_json = getattr(args, "json", False)
+    scene = _scene_of(args, model)
+    if scene is None:
+        variant_of(model)  # a model the cell cannot run is an error before anything is explored
     rows = []
-    for i, sc in enumerate(scenarios):
-        res = run_scenario(sc, model, monitor)
-        status = "ok" if res.mismatch is None else "MISMATCH"
-        rows.append({"scenario": i, "seed": sc.seed, "belt_parts": len(sc.detections),
-                     "drop_regions": [list(d) if isinstance(d, (tuple, list)) else str(d) for d in sc.drop_regions],
-                     "ticks": res.ticks, "conforms": res.mismatch is None,
-                     "mismatch": None if res.mismatch is None else str(res.mismatch)})
+
+    def explored(states):
         if not as_json:
+            print(f"{model.name}: checked system has {states:,} states; monitoring runtime paths against it")
+
+    def show(i, sc, res):
+        if scene is not None:
+            rows.append({"scenario": i, "seed": sc.seed, "scene": scene.name, "ticks": res.ticks,
+                         "drop_regions": [list(d) for d in sc.drop_regions],
+                         "completed": res.completed, "lost": res.lost, "conforms": res.mismatch is None,
+                         "mismatch": None if res.mismatch is None else str(res.mismatch)})
+        else:
+            rows.append({"scenario": i, "seed": sc.seed, "belt_parts": len(sc.detections),
+                         "drop_regions": [list(d) if isinstance(d, (tuple, list)) else str(d) for d in sc.drop_regions],
+                         "ticks": res.ticks, "conforms": res.mismatch is None,
+                         "mismatch": None if res.mismatch is None else str(res.mismatch)})
+        if not as_json and scene is not None:
+            status = "ok" if res.mismatch is None else "MISMATCH"
+            drop = f", drop region {sc.drop_regions[0]}" if sc.drop_regions else ""
+            print(f"scenario {i}: seed {sc.seed} in scene {scene.name}{drop}: {res.ticks} ticks, "
+                  f"{'completed' if res.completed else 'not completed'}, lost {res.lost}, {status}"
+                  + (f"\n  first mismatch at {res.mismatch}" if res.mismatch else ""))
+        elif not as_json:
+            status = "ok" if res.mismatch is None else "MISMATCH"
             print(f"scenario {i}: seed {sc.seed}, {len(sc.detections)} belt parts, "
                   f"{'drop region ' + str(sc.drop_regions[0]) if sc.drop_regions else 'no drop region'}: "
                   f"{res.ticks} ticks, {status}" + (f"\n  first mismatch at {res.mismatch}" if res.mismatch else ""))
-        failed += res.mismatch is not None
+
+    time_limit = args.time if scene is None or args.time != 700.0 else None  # a scene's own limit by default
+    out = conform(model, args.scenarios, args.seed, time_limit, args.drops, path=not args.no_path,
+                  max_states=args.max_states, on_explored=explored, on_result=show, scene=scene)
+    if out.incomplete:
+        print(f"btfsm conform: incomplete: exploring {model.name} hit --max-states {args.max_states:,}; "
+              f"raise it or use --no-path", file=sys.stderr)
+        return 3
+    failed = len(out.failed)
     if as_json:
-        print(json.dumps({"model": model.name, "checked_states": None if monitor is None else monitor_states,
-                          "scenarios": rows, "conforming": len(scenarios) - failed, "total": len(scenarios)},
+        print(json.dumps({"model": model.name, "checked_states": out.checked_states,
+                          "scenarios": rows, "conforming": len(rows) - failed, "total": len(rows)},
                          default=str))
     else:
-        print(f"{len(scenarios) - failed} of {len(scenarios)} scenarios conform")
+        print(f"{len(rows) - failed} of {len(rows)} scenarios conform")
     return 1 if failed else 0

@@ -15,7 +15,10 @@ from __future__ import annotations
 import random
 from dataclasses import dataclass, field
 
-__all__ = ["PathMonitor", "Scenario", "Mismatch", "run_scenario", "random_scenarios"]
+from .protocol import Mismatch
+
+__all__ = ["PathMonitor", "Scenario", "Mismatch", "run_scenario", "random_scenarios", "Conformance",
+           "conform", "variant_of", "is_kitting_model"]
 
 
 class PathMonitor:
@@ -56,17 +59,6 @@ class Scenario:
     drop_regions: tuple = ()  # faulty gripper: ((x_min, y_min, x_max, y_max), ...)
     time_limit: float = 300.0
     parts: int = 18
-
-
-@dataclass
-class Mismatch:
-    tick: int
-    time: float
-    kind: str  # "path" | "abstraction" | "conformance"
-    what: str
-
-    def __str__(self) -> str:
-        return f"tick {self.tick} (t = {self.time:.2f} s): {self.kind} mismatch: {self.what}"
 
 
 @dataclass
@@ -133,3 +125,149 @@ def random_scenarios(n: int, seed: int = 0, variant: str = "preemptive", parts: 
             regions = ((x, y, x + 0.15, y + 0.15),)
         out.append(Scenario(variant, rng.randrange(10**6), tuple(times), regions, time_limit, parts))
     return out
+
+
+def is_kitting_model(model) -> bool:
+    """True when the ARIAC kitting cell (``sim/cell.py``) can run ``model``."""
+    from .binding import CellBinding
+
+    return CellBinding.dialect_of(model) is not None
+
+
+def variant_of(model) -> str:
+    """Which experiment variant a model is (the cell binding runs the ARIAC models);
+    UsageError naming what is missing when the kitting cell cannot run it."""
+    from btfsm.errors import UsageError
+
+    from .binding import CellBinding
+
+    missing = CellBinding.unsupported(model)
+    if missing:
+        raise UsageError(f"{model.name}: the kitting cell cannot run this model ({missing})")
+    return "baseline" if model.name.endswith("baseline") or model.name == "original" else "preemptive"
+
+
+@dataclass
+class Conformance:
+    """The outcome of ``conform``: every scenario's result, or an incomplete path check."""
+
+    model: str
+    scenarios: list
+    results: list
+    checked_states: "int | None" = None
+    incomplete: bool = False  # exploring the model for the path monitor hit max_states
+
+    @property
+    def failed(self) -> list:
+        return [r for r in self.results if r.mismatch is not None]
+
+    @property
+    def conforms(self) -> bool:
+        return not self.incomplete and not self.failed
+
+    def first_mismatch(self) -> "tuple | None":
+        """(scenario index, Mismatch) of the first scenario that did not conform."""
+        for i, r in enumerate(self.results):
+            if r.mismatch is not None:
+                return i, r.mismatch
+        return None
+
+
+def conform(model, scenarios: int = 10, seed: int = 0, time_limit: float = 700.0, drops: bool = False,
+            path: bool = True, max_states: "int | None" = 2_000_000, on_explored=None, on_result=None,
+            scene=None) -> Conformance:
+    """Run ``scenarios`` seeded random scenarios of ``model`` in the cell under the
+    conformance monitor (the path check against the explored system unless ``path`` is
+    false). ``on_explored(states)`` is called once the checked system is explored,
+    ``on_result(index, scenario, result)`` after each scenario.
+
+    ``scene`` (a Scene or a scene file) runs the model in that scene instead of the
+    kitting cell; a model the kitting cell cannot run uses its default scene
+    (``scene_trial.scene_for``) when it has one. In a scene each scenario is a seed (the
+    seed of the scene's random arrivals and faults); ``time_limit`` None means the
+    scene's ``time_limit``; ``drops`` adds, to about half the scenarios, a fault region
+    (10 cm square, drop probability 1) on the straight line between two of the scene's
+    frames, where the robot is likely to carry parts."""
+    if scene is None and not is_kitting_model(model):
+        from .scene_trial import scene_for
+
+        scene = scene_for(model)
+    if scene is not None:
+        return _conform_scene(model, scene, scenarios, seed, time_limit, path, max_states, on_explored, on_result,
+                              drops)
+    variant = variant_of(model)
+    monitor = checked = None
+    if path:
+        from btfsm.verify.explore import explore
+
+        ts = explore(model, max_states=max_states)
+        if not ts.complete:
+            return Conformance(model.name, [], [], None, incomplete=True)
+        monitor, checked = PathMonitor(ts), len(ts.states)
+        if on_explored is not None:
+            on_explored(checked)
+    from .binding import CellBinding
+
+    parts = model.var(CellBinding.dialect_of(model).tray_var).hi
+    cases = random_scenarios(scenarios, seed, variant, parts=parts, time_limit=time_limit, drops=drops)
+    results = []
+    for i, sc in enumerate(cases):
+        res = run_scenario(sc, model, monitor)
+        results.append(res)
+        if on_result is not None:
+            on_result(i, sc, res)
+    return Conformance(model.name, cases, results, checked)
+
+
+def _explore_monitor(model, path, max_states, on_explored):
+    """(monitor, checked states, incomplete) for the path check."""
+    if not path:
+        return None, None, False
+    from btfsm.verify.explore import explore
+
+    ts = explore(model, max_states=max_states)
+    if not ts.complete:
+        return None, None, True
+    if on_explored is not None:
+        on_explored(len(ts.states))
+    return PathMonitor(ts), len(ts.states), False
+
+
+def _conform_scene(model, scene, scenarios, seed, time_limit, path, max_states, on_explored, on_result,
+                   drops=False):
+    import copy
+
+    from .library import bind_model
+    from .scene import World, load_scene, scene_from_data
+    from .scene_trial import run_scene
+
+    if isinstance(scene, str):
+        scene = load_scene(scene)
+    bind_model(scene, model, World(scene))  # a binding that does not fit is an error before anything runs
+    monitor, checked, incomplete = _explore_monitor(model, path, max_states, on_explored)
+    if incomplete:
+        return Conformance(model.name, [], [], None, incomplete=True)
+    rng = random.Random(seed)
+    limit = scene.time_limit if time_limit is None else time_limit
+    frames = list(scene.frames.values())
+    cases, scenes = [], []
+    for _ in range(scenarios):
+        regions, where = (), scene
+        if drops and len(frames) >= 2 and rng.random() < 0.5:
+            (ax, ay), (bx, by) = rng.sample(frames, 2)
+            t = rng.uniform(0.2, 0.8)
+            x, y = ax + (bx - ax) * t, ay + (by - ay) * t
+            regions = ((round(x - 0.05, 4), round(y - 0.05, 4), round(x + 0.05, 4), round(y + 0.05, 4)),)
+            data = copy.deepcopy(scene.data)
+            data.setdefault("faults", {})["conform_drop"] = {"region": list(regions[0]), "probability": 1.0}
+            where = scene_from_data(data, scene.file)
+        cases.append(Scenario("scene", rng.randrange(10**6), (), regions, limit, 0))
+        scenes.append(where)
+    results = []
+    for i, sc in enumerate(cases):
+        run = run_scene(model, scenes[i], sc.seed, limit, monitor=monitor, check_invariant=True)
+        res = ScenarioResult(sc, run.ticks, run.completed, run.mismatch, run.lost)
+        results.append(res)
+        if on_result is not None:
+            on_result(i, sc, res)
+    return Conformance(model.name, cases, results, checked)

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-__all__ = ["VARIANTS", "arrival_period", "TrialSpec", "TrialResult"]
+__all__ = ["VARIANTS", "arrival_period", "TrialSpec", "TrialResult", "Mismatch"]
 
 VARIANTS = ("preemptive", "baseline")
 
@@ -52,3 +52,16 @@ class TrialResult:
     conformance_error: str = ""
 
 
+
+
+@dataclass
+class Mismatch:
+    """The first disagreement of a conformance run: its tick, time, kind and what."""
+
+    tick: int
+    time: float
+    kind: str  # "path" | "abstraction" | "conformance" | "accounting"
+    what: str
+
+    def __str__(self) -> str:
+        return f"tick {self.tick} (t = {self.time:.2f} s): {self.kind} mismatch: {self.what}"

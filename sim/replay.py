@@ -13,7 +13,8 @@ from __future__ import annotations
 import json
 from dataclasses import dataclass, field
 
-__all__ = ["CellReplay", "triggers_of", "replay_in_cell"]
+__all__ = ["CellReplay", "triggers_of", "replay_in_cell", "SceneReplay", "scene_triggers", "replay_in_scene",
+           "replay_for_cli"]
 
 
 def triggers_of(ce: dict, fsm: str) -> list:
@@ -125,3 +126,151 @@ def replay_in_cell(model, ce, *, time_limit: float = 120.0, render: "str | None"
     if recorder is not None:
         recorder.write_gif(gif, fps=10)
     return result
+
+
+@dataclass
+class SceneReplay:
+    model: str
+    scene: str
+    triggers: list
+    injected: list = field(default_factory=list)  # (time, FSM states, event, part id, "world" or None)
+    lost: list = field(default_factory=list)  # (time, part id)
+    taken: list = field(default_factory=list)  # (time, part id): injected parts a gripper took
+    mismatch: "str | None" = None
+    timeline: list = field(default_factory=list)  # (time, {fsm: (state, goal)}) changes
+    end_time: float = 0.0
+    picture: "str | None" = None
+
+    def text(self) -> str:
+        lines = [f"scene replay of a counterexample on {self.model} in scene {self.scene}: "
+                 f"{len(self.triggers)} environment event(s)"]
+        for t, states, ev, pid in self.injected:
+            how = ("left to the world: raised when a part leaves a sensor's region untaken" if pid == "world" else
+                   f"part {pid} put where a sensor will see it" if pid is not None else
+                   "no sensor raises it: given directly")
+            lines.append(f"  t = {t:6.1f} s: '{ev}' ({how}; FSMs at {_states_text(states)}, as in the counterexample)")
+        for t, pid in self.taken:
+            lines.append(f"  t = {t:6.1f} s: part {pid} taken by the gripper")
+        for t, pid in self.lost:
+            lines.append(f"  t = {t:6.1f} s: part {pid} LOST")
+        if len(self.injected) < len(self.triggers):
+            lines.append(f"  {len(self.triggers) - len(self.injected)} event(s) never injected: the FSMs did not reach "
+                         "the counterexample's state(s)")
+        if self.mismatch:
+            lines.append(f"  stopped: {self.mismatch}")
+        lines.append("  last FSM states: " + "; ".join(f"{t:.1f} s {_states_text(st)}" for t, st in self.timeline[-4:]))
+        if self.picture:
+            lines.append(f"  picture: {self.picture}")
+        return "\n".join(lines)
+
+
+def _states_text(states: dict) -> str:
+    return ", ".join(f"{f}={s}" for f, s in states.items())
+
+
+def scene_triggers(ce: dict, fsms) -> list:
+    """[({fsm: state} before the step, event name)] for every environment event of ``ce``."""
+    now = {f: ce["initial"].get(f"{f}.state") for f in fsms}
+    out = []
+    for step in ce["steps"]:
+        for ev in step.get("env", ()):
+            out.append((dict(now), ev))
+        for f in fsms:
+            now[f] = step.get("state", {}).get(f"{f}.state", now[f])
+    return out
+
+
+def replay_in_scene(model, ce, scene, *, time_limit: float = 120.0, seed: "int | None" = None,
+                    render: "str | None" = None, settle: float = 20.0) -> SceneReplay:
+    """Run ``model`` in ``scene`` with the scene's own arrivals switched off, and make
+    each of the counterexample's environment events happen in the FSM states where the
+    counterexample had it: a part is put where the sensor that raises the event will
+    see it (upstream on a belt crossing its region, or in the area under it); an event
+    no sensor raises is given to the model directly. Stops ``settle`` seconds after the
+    last injection, at the first conformance error, or at ``time_limit``."""
+    from btfsm.errors import ConformanceError, DomainError
+    from btfsm.runtime import Runtime
+
+    from .library import bind_model
+    from .scene import World
+
+    if isinstance(ce, str):
+        with open(ce, encoding="utf-8") as fh:
+            ce = json.load(fh)
+    if "counterexample" in ce:
+        ce = ce["counterexample"]
+    fsms = [f.name for f in model.fsms]
+    world = World(scene, seed)
+    for name in world.arrivals:
+        world.arrivals[name] = []
+    binding = bind_model(scene, model, world)
+    rt = Runtime(model, binding.implementations())
+    pending = scene_triggers(ce, fsms)
+    result = SceneReplay(model.name, scene.name, list(pending))
+    steps = max(1, round(1.0 / (model.tick_rate * scene.dt)))
+    sensors, exits = {}, set()
+    for name, s in scene.sensors.items():
+        if s.get("on_enter"):
+            sensors.setdefault(s["on_enter"], s["region"])
+        if s.get("on_exit"):
+            exits.add(s["on_exit"])
+    last, done_at, injected = None, None, []
+    while world.time < time_limit:
+        now = {f: rt.fsm_state(f)[0] for f in fsms}
+        if now != last:
+            result.timeline.append((round(world.time, 2), dict(now)))
+            last = now
+        if pending and all(now.get(f) == s for f, s in pending[0][0].items() if s is not None):
+            states, ev = pending.pop(0)
+            if ev in exits and ev not in sensors:
+                pid = "world"  # a part leaving: it happens in the world, or it does not
+            else:
+                pid = world.spawn(sensors[ev]) if ev in sensors else None
+                if pid is None:
+                    binding.backlog.append(ev)
+                else:
+                    injected.append(pid)
+            result.injected.append((round(world.time, 2), states, ev, pid))
+            if not pending:
+                done_at = world.time
+        try:
+            rt.tick(binding.events(rt.state))
+        except (ConformanceError, DomainError) as exc:
+            result.mismatch = str(exc)
+            break
+        world.step(steps)
+        if done_at is not None and world.time >= done_at + settle:
+            break
+    result.lost = [(round(t, 2), pid) for t, pid, _src, dst in world.log if pid in injected and dst is not None
+                   and dst.kind == "LOST"]
+    result.taken = [(round(t, 2), pid) for t, pid, _src, dst in world.log if pid in injected and dst is not None
+                    and dst.kind == "GRIPPER"]
+    result.end_time = round(world.time, 2)
+    if render:
+        from .scene_render import render_scene
+
+        result.picture = render_scene(scene, world.snapshot(), render,
+                                      title=f"{model.name}: counterexample in {scene.name}")
+    return result
+
+
+def replay_for_cli(model, ce_json: dict, args) -> str:
+    """``btfsm replay CE.json MODEL --cell [--scene FILE]``: the kitting cell for the
+    paper's models, else the scene (``--scene`` or the model's default scene)."""
+    from btfsm.errors import UsageError
+
+    from .binding import CellBinding
+    from .scene import load_scene
+    from .scene_trial import scene_for
+
+    path = getattr(args, "scene", None)
+    if path is None and CellBinding.dialect_of(model) is not None:
+        return replay_in_cell(model, ce_json, time_limit=args.time, render=args.render, gif=args.gif).text()
+    path = path or scene_for(model, args.model)
+    if path is None:
+        why = CellBinding.unsupported(model)
+        raise UsageError(f"{model.name}: the kitting cell cannot run this model ({why}) and it has no scene: "
+                         "give --scene FILE (docs/cell.md)")
+    if args.gif:
+        raise UsageError("--gif is not available for a scene replay yet (use --render)")
+    return replay_in_scene(model, ce_json, load_scene(path), time_limit=args.time, render=args.render).text()

@@ -3,7 +3,7 @@
 ``random_models()``: valid ``btfsm.Model`` objects that use every kind of element the
 modelling API has (bool/enum/int variables, declared and inline primitives, FSMs with
 parameters, direct edges, markers, guards and effects, every BT node type, environment
-events and choices, invariants, workable and terminal predicates). Expressions are drawn
+events and choices, invariants, workable and terminal predicates, every semantics profile). Expressions are drawn
 as strings or as plain bool/int constants, the forms a model file can hold.
 """
 from __future__ import annotations
@@ -12,7 +12,8 @@ from hypothesis import strategies as st
 
 from btfsm import (FSM, Action, Condition, Edge, EnvChoice, EnvEvent, Marker, Model, ModelError,
                    Outcome, Primitive, State)
-from btfsm.bt import NODE_TYPES
+from btfsm.bt import NODE_TYPES, SkillRequest, walk
+from btfsm.profiles import SEMANTICS
 from btfsm.world import Bool, Enum, Int
 
 __all__ = ["random_models"]
@@ -134,14 +135,26 @@ def _node(draw, ctx, depth, leaves_only_fsm=False):
         kinds = [k for k in kinds if k != "SkillRequest"]
     t = draw(st.sampled_from(kinds))
     cls, name = NODE_TYPES[t], names("n")
-    if t in ("ReactiveSequence", "MemorySequence", "ReactiveFallback", "MemoryFallback", "Parallel"):
-        kids = [_node(draw, ctx, depth - 1, leaves_only_fsm) for _ in range(draw(st.integers(1, 3)))]
-        if t == "Parallel":
-            s = draw(st.one_of(st.none(), st.integers(1, len(kids))))
-            return cls(name, kids, s, draw(st.integers(1, len(kids))))
+    if t in ("ReactiveSequence", "MemorySequence", "ReactiveFallback", "MemoryFallback", "Parallel",
+             "SequenceWithMemory", "ParallelAll", "IfThenElse", "WhileDoElse"):
+        lo = 2 if t in ("IfThenElse", "WhileDoElse") else 1
+        kids = [_node(draw, ctx, depth - 1, leaves_only_fsm) for _ in range(draw(st.integers(lo, 3)))]
+        n = len(kids)
+        if t == "Parallel":  # negative thresholds count from the end (-1: all children)
+            s = draw(st.one_of(st.none(), st.integers(1, n), st.integers(-n, -1)))
+            # py_trees' options (docs/semantics.md 8.2): synchronise, SuccessOnSelected (not under btcpp)
+            selected = () if s is not None or ctx.get("semantics") == "btcpp" or not draw(st.booleans()) else tuple(
+                draw(st.lists(st.sampled_from([k.name for k in kids]), min_size=1, unique=True)))
+            return cls(name, kids, s, draw(st.one_of(st.integers(1, n), st.integers(-n, -1))), draw(st.booleans()),
+                       selected)
+        if t == "ParallelAll":
+            return cls(name, kids, draw(st.one_of(st.integers(1, n), st.integers(-n, -1))))
         return cls(name, kids)
-    if t in ("Inverter", "ForceSuccess", "ForceFailure", "Retry", "Repeat", "Guard", "Effects"):
+    if t in ("Inverter", "ForceSuccess", "ForceFailure", "Retry", "Repeat", "Guard", "Effects",
+             "KeepRunningUntilFailure", "RunOnce"):
         child = _node(draw, ctx, depth - 1, leaves_only_fsm)
+        if t == "RunOnce":
+            return cls(name, child, then_skip=False)  # then_skip: true (SKIPPED) is refused
         if t == "Retry":
             return cls(name, child, draw(st.integers(1, 3)))
         if t == "Repeat":
@@ -214,13 +227,25 @@ def _event(draw, name, variables):
     return EnvEvent(name, guard, _effects(draw, variables))
 
 
+def _resources(draw, tree, fsms) -> tuple:
+    """Up to two resources over the Action and SkillRequest leaves (tree and FSM subtrees)."""
+    roots = [tree] if tree is not None else []
+    roots += [stt.subtree for f in fsms for stt in f.states if stt.subtree is not None]
+    leaves = [n.name for r in roots for n in walk(r) if isinstance(n, (Action, SkillRequest))]
+    if not leaves or draw(st.integers(0, 2)) == 0:
+        return ()
+    return tuple((f"r{k}", tuple(draw(st.lists(st.sampled_from(leaves), min_size=1, max_size=4, unique=True))))
+                 for k in range(draw(st.integers(1, 2))))
+
+
 @st.composite
 def random_models(draw, max_vars: int = 4, max_fsms: int = 2, tree_depth: int = 3):
     """Valid random Models exercising every field of the modelling API."""
     names = _Names()
     variables = tuple(_var(draw, f"v{i}") for i in range(draw(st.integers(0, max_vars))))
     prims = tuple(Primitive(f"p{i}", _outcomes(draw, variables)) for i in range(draw(st.integers(0, 3))))
-    ctx = {"names": names, "variables": variables, "prims": prims, "fsms": ()}
+    ctx = {"names": names, "variables": variables, "prims": prims, "fsms": (),
+           "semantics": draw(st.sampled_from(SEMANTICS))}
     ctx["fsms"] = tuple(_fsm(draw, ctx, i) for i in range(draw(st.integers(0, max_fsms))))
     tree = _node(draw, ctx, tree_depth) if draw(st.integers(0, 4)) else None
     env = []
@@ -236,8 +261,10 @@ def random_models(draw, max_vars: int = 4, max_fsms: int = 2, tree_depth: int = 
     workable = draw(st.one_of(st.none(), st.just(_bool_expr(draw, variables, state_refs))))
     terminal = draw(st.one_of(st.none(), st.just(_bool_expr(draw, variables, state_refs))))
     tick_rate = draw(st.one_of(st.just(10.0), st.integers(1, 100), st.floats(0.01, 1e4, allow_nan=False)))
+    resources = _resources(draw, tree, ctx["fsms"])
     try:
         return Model(draw(st.sampled_from(["m", "two area", "cell-1"])), variables, prims, ctx["fsms"], tree, tuple(env),
-                     invariants, workable, terminal, tick_rate, draw(_TEXT))
+                     invariants, workable, terminal, tick_rate, draw(_TEXT), ctx["semantics"],
+                     resources=resources)
     except ModelError as exc:  # a combination the strategy does not rule out; say which
         raise AssertionError(f"random_models built an invalid model: {exc}") from None

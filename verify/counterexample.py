@@ -526,6 +526,13 @@ def _confirm(ce, model, state, last, error) -> tuple:
         if last is not None and ("busy", node, ce.violation.get("fsm")) in [tuple(v) for v in last.violations]:
             return True, f"confirmed: tick {n}: '{node}' was refused because another request used FSM '{ce.violation.get('fsm')}'"
         return False, f"no conflict on '{node}' at the last tick"
+    if kind == "exclusive":
+        v = ce.violation
+        want = ("exclusive", v.get("resource"), v.get("node"), v.get("other"), v.get("when"))
+        if last is not None and want in [tuple(x) for x in last.violations]:
+            how = "started while '{}' was running" if want[4] == "start" else "and '{}' are both running"
+            return True, f"confirmed: tick {n}: '{want[2]}' {how.format(want[3])} (resource '{want[1]}')"
+        return False, f"'{v.get('node')}' and '{v.get('other')}' do not run at once at the last tick"
     if kind == "sink":
         return _confirm_sink(ce, model, state)
     if kind == "goal-tree":

@@ -166,9 +166,7 @@ def _tree_footprint(prog, root, seen) -> tuple:
     reads, writes = set(), set()
     for n in walk(root):
         info = prog.nodes[n.name]
-        for slot in (info.flag, info.mem):
-            if slot is not None:
-                writes.add(slot)
+        writes.update(info.state_slots())
         if isinstance(n, Condition):
             reads |= _expr_slots(n.expr, scope)
         elif isinstance(n, Guard):

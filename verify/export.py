@@ -1,4 +1,4 @@
-"""Export a model to Promela (SPIN), SMV (nuXmv/NuSMV) or dot.
+"""Export a model to Promela (SPIN), SMV (nuXmv/NuSMV), dot or BehaviorTree.CPP XML.
 
 ``export(model, fmt, fsm=None, output=None) -> str``:
 
@@ -9,6 +9,8 @@
   model has no tree. Anything else raises ``ModelError`` naming what is not supported.
 * ``dot``: the explored transition system (``explore`` / ``explore_fsm``), refused above
   ``DOT_MAX_STATES`` states.
+* ``btcpp``: the tree as BehaviorTree.CPP XML v4 (``btfsm.interop.btcpp_export``); no
+  ``fsm``.
 
 The step description the exporters share with the vectorised engine is
 ``btfsm.verify.stepspec``.
@@ -22,7 +24,7 @@ from .stepspec import Row, StepSpec, step_spec, terminal_expr
 
 __all__ = ["export", "step_spec", "StepSpec", "Row", "to_dot", "FORMATS", "DOT_MAX_STATES", "DOT_MAX_TRANSITIONS", "terminal_expr"]
 
-FORMATS = ("promela", "smv", "dot")
+FORMATS = ("promela", "smv", "dot", "btcpp")
 DOT_MAX_STATES = 2000
 DOT_MAX_TRANSITIONS = 100_000
 
@@ -32,7 +34,7 @@ DOT_MAX_TRANSITIONS = 100_000
 
 def export(model, fmt: str, fsm: "str | None" = None, output: "str | None" = None, *, source: "str | None" = None,
            max_states=None, max_transitions=None, max_seconds=None) -> str:
-    """The model in format ``fmt`` (promela, smv or dot); also written to ``output``
+    """The model in format ``fmt`` (promela, smv, dot or btcpp); also written to ``output``
     (atomically, ``btfsm.outputs``).
 
     Every error is a ModelError naming ``source`` (default: the file or built-in name
@@ -51,7 +53,13 @@ def export(model, fmt: str, fsm: "str | None" = None, output: "str | None" = Non
 def _export(model, fmt, fsm, output, max_states, max_transitions, max_seconds) -> str:
     if fmt not in FORMATS:
         raise ModelError("format", f"unknown export format '{fmt}' (expected one of {', '.join(FORMATS)})")
-    if fmt == "dot":
+    if fmt == "btcpp":
+        if fsm is not None:
+            raise ModelError("format", "btcpp export writes the tree; --fsm does not apply")
+        from btfsm.interop.btcpp_export import to_btcpp_xml
+
+        text = to_btcpp_xml(model)
+    elif fmt == "dot":
         text = to_dot(_explore_small(model, fsm, max_states, max_transitions, max_seconds))
     else:
         if fsm is None and model.tree is None:

@@ -352,7 +352,7 @@ def _tree_slots(prog) -> set:
     out = set()
     for info in prog.nodes.values():
         if info.root == root:
-            out.update(x for x in (info.flag, info.mem) if x is not None)
+            out.update(info.state_slots())
     return out
 
 

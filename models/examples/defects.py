@@ -17,19 +17,20 @@ model                        property                    the defect
 ``contract()``               contracts                   the pick replies SUCCESS before the grasp
 ``domain()``                 domain                      an off-by-one guard lets a counter overflow
 ``shadowed_marker()``        lints (a warning)           a direct marker behind a direct edge
+``exclusive()``              exclusive-actions           a belt scan moves the arm beside the pick/place skills
 ===========================  ==========================  ==========================================
 """
 from __future__ import annotations
 
-from btfsm import (FSM, Bool, Condition, Edge, Effects, EnvChoice, EnvEvent, Int, Marker, MemoryFallback,
-                   MemorySequence, Model, Primitive, ReactiveFallback, ReactiveSequence, SkillRequest, State, failure,
-                   running, success)
+from btfsm import (FSM, Action, Bool, Condition, Edge, Effects, EnvChoice, EnvEvent, Int, Marker, MemoryFallback,
+                   MemorySequence, Model, Parallel, Primitive, ReactiveFallback, ReactiveSequence, SkillRequest, State,
+                   failure, running, success)
 
 __all__ = ["trap", "unreachable_goal", "nondeterminism", "dead_state", "nonprogress", "latency",
-           "invariant", "contract", "domain", "shadowed_marker", "EXPECTED", "PROPERTIES"]
+           "invariant", "contract", "domain", "shadowed_marker", "exclusive", "EXPECTED", "PROPERTIES"]
 
 PROPERTIES = ("workable-reachability", "goal-reachability", "determinism", "no-dead-states",
-              "request-latency", "invariants", "contracts", "domain")
+              "request-latency", "invariants", "contracts", "domain", "exclusive-actions")
 
 # model name -> the properties it violates (every other property holds)
 EXPECTED = {
@@ -45,6 +46,7 @@ EXPECTED = {
     "defect-contract": {"contracts"},
     "defect-domain": {"domain"},
     "defect-shadowed-marker": set(),
+    "defect-exclusive": {"exclusive-actions"},
 }
 
 _MOVE = Primitive("move", (running("moving"), success("arrived")))
@@ -221,3 +223,15 @@ def shadowed_marker() -> Model:
     taken first (the authors' 'put on X' marker). Only a lint; every property holds."""
     f = _pick_place(_undo_edges(), [Marker("put", ["pick"], direct=True, outcome="failure")])
     return _model("defect-shadowed-marker", f, _pick_place_tree(), "seeded defect: a shadowed marker (lint)")
+
+
+def exclusive() -> Model:
+    """A belt scan (the arm sweeps its camera over the belt) runs beside the pick/place
+    skills under a ``Parallel``: it was meant for an idle arm, but nothing keeps it from
+    moving the arm while a pick or a place drives it. The model declares the three leaves
+    one resource, ``arm``; ``exclusive-actions`` reports the scan starting while the pick
+    runs (any profile: leaves under a Parallel never halt each other)."""
+    tree = Parallel("cell", [_pick_place_tree(), Action("scan_belt", "move", args={"pose": "belt"})])
+    return _model("defect-exclusive", _pick_place(_undo_edges()), tree,
+                  "seeded defect: a belt scan moves the arm beside the skills (exclusive-actions)",
+                  resources={"arm": ["pick_part", "place_part", "scan_belt"]})

@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import os
 
-__all__ = ["two_area_file", "templated"]
+__all__ = ["two_area_file", "templated", "bt_cpp_1031"]
 
 _HERE = os.path.dirname(os.path.abspath(__file__))
 
@@ -22,3 +22,9 @@ def two_area_file():
 def templated():
     """models/examples/templated.yaml: a 3-area FSM generated from one template."""
     return _load("templated.yaml")
+
+
+def bt_cpp_1031():
+    """models/examples/bt_cpp_1031.yaml: BehaviorTree.CPP issue #1031 (semantics: btcpp),
+    a reactive fallback over two async actions on one arm (property exclusive-actions)."""
+    return _load("bt_cpp_1031.yaml")

@@ -16,6 +16,7 @@ name                         level    meaning
 ``invariants``               model    every invariant holds in every reachable state
 ``contracts``                model    no SUCCESS with post false; no two requests on one FSM
 ``domain``                   both     no effect writes outside its variable's domain
+``exclusive-actions``        model    no two leaves of one declared resource run at once
 ``lints``                    both     warnings only (never fails)
 ===========================  =======  ==================================================
 """
@@ -29,7 +30,7 @@ __all__ = ["Result", "Context", "PROPERTIES", "property_names", "evaluate", "col
 
 
 def _registry() -> dict:
-    from . import dead, goals, latency, lints, safety, workable
+    from . import dead, exclusive, goals, latency, lints, safety, workable
 
     return {
         "workable-reachability": workable.check,
@@ -40,6 +41,7 @@ def _registry() -> dict:
         "invariants": safety.check_invariants,
         "contracts": safety.check_contracts,
         "domain": safety.check_domain,
+        "exclusive-actions": exclusive.check,
         "lints": lints.check,
     }
 
@@ -64,7 +66,7 @@ def _determinism(ctx) -> Result:
 
 
 PROPERTIES = ("workable-reachability", "goal-reachability", "determinism", "no-dead-states", "request-latency",
-              "invariants", "contracts", "domain", "lints")
+              "invariants", "contracts", "domain", "exclusive-actions", "lints")
 
 
 def property_names() -> tuple:

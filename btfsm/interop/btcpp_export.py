@@ -1,0 +1,184 @@
+"""A btfsm model's tree as BehaviorTree.CPP XML v4 (what ``btfsm export --format btcpp``
+writes).
+
+``to_btcpp_xml(model) -> str``: one ``<BehaviorTree>`` (ID: the model's name, also
+``main_tree_to_execute``) and a ``<TreeNodesModel>`` declaring every leaf ID, so
+BehaviorTree.CPP and Groot2 load it once the leaves are registered. The node mapping
+(docs/semantics.md section 8.1):
+
+* controls: ``MemorySequence`` -> ``Sequence``, ``SequenceWithMemory``,
+  ``ReactiveSequence``, ``MemoryFallback`` -> ``Fallback``, ``ReactiveFallback``,
+  ``Parallel`` -> ``Parallel success_count failure_count`` (all children: -1),
+  ``ParallelAll max_failures``, ``IfThenElse``, ``WhileDoElse``;
+* decorators: ``Inverter``, ``ForceSuccess``, ``ForceFailure``, ``Retry`` ->
+  ``RetryUntilSuccessful num_attempts``, ``Repeat num_cycles``,
+  ``KeepRunningUntilFailure``, ``RunOnce then_skip``;
+* leaves are callbacks the user registers by ID, written in the compact form ``<ID
+  name="node" .../>`` (BehaviorTree.CPP's parser looks the tag of a ReactiveSequence's
+  children up as a registered ID, so ``<Action ID=...>`` is refused there): an ``Action``
+  is ``<primitive name="node">`` with its args as input ports; a ``Condition`` is
+  ``<node name="node">`` (its btfsm expression is the description of its TreeNodesModel
+  entry); a ``SkillRequest`` is ``<node name="node">`` (a stateful action in
+  BehaviorTree.CPP). An ID must therefore be an XML name (``[A-Za-z_][A-Za-z0-9_.-]*``):
+  anything else is a ModelError naming the node.
+
+``Guard`` and ``Effects`` have no BehaviorTree.CPP counterpart with the same rules: the
+export refuses them (``ModelError`` naming the node), as it refuses a model without a tree.
+Every name and value is XML-escaped.
+
+>>> from btfsm import Model, ReactiveFallback, Condition, Action, Bool, Primitive
+>>> m = Model("demo", variables=[Bool("done")], primitives=[Primitive("work")],
+...           tree=ReactiveFallback("root", [Condition("is_done", "done"), Action("work")]))
+>>> print(to_btcpp_xml(m), end="")
+<?xml version="1.0" encoding="UTF-8"?>
+<root BTCPP_format="4" main_tree_to_execute="demo">
+  <BehaviorTree ID="demo">
+    <ReactiveFallback name="root">
+      <is_done name="is_done"/>
+      <work name="work"/>
+    </ReactiveFallback>
+  </BehaviorTree>
+  <TreeNodesModel>
+    <Condition ID="is_done">
+      <description>done</description>
+    </Condition>
+    <Action ID="work"/>
+  </TreeNodesModel>
+</root>
+"""
+from __future__ import annotations
+
+import re
+
+from ..bt import (Action, Condition, Effects, ForceFailure, ForceSuccess, Guard, IfThenElse, Inverter,
+                  KeepRunningUntilFailure, MemoryFallback, MemorySequence, Parallel, ParallelAll,
+                  ReactiveFallback, ReactiveSequence, Repeat, Retry, RunOnce, SequenceWithMemory,
+                  SkillRequest, WhileDoElse)
+from ..errors import ModelError
+from ..expr import to_text
+
+__all__ = ["to_btcpp_xml", "xml_attr", "TAGS"]
+
+TAGS = {
+    MemorySequence: "Sequence", SequenceWithMemory: "SequenceWithMemory", ReactiveSequence: "ReactiveSequence",
+    MemoryFallback: "Fallback", ReactiveFallback: "ReactiveFallback", Parallel: "Parallel",
+    ParallelAll: "ParallelAll", IfThenElse: "IfThenElse", WhileDoElse: "WhileDoElse",
+    Inverter: "Inverter", ForceSuccess: "ForceSuccess", ForceFailure: "ForceFailure",
+    Retry: "RetryUntilSuccessful", Repeat: "Repeat", KeepRunningUntilFailure: "KeepRunningUntilFailure",
+    RunOnce: "RunOnce",
+}
+"""btfsm node type -> BehaviorTree.CPP XML tag (controls and decorators)."""
+
+_XML_NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_.-]*\Z")
+_ESCAPES = {"&": "&amp;", "<": "&lt;", ">": "&gt;", '"': "&quot;", "'": "&apos;",
+            "\n": "&#10;", "\r": "&#13;", "\t": "&#9;"}
+
+
+def xml_attr(text: object, element: str = "") -> str:
+    """``text`` escaped for a double-quoted XML attribute or element content. Characters
+    XML 1.0 cannot hold at all are a ModelError naming ``element``.
+
+    >>> xml_attr('a < "b" & \\'c\\'')
+    'a &lt; &quot;b&quot; &amp; &apos;c&apos;'
+    """
+    out = []
+    for c in str(text):
+        if c in _ESCAPES:
+            out.append(_ESCAPES[c])
+        elif (ord(c) < 0x20 or 0xD800 <= ord(c) <= 0xDFFF or ord(c) in (0xFFFE, 0xFFFF)):
+            raise ModelError(element or "tree", f"character {ord(c):#x} cannot be written in XML")
+        else:
+            out.append(c)
+    return "".join(out)
+
+
+def _value(v) -> str:
+    if isinstance(v, bool):
+        return "true" if v else "false"
+    if isinstance(v, (tuple, list)):
+        return ";".join(_value(x) for x in v)
+    return str(v)
+
+
+def to_btcpp_xml(model) -> str:
+    """The model's tree as a BehaviorTree.CPP XML v4 document (see the module doc)."""
+    if model.tree is None:
+        raise ModelError("tree", "btcpp export needs a tree; the model has none")
+    leaves: dict = {}  # ID -> (kind, ports, description, node name)
+    lines = []
+    _node(model.tree, 2, lines, leaves)
+    name = xml_attr(model.name, "name")
+    out = ['<?xml version="1.0" encoding="UTF-8"?>',
+           f'<root BTCPP_format="4" main_tree_to_execute="{name}">',
+           f'  <BehaviorTree ID="{name}">', *lines, "  </BehaviorTree>", "  <TreeNodesModel>"]
+    for ident, (kind, ports, desc, _) in leaves.items():
+        body = [f'      <input_port name="{xml_attr(p)}" type="std::string"/>' for p in ports]
+        if desc is not None:
+            body.append(f"      <description>{xml_attr(desc)}</description>")
+        if body:
+            out += [f'    <{kind} ID="{xml_attr(ident)}">', *body, f"    </{kind}>"]
+        else:
+            out.append(f'    <{kind} ID="{xml_attr(ident)}"/>')
+    out += ["  </TreeNodesModel>", "</root>"]
+    return "\n".join(out) + "\n"
+
+
+def _declare(leaves, ident, kind, ports, desc, node):
+    old = leaves.get(ident)
+    if old is None:
+        leaves[ident] = (kind, list(ports), desc, node)
+        return
+    if old[0] != kind or old[2] != desc or kind == "Condition" or old[2] is not None:
+        raise ModelError(f"tree.{node}", f"BehaviorTree.CPP ID '{ident}' is also used by node '{old[3]}' for another leaf")
+    old[1].extend(p for p in ports if p not in old[1])
+
+
+def _leaf_tag(ident, where) -> str:
+    if not _XML_NAME.match(ident) or ident.lower().startswith("xml"):
+        raise ModelError(where, f"BehaviorTree.CPP ID '{ident}' is not an XML name ([A-Za-z_][A-Za-z0-9_.-]*); "
+                                "rename it to export the tree")
+    return ident
+
+
+def _node(n, depth, lines, leaves):
+    pad = "  " * depth
+    where = f"tree.{n.name}"
+    name = xml_attr(n.name, where)
+    if isinstance(n, Action):
+        ports = [k for k, _ in n.args]
+        attrs = "".join(f' {xml_attr(k, where)}="{xml_attr(_value(v), where)}"' for k, v in n.args)
+        _declare(leaves, n.primitive, "Action", ports, None, n.name)
+        lines.append(f'{pad}<{_leaf_tag(n.primitive, where)} name="{name}"{attrs}/>')
+        return
+    if isinstance(n, Condition):
+        _declare(leaves, n.name, "Condition", (), to_text(n.expr), n.name)
+        lines.append(f'{pad}<{_leaf_tag(n.name, where)} name="{name}"/>')
+        return
+    if isinstance(n, SkillRequest):
+        params = ", ".join(f"{k}={to_text(e)}" for k, e in n.params)
+        desc = f"btfsm SkillRequest: fsm {n.fsm}, goal {n.goal}" + (f", params {params}" if params else "")
+        _declare(leaves, n.name, "Action", (), desc, n.name)
+        lines.append(f'{pad}<{_leaf_tag(n.name, where)} name="{name}"/>')
+        return
+    if isinstance(n, (Guard, Effects)):
+        raise ModelError(where, f"{type(n).__name__} has no BehaviorTree.CPP counterpart with the same rules; "
+                                "the btcpp export cannot write it")
+    tag = TAGS.get(type(n))
+    if tag is None:
+        raise ModelError(where, f"node type {type(n).__name__} cannot be exported to BehaviorTree.CPP")
+    attrs = ""
+    if isinstance(n, Parallel):
+        s = -1 if n.success_threshold is None else n.success_threshold
+        attrs = f' success_count="{s}" failure_count="{n.failure_threshold}"'
+    elif isinstance(n, ParallelAll):
+        attrs = f' max_failures="{n.max_failures}"'
+    elif isinstance(n, Retry):
+        attrs = f' num_attempts="{n.attempts}"'
+    elif isinstance(n, Repeat):
+        attrs = f' num_cycles="{n.times}"'
+    elif isinstance(n, RunOnce):
+        attrs = f' then_skip="{"true" if n.then_skip else "false"}"'
+    lines.append(f'{pad}<{tag} name="{name}"{attrs}>')
+    for child in n.children_of():
+        _node(child, depth + 1, lines, leaves)
+    lines.append(f"{pad}</{tag}>")

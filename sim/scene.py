@@ -1,0 +1,726 @@
+"""Scene files: a 2D cell described as data, and the kinematic world that runs it.
+
+A scene file (YAML or JSON, schema ``btfsm/schema/scene.schema.json``, described in
+docs/cell.md) names, in SI units (metres, seconds), seen from above:
+
+* ``frames``: named points ``[x, y]``; anywhere a point is expected a frame name works;
+* ``areas``: rectangles where parts rest (bins, tables, trays, machine fixtures), with
+  initial ``parts`` (a count or ``{type: count}``), optional ``capacity`` and ``slots``;
+* ``belts``: from a point to a point, ``speed`` (m/s), ``width``, an ``end`` (``lost``: a
+  part reaching the end is lost; ``stop``: parts queue at the end) and ``arrivals`` (a
+  ``schedule`` of times, a ``period`` with ``first``/``count``, or a seeded ``random``
+  process with ``mean_interval``/``min_interval``);
+* ``sinks``: regions where a part that is not held is **lost**;
+* ``doors``: regions the tool may enter only while the door is open;
+* ``sensors``: regions that raise an environment event when a part enters (``on_enter``)
+  or leaves (``on_exit``; a part a gripper takes does not leave, it is taken) and count
+  the parts inside (``sensor(NAME)`` in checks);
+* ``faults``: regions where a held part drops (with a ``probability``, seeded);
+* ``robots``: a kinematic tool point on a ``rail`` or around a fixed ``base`` within
+  ``reach``, with ``speed``/``acceleration`` limits (rest-to-rest trapezoidal profiles
+  along straight lines) and a ``gripper`` (``vacuum``: attaches at once; ``fingers``:
+  ``close_time`` seconds, then attaches what is within ``radius``);
+* ``bind`` and ``checks``: how a model's primitives map onto the primitive library
+  (``btfsm.sim.library``) and which model variables must agree with the world.
+
+The world is kinematic (no contact dynamics): parts are discs that rest, ride a belt, or
+follow the tool. Every part is always in exactly one place: ``AREA(name)``,
+``BELT(name)``, ``GRIPPER(robot)``, ``FLOOR`` or ``LOST``; ``World.check_invariant``
+verifies it. Time is ``steps * dt`` (no wall clock); randomness comes from one
+``random.Random`` per world seeded from the seed, so the same seed and the same commands
+give the same ``World.digest()``.
+
+>>> w = World(scene_from_data({"robots": {"r": {"base": [0, 0], "reach": 1, "home": [0.5, 0]}},
+...                            "areas": {"bin": {"region": [0.3, -0.2, 0.7, 0.2], "parts": 2}}}))
+>>> w.count("bin"), [str(p.place) for p in w.parts]
+(2, ['AREA(bin)', 'AREA(bin)'])
+"""
+from __future__ import annotations
+
+import hashlib
+import math
+import random
+from typing import NamedTuple
+
+from btfsm.errors import ModelError
+
+__all__ = ["Place", "FLOOR", "LOST", "Scene", "World", "load_scene", "scene_from_data", "Profile",
+           "DEFAULT_PART", "builtin_scene"]
+
+DEFAULT_PART = "part"
+MAX_ARRIVALS = 100_000  # per belt and run
+_EPS = 1e-9
+
+
+class Place(NamedTuple):
+    """Where a part is: kind AREA, BELT, GRIPPER (name: the area, belt or robot), FLOOR, LOST."""
+
+    kind: str
+    name: str = ""
+
+    def __str__(self) -> str:
+        return f"{self.kind}({self.name})" if self.name else self.kind
+
+
+FLOOR = Place("FLOOR")
+LOST = Place("LOST")
+
+
+# --------------------------------------------------------------------------- loading
+class Scene:
+    """A validated scene: plain geometry, every point resolved to ``(x, y)``."""
+
+    def __init__(self, data: dict, file: "str | None" = None):
+        self.data, self.file = data, file
+        self.name = data.get("name", "scene")
+        self.model = data.get("model")
+        self.dt = float(data.get("dt", 0.01))
+        self.seed = int(data.get("seed", 0))
+        self.time_limit = float(data.get("time_limit", 600.0))
+        self.frames = {k: (float(v[0]), float(v[1])) for k, v in data.get("frames", {}).items()}
+        self.part_types = {DEFAULT_PART: 0.03}
+        self.part_types.update({k: float(v["radius"]) for k, v in data.get("part_types", {}).items()})
+        self.areas, self.belts, self.sinks, self.doors = {}, {}, {}, {}
+        self.sensors, self.faults, self.robots = {}, {}, {}
+        for name, a in data.get("areas", {}).items():
+            where = f"areas.{name}"
+            parts = a.get("parts", 0)
+            parts = {DEFAULT_PART: parts} if isinstance(parts, int) else dict(parts)
+            for t in parts:
+                self._type(t, f"{where}.parts.{t}")
+            slots = [self.point(p, f"{where}.slots[{i}]") for i, p in enumerate(a.get("slots", []))]
+            region = self.region(a["region"], f"{where}.region")
+            for i, s in enumerate(slots):
+                if not _inside(region, s):
+                    raise self.error(f"{where}.slots[{i}]", "the slot lies outside the area's region")
+            capacity = a.get("capacity", len(slots) if slots else None)
+            n = sum(parts.values())
+            if capacity is not None and n > capacity:
+                raise self.error(f"{where}.parts", f"{n} parts exceed the capacity {capacity}")
+            self.areas[name] = {"region": region, "parts": parts, "capacity": capacity, "slots": slots,
+                                "slot_tolerance": float(a.get("slot_tolerance", 0.03))}
+        for name, b in data.get("belts", {}).items():
+            where = f"belts.{name}"
+            p0, p1 = self.point(b["from"], f"{where}.from"), self.point(b["to"], f"{where}.to")
+            length = math.hypot(p1[0] - p0[0], p1[1] - p0[1])
+            if length <= _EPS:
+                raise self.error(where, "'from' and 'to' are the same point")
+            ptype = self._type(b.get("part_type", DEFAULT_PART), f"{where}.part_type")
+            arr = b.get("arrivals", {})
+            kinds = [k for k in ("schedule", "period", "random") if k in arr]
+            if len(kinds) > 1:
+                raise self.error(f"{where}.arrivals", f"give one of schedule, period or random, not {' and '.join(kinds)}")
+            self.belts[name] = {"name": name, "from": p0, "to": p1, "length": length, "speed": float(b["speed"]),
+                                "width": float(b.get("width", 0.3)), "end": b.get("end", "lost"),
+                                "part_type": ptype, "arrivals": dict(arr)}
+        for name, r in data.get("sinks", {}).items():
+            self.sinks[name] = self.region(r, f"sinks.{name}")
+        for name, d in data.get("doors", {}).items():
+            self.doors[name] = {"region": self.region(d["region"], f"doors.{name}.region"),
+                                "open": bool(d.get("open", False)), "open_time": float(d.get("open_time", 1.0))}
+        for name, s in data.get("sensors", {}).items():
+            where = f"sensors.{name}"
+            r = s["region"]
+            if isinstance(r, str):
+                if r not in self.areas:
+                    raise self.error(f"{where}.region", f"no area named '{r}' (areas: {_names(self.areas)})")
+                r = self.areas[r]["region"]
+            else:
+                r = self.region(r, f"{where}.region")
+            self.sensors[name] = {"region": r, "on_enter": s.get("on_enter"), "on_exit": s.get("on_exit")}
+        for name, f in data.get("faults", {}).items():
+            self.faults[name] = {"region": self.region(f["region"], f"faults.{name}.region"),
+                                 "probability": float(f.get("probability", 1.0))}
+        for name, r in data.get("robots", {}).items():
+            where = f"robots.{name}"
+            if ("base" in r) == ("rail" in r):
+                raise self.error(where, "give exactly one of 'base' (a fixed arm) or 'rail' (a tool on a rail)")
+            rail = ((self.point(r["base"], f"{where}.base"),) * 2 if "base" in r else
+                    tuple(self.point(p, f"{where}.rail[{i}]") for i, p in enumerate(r["rail"])))
+            g = r.get("gripper", {})
+            robot = {"rail": rail, "reach": float(r["reach"]), "speed": float(r.get("speed", 1.0)),
+                     "acceleration": float(r.get("acceleration", 2.0)),
+                     "gripper": g.get("type", "vacuum"), "radius": float(g.get("radius", 0.04)),
+                     "close_time": float(g.get("close_time", 0.5 if g.get("type") == "fingers" else 0.0))}
+            self.robots[name] = robot
+            home = self.point(r["home"], f"{where}.home")
+            if not self.reachable(name, home):
+                raise self.error(f"{where}.home", f"({home[0]:g}, {home[1]:g}) is out of the robot's reach")
+            robot["home"] = home
+        self.bind = data.get("bind", {})
+        self.checks = list(data.get("checks", []))
+        for i, c in enumerate(self.checks):
+            self.world_query(c["world"], f"checks[{i}].world")
+
+    # ---- helpers used while loading and by the primitive library
+    def error(self, element: str, problem: str) -> ModelError:
+        return ModelError(element, problem, self.file)
+
+    def _type(self, name: str, where: str) -> str:
+        if name not in self.part_types:
+            raise self.error(where, f"unknown part type '{name}' (part types: {_names(self.part_types)})")
+        return name
+
+    def point(self, p, where: str) -> tuple:
+        if isinstance(p, str):
+            if p not in self.frames:
+                raise self.error(where, f"unknown frame '{p}' (frames: {_names(self.frames)})")
+            return self.frames[p]
+        return (float(p[0]), float(p[1]))
+
+    def region(self, r, where: str) -> tuple:
+        if isinstance(r, dict):
+            (x, y), (w, h) = self.point(r["at"], f"{where}.at"), r["size"]
+            r = (x - w / 2, y - h / 2, x + w / 2, y + h / 2)
+        x0, y0, x1, y1 = (float(v) for v in r)
+        if not (x0 < x1 and y0 < y1):
+            raise self.error(where, "a region needs x_min < x_max and y_min < y_max")
+        return (x0, y0, x1, y1)
+
+    def reachable(self, robot: str, p) -> bool:
+        r = self.robots[robot]
+        return _seg_dist(p, *r["rail"]) <= r["reach"] + _EPS
+
+    def world_query(self, text: str, where: str) -> tuple:
+        """``holding(ROBOT)``, ``count(AREA)``, ``sensor(NAME)`` or ``door(NAME)`` as (kind, name)."""
+        kind, _, rest = str(text).partition("(")
+        name = rest[:-1] if rest.endswith(")") else None
+        tables = {"holding": ("robot", self.robots), "count": ("area", self.areas),
+                  "sensor": ("sensor", self.sensors), "door": ("door", self.doors)}
+        what, table = tables.get(kind.strip(), (None, None))
+        if table is None or name is None:
+            raise self.error(where, f"expected holding(ROBOT), count(AREA), sensor(NAME) or door(NAME), got '{text}'")
+        if name not in table:
+            raise self.error(where, f"no {what} named '{name}' (known: {_names(table)})")
+        return kind.strip(), name
+
+
+def _names(d) -> str:
+    return ", ".join(sorted(d)) or "none"
+
+
+def scene_from_data(data, file: "str | None" = None) -> Scene:
+    """A Scene from plain data; ModelError ``file: element: problem`` when it is wrong."""
+    from btfsm.formats import FormatError, describe, validate
+
+    if not isinstance(data, dict):
+        kind = f"a list of {len(data)} item(s)" if isinstance(data, list) else describe(data)
+        raise ModelError("", f"expected a mapping with the scene, got {kind}", file)
+    try:
+        validate(data, "scene", file or "<scene>")
+    except FormatError as exc:
+        where = exc.where
+        raise ModelError(where, exc.problem, file) from None
+    return Scene(data, file)
+
+
+def load_scene(path) -> Scene:
+    """Read and validate a scene file (.yaml, .yml or .json)."""
+    from btfsm.files import load_data
+
+    name = str(path)
+    try:
+        data = load_data(path, file_name=name)
+    except ModelError as exc:
+        if exc.problem.startswith("the file is empty"):
+            raise ModelError("", "the file is empty (expected a mapping with the scene)", name) from None
+        raise ModelError(exc.element, exc.problem.replace("model file", "scene file"), exc.file) from None
+    return scene_from_data(data, name)
+
+
+def builtin_scene(name: str) -> "str | None":
+    """The path of a scene shipped with btfsm (``models/scenes/NAME.yaml``), or None."""
+    from importlib import resources
+
+    try:
+        p = resources.files("btfsm.models").joinpath("scenes", f"{name}.yaml")
+    except ModuleNotFoundError:  # pragma: no cover
+        return None
+    return str(p) if p.is_file() else None
+
+
+# --------------------------------------------------------------------------- geometry
+def _inside(r, p) -> bool:
+    return r[0] <= p[0] <= r[2] and r[1] <= p[1] <= r[3]
+
+
+def _seg_dist(p, a, b) -> float:
+    ax, ay = a
+    dx, dy = b[0] - ax, b[1] - ay
+    L2 = dx * dx + dy * dy
+    t = 0.0 if L2 == 0.0 else max(0.0, min(1.0, ((p[0] - ax) * dx + (p[1] - ay) * dy) / L2))
+    return math.hypot(p[0] - ax - t * dx, p[1] - ay - t * dy)
+
+
+class Profile:
+    """Rest-to-rest trapezoidal (or triangular) profile over ``dist`` with limits v, a.
+
+    >>> p = Profile(1.0, 0.5, 1.0); round(p.total, 3), p.at(0.0), p.at(p.total)
+    (2.5, 0.0, 1.0)
+    """
+
+    __slots__ = ("dist", "a", "t_acc", "total", "v")
+
+    def __init__(self, dist: float, v: float, a: float):
+        self.dist, self.a = dist, a
+        if dist <= 0.0:
+            self.t_acc = self.total = self.v = 0.0
+        elif v * v / a >= dist:
+            self.t_acc = math.sqrt(dist / a)
+            self.total, self.v = 2.0 * self.t_acc, a * self.t_acc
+        else:
+            self.t_acc = v / a
+            self.total, self.v = dist / v + self.t_acc, v
+
+    def at(self, t: float) -> float:
+        if t >= self.total:
+            return self.dist
+        if t <= self.t_acc:
+            return 0.5 * self.a * t * t
+        if t <= self.total - self.t_acc:
+            return 0.5 * self.a * self.t_acc * self.t_acc + self.v * (t - self.t_acc)
+        r = self.total - t
+        return self.dist - 0.5 * self.a * r * r
+
+
+# --------------------------------------------------------------------------- world
+class _Part:
+    __slots__ = ("id", "type", "radius", "x", "y", "place", "s")
+
+    def __init__(self, pid, ptype, radius, x, y):
+        self.id, self.type, self.radius, self.x, self.y = pid, ptype, radius, x, y
+        self.place = None
+        self.s = 0.0  # distance along the belt while on one
+
+
+class _Robot:
+    __slots__ = ("name", "spec", "x", "y", "x0", "y0", "x1", "y1", "prof", "k", "moving", "blocked",
+                 "holding", "closing", "armed", "faults_in")
+
+    def __init__(self, name, spec):
+        self.name, self.spec = name, spec
+        self.x, self.y = spec["home"]
+        self.x0 = self.y0 = self.x1 = self.y1 = 0.0
+        self.prof, self.k, self.moving, self.blocked = None, 0, False, False
+        self.holding = None  # part id
+        self.closing = None  # steps left while fingers close, or None
+        self.armed = True  # False after a fault drop until the gripper is released
+        self.faults_in: set = set()
+
+
+class World:
+    """The running scene: parts, belts, doors, robots; ``step()`` advances ``dt``."""
+
+    def __init__(self, scene: Scene, seed: "int | None" = None):
+        self.scene = scene
+        self.dt = scene.dt
+        self.seed = scene.seed if seed is None else int(seed)
+        self.rng = random.Random(self.seed)
+        self.steps = 0
+        self.parts: list = []
+        self.members: dict = {}  # Place -> [part ids], insertion-ordered
+        self.log: list = []  # (time, part id, from, to)
+        self.events: list = []  # (time, sensor, event name) raised, in order
+        self.doors = {n: (1.0 if d["open"] else 0.0) for n, d in scene.doors.items()}  # openness 0..1
+        self.door_goal = {n: (1.0 if d["open"] else 0.0) for n, d in scene.doors.items()}
+        self.robots = {n: _Robot(n, spec) for n, spec in scene.robots.items()}
+        self.inside = {n: set() for n in scene.sensors}
+        self._sensed_log = -1
+        self.arrivals = {n: self._arrival_times(b) for n, b in scene.belts.items()}
+        self.pending = {n: 0 for n in scene.belts}  # arrivals due but waiting for space
+        for name, a in scene.areas.items():
+            self._fill(name, a)
+        self._sense()
+        self.events.clear()  # parts that start inside a sensor raise nothing
+
+    @property
+    def time(self) -> float:
+        return self.steps * self.dt
+
+    # ---- construction
+    def _arrival_times(self, belt) -> list:
+        arr = belt["arrivals"]
+        if "schedule" in arr:
+            return sorted(float(t) for t in arr["schedule"])
+        limit = self.scene.time_limit
+        count = arr.get("count")
+        if count is not None and count > MAX_ARRIVALS:
+            raise self.scene.error(f"belts.{belt['name']}.arrivals.count", f"at most {MAX_ARRIVALS:,} arrivals per belt")
+        if "period" in arr:
+            p, t0 = float(arr["period"]), float(arr.get("first", 0.0))
+            n = count if count is not None else int(limit / p) + 1
+            if n > MAX_ARRIVALS:
+                raise self.scene.error(f"belts.{belt['name']}.arrivals.period", f"{n:,} arrivals within time_limit "
+                                       f"{limit:g} s; at most {MAX_ARRIVALS:,} per belt (give a count or a longer period)")
+            return [t0 + i * p for i in range(n)]
+        if "random" in arr:
+            r = arr["random"]
+            mean, lo = float(r["mean_interval"]), float(r.get("min_interval", 0.0))
+            t, out = float(arr.get("first", 0.0)), []
+            while (count is None and t <= limit) or (count is not None and len(out) < count):
+                if len(out) >= MAX_ARRIVALS:
+                    raise self.scene.error(f"belts.{belt['name']}.arrivals.random", f"more than {MAX_ARRIVALS:,} "
+                                           f"arrivals within time_limit {limit:g} s (give a count or a longer mean_interval)")
+                out.append(round(t, 6))
+                t += lo + self.rng.expovariate(1.0 / max(mean - lo, _EPS))
+            return out
+        return []
+
+    def _new_part(self, ptype, x, y, place) -> _Part:
+        part = _Part(len(self.parts), ptype, self.scene.part_types[ptype], x, y)
+        self.parts.append(part)
+        self._move(part, place)
+        return part
+
+    def _fill(self, name, a) -> None:
+        x0, y0, x1, y1 = a["region"]
+        kinds = [t for t, n in a["parts"].items() for _ in range(n)]
+        if not kinds:
+            return
+        spots = list(a["slots"])
+        if not spots:
+            cols = max(1, math.ceil(math.sqrt(len(kinds) * (x1 - x0) / (y1 - y0))))
+            rows = math.ceil(len(kinds) / cols)
+            spots = [(x0 + (x1 - x0) * (c + 0.5) / cols, y1 - (y1 - y0) * (r + 0.5) / rows)
+                     for r in range(rows) for c in range(cols)]
+        for t, (x, y) in zip(kinds, spots):
+            self._new_part(t, x, y, Place("AREA", name))
+
+    # ---- place bookkeeping
+    def _move(self, part: _Part, place: Place) -> None:
+        old = part.place
+        if old is not None:
+            self.members[old].remove(part.id)
+        self.members.setdefault(place, []).append(part.id)
+        part.place = place
+        self.log.append((round(self.time, 9), part.id, old, place))
+
+    def parts_in(self, place: Place) -> list:
+        return list(self.members.get(place, ()))
+
+    @staticmethod
+    def area_place(area: str) -> Place:
+        return Place("AREA", area)
+
+    def count(self, area: str) -> int:
+        return len(self.members.get(Place("AREA", area), ()))
+
+    @property
+    def lost(self) -> int:
+        return len(self.members.get(LOST, ()))
+
+    def landing(self, x: float, y: float) -> tuple:
+        """(place, x, y, belt s) where a part let go at (x, y) comes to rest."""
+        sc = self.scene
+        for r in sc.sinks.values():
+            if _inside(r, (x, y)):
+                return LOST, x, y, 0.0
+        for name, a in sc.areas.items():
+            if not _inside(a["region"], (x, y)):
+                continue
+            if a["slots"]:
+                best, bd = None, a["slot_tolerance"]
+                taken = [(self.parts[i].x, self.parts[i].y) for i in self.members.get(Place("AREA", name), ())]
+                for sx, sy in a["slots"]:
+                    d = math.hypot(x - sx, y - sy)
+                    if d <= bd and all(math.hypot(sx - tx, sy - ty) > _EPS for tx, ty in taken):
+                        best, bd = (sx, sy), d
+                if best is None:
+                    return FLOOR, x, y, 0.0
+                return Place("AREA", name), best[0], best[1], 0.0
+            if a["capacity"] is not None and self.count(name) >= a["capacity"]:
+                return FLOOR, x, y, 0.0
+            return Place("AREA", name), x, y, 0.0
+        for name, b in sc.belts.items():
+            s, d = self._belt_coord(b, x, y)
+            if d <= b["width"] / 2 and 0.0 <= s < b["length"]:
+                return Place("BELT", name), x, y, s
+        return FLOOR, x, y, 0.0
+
+    @staticmethod
+    def _belt_coord(b, x, y) -> tuple:
+        (ax, ay), (bx, by), L = b["from"], b["to"], b["length"]
+        ux, uy = (bx - ax) / L, (by - ay) / L
+        s = (x - ax) * ux + (y - ay) * uy
+        return s, abs(-(x - ax) * uy + (y - ay) * ux)
+
+    def _let_go(self, part: _Part) -> None:
+        place, x, y, s = self.landing(part.x, part.y)
+        part.x, part.y, part.s = x, y, s
+        self._move(part, place)
+
+    def spawn(self, region) -> "int | None":
+        """Put a new part where it will enter ``region`` (a replay makes a sensor fire):
+        on a belt that crosses the region, just upstream of it, else on an area that
+        holds the region's centre, else None. Returns the part id."""
+        x0, y0, x1, y1 = region
+        for name, b in self.scene.belts.items():
+            (ax, ay), (bx, by), L = b["from"], b["to"], b["length"]
+            n = max(2, int(L / 0.005))
+            for i in range(n + 1):
+                s = L * i / n
+                px, py = ax + (bx - ax) * s / L, ay + (by - ay) * s / L
+                if x0 <= px <= x1 and y0 <= py <= y1:
+                    s = max(0.0, s - 0.01)
+                    part = self._new_part(b["part_type"], ax + (bx - ax) * s / L, ay + (by - ay) * s / L,
+                                          Place("BELT", name))
+                    part.s = s
+                    return part.id
+        cx, cy = (x0 + x1) / 2, (y0 + y1) / 2
+        for name, a in self.scene.areas.items():
+            if _inside(a["region"], (cx, cy)):
+                return self._new_part(DEFAULT_PART, cx, cy, Place("AREA", name)).id
+        return None
+
+    # ---- robot commands (the primitive library calls these)
+    def move_to(self, robot: str, p, speed: float = 1.0) -> bool:
+        """Start a straight rest-to-rest move; False when the target is behind a closed door."""
+        r = self.robots[robot]
+        if self.door_at(p) is not None:
+            r.moving, r.blocked = False, True
+            return False
+        spec = r.spec
+        r.x0, r.y0, r.x1, r.y1 = r.x, r.y, float(p[0]), float(p[1])
+        r.prof = Profile(math.hypot(r.x1 - r.x0, r.y1 - r.y0), spec["speed"] * speed, spec["acceleration"] * speed)
+        r.k, r.moving, r.blocked = 0, True, False
+        return True
+
+    def stop(self, robot: str) -> None:
+        r = self.robots[robot]
+        r.moving = False
+
+    def door_at(self, p) -> "str | None":
+        """The door (not fully open) whose region contains p, or None."""
+        for name, d in self.scene.doors.items():
+            if self.doors[name] < 1.0 and _inside(d["region"], p):
+                return name
+        return None
+
+    def grip(self, robot: str) -> None:
+        """Start gripping: vacuum attaches at the next step, fingers after close_time."""
+        r = self.robots[robot]
+        if r.holding is None and r.closing is None:
+            r.closing = max(1, round(r.spec["close_time"] / self.dt)) if r.spec["close_time"] > 0 else 0
+            r.armed = True
+
+    def attach(self, robot: str) -> bool:
+        """Attach the part under the tool now (a vacuum cup); False when there is none."""
+        r = self.robots[robot]
+        pid = self.part_under(robot) if r.holding is None else None
+        if pid is None:
+            return False
+        r.holding, r.closing, r.armed = pid, None, True
+        self._move(self.parts[pid], Place("GRIPPER", robot))
+        return True
+
+    def release(self, robot: str) -> None:
+        r = self.robots[robot]
+        r.closing, r.armed = None, True
+        if r.holding is not None:
+            part = self.parts[r.holding]
+            r.holding = None
+            self._let_go(part)
+
+    def gripping(self, robot: str) -> bool:
+        """True while the gripper is closing (fingers) or waiting for a part (vacuum)."""
+        return self.robots[robot].closing is not None
+
+    def part_under(self, robot: str) -> "int | None":
+        r = self.robots[robot]
+        best, bd = None, r.spec["radius"]
+        for place, ids in self.members.items():
+            if place.kind in ("GRIPPER", "LOST"):
+                continue
+            for pid in ids:
+                p = self.parts[pid]
+                d = math.hypot(p.x - r.x, p.y - r.y)
+                if d < bd or (best is None and d <= bd) or (d == bd and best is not None and pid < best):
+                    best, bd = pid, d
+        return best
+
+    def set_door(self, door: str, open_: bool) -> None:
+        self.door_goal[door] = 1.0 if open_ else 0.0
+
+    def tool_in(self, region) -> bool:
+        return any(_inside(region, (r.x, r.y)) for r in self.robots.values())
+
+    def query(self, kind: str, name: str):
+        if kind == "holding":
+            return self.robots[name].holding is not None
+        if kind == "count":
+            return self.count(name)
+        if kind == "door":
+            return self.doors[name] >= 1.0
+        return len(self.inside[name])
+
+    # ---- stepping
+    def step(self, n: int = 1) -> None:
+        for _ in range(n):
+            self.steps += 1
+            self._arrive()
+            self._doors()
+            for r in self.robots.values():
+                self._robot(r)
+            self._belts()
+            self._sinks()
+            self._sense()
+
+    def _arrive(self) -> None:
+        t = self.time + _EPS
+        for name, times in self.arrivals.items():
+            while times and times[0] <= t:
+                times.pop(0)
+                self.pending[name] += 1
+            if self.pending[name]:
+                b = self.scene.belts[name]
+                gap = 2 * self.scene.part_types[b["part_type"]]
+                if all(self.parts[i].s > gap for i in self.members.get(Place("BELT", name), ())):
+                    self.pending[name] -= 1
+                    x, y = b["from"]
+                    self._new_part(b["part_type"], x, y, Place("BELT", name))
+
+    def _doors(self) -> None:
+        for name, d in self.scene.doors.items():
+            now, goal = self.doors[name], self.door_goal[name]
+            if now != goal:
+                rate = self.dt / d["open_time"] if d["open_time"] > 0 else 1.0
+                self.doors[name] = min(goal, now + rate) if goal > now else max(goal, now - rate)
+
+    def _robot(self, r: _Robot) -> None:
+        if r.moving:
+            r.k += 1
+            t = r.k * self.dt
+            prof = r.prof
+            f = 1.0 if prof.dist <= 0.0 or t >= prof.total else prof.at(t) / prof.dist
+            nx, ny = r.x0 + (r.x1 - r.x0) * f, r.y0 + (r.y1 - r.y0) * f
+            if self.door_at((nx, ny)) is not None:
+                r.moving, r.blocked = False, True  # stop short of a closed door
+            else:
+                r.x, r.y = nx, ny
+                if t >= prof.total:
+                    r.moving = False
+        if r.closing is not None and r.holding is None:
+            if r.closing > 0:
+                r.closing -= 1
+            if r.closing == 0 and r.armed:
+                pid = self.part_under(r.name)
+                if pid is not None:
+                    r.holding, r.closing = pid, None
+                    self._move(self.parts[pid], Place("GRIPPER", r.name))
+        if r.holding is not None:
+            part = self.parts[r.holding]
+            part.x, part.y = r.x, r.y
+            for name, f in self.scene.faults.items():
+                inside = _inside(f["region"], (r.x, r.y))
+                if inside and name not in r.faults_in:
+                    r.faults_in.add(name)
+                    if self.rng.random() < f["probability"]:
+                        r.holding, r.armed = None, False
+                        self._let_go(part)
+                        break
+                elif not inside:
+                    r.faults_in.discard(name)
+        else:
+            r.faults_in.clear()
+
+    def _belts(self) -> None:
+        for name, b in self.scene.belts.items():
+            ids = self.members.get(Place("BELT", name))
+            if not ids:
+                continue
+            (ax, ay), (bx, by), L = b["from"], b["to"], b["length"]
+            ux, uy = (bx - ax) / L, (by - ay) / L
+            ds = b["speed"] * self.dt
+            limit = L
+            for pid in sorted(ids, key=lambda i: -self.parts[i].s):  # the leading part first
+                p = self.parts[pid]
+                s = p.s + ds
+                if b["end"] == "stop":
+                    s = min(s, limit - p.radius)
+                    limit = max(s - p.radius, 0.0)
+                p.s = max(p.s, s) if b["end"] == "stop" else s
+                off = -(p.x - ax) * uy + (p.y - ay) * ux
+                p.x, p.y = ax + ux * p.s - uy * off, ay + uy * p.s + ux * off
+                if b["end"] == "lost" and p.s >= L:
+                    self._move(p, LOST)
+
+    def _sinks(self) -> None:
+        # resting parts were checked when they landed (``landing``): only belt parts move
+        if not self.scene.sinks:
+            return
+        sinks = tuple(self.scene.sinks.values())
+        for name in self.scene.belts:
+            for pid in list(self.members.get(Place("BELT", name), ())):
+                p = self.parts[pid]
+                if any(_inside(r, (p.x, p.y)) for r in sinks):
+                    self._move(p, LOST)
+
+    def _sense(self) -> None:
+        # parts move only on belts; other changes go through ``_move`` (which logs them)
+        moving = any(self.members.get(Place("BELT", n)) for n in self.scene.belts)
+        if not moving and len(self.log) == self._sensed_log:
+            return
+        self._sensed_log = len(self.log)
+        for name, s in self.scene.sensors.items():
+            x0, y0, x1, y1 = s["region"]
+            now = set()
+            for place, ids in self.members.items():
+                if place.kind in ("GRIPPER", "LOST"):
+                    continue
+                for pid in ids:
+                    p = self.parts[pid]
+                    if x0 <= p.x <= x1 and y0 <= p.y <= y1:
+                        now.add(pid)
+            old = self.inside[name]
+            if now == old:
+                continue
+            if s["on_enter"]:
+                self.events.extend((self.time, name, s["on_enter"]) for _ in sorted(now - old))
+            if s["on_exit"]:  # a part taken by a gripper does not "leave": it is taken
+                self.events.extend((self.time, name, s["on_exit"]) for pid in sorted(old - now)
+                                   if self.parts[pid].place.kind != "GRIPPER")
+            self.inside[name] = now
+
+    # ---- invariant, digest, snapshot
+    def check_invariant(self) -> None:
+        """Raise AssertionError unless every part is in exactly one consistent place."""
+        seen = {}
+        for place, ids in self.members.items():
+            for pid in ids:
+                assert pid not in seen, f"part {pid} is in both {seen[pid]} and {place}"
+                seen[pid] = place
+                assert self.parts[pid].place == place, f"part {pid} listed in {place} records {self.parts[pid].place}"
+        assert len(seen) == len(self.parts), f"parts without a place: {[p.id for p in self.parts if p.id not in seen]}"
+        for r in self.robots.values():
+            held = self.members.get(Place("GRIPPER", r.name), [])
+            assert held == ([] if r.holding is None else [r.holding]), f"{r.name} holds {r.holding}, GRIPPER has {held}"
+            assert self.scene.reachable(r.name, (r.x, r.y)), f"{r.name}'s tool left its reach"
+        for p in self.parts:
+            if p.place.kind == "AREA":
+                a = self.scene.areas[p.place.name]
+                assert _inside(a["region"], (p.x, p.y)), f"part {p.id} in {p.place} lies outside it"
+                if a["capacity"] is not None:
+                    assert self.count(p.place.name) <= a["capacity"], f"{p.place} holds more than its capacity"
+            elif p.place.kind == "BELT":
+                b = self.scene.belts[p.place.name]
+                assert -_EPS <= p.s <= b["length"] + _EPS, f"part {p.id} is off the end of {p.place}"
+
+    def digest(self) -> str:
+        """sha256 over the step count, places and float.hex of every position."""
+        h = hashlib.sha256()
+        vals = []
+        for r in self.robots.values():
+            vals += [r.x, r.y]
+            h.update(f"{r.name}:{r.holding}:{r.closing}|".encode())
+        for p in self.parts:
+            vals += [p.x, p.y, p.s]
+            h.update(f"{p.id}:{p.place}|".encode())
+        vals += [self.doors[d] for d in sorted(self.doors)]
+        h.update(f"{self.steps}|".encode() + ",".join(float(v).hex() for v in vals).encode())
+        return h.hexdigest()
+
+    def snapshot(self) -> dict:
+        """Plain data of the world now (for pictures and logs)."""
+        return {"time": self.time, "robots": {n: (r.x, r.y, r.holding) for n, r in self.robots.items()},
+                "doors": dict(self.doors),
+                "parts": [(p.id, p.type, p.radius, p.x, p.y, str(p.place)) for p in self.parts]}

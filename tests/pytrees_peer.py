@@ -1,0 +1,93 @@
+"""Run one btfsm tree in real py_trees 2.6 and in btfsm (semantics="pytrees"), tick by tick.
+
+Leaves are Actions whose status on tick ``t`` is ``table[leaf][t]`` (a pure function of
+the tick and the leaf, so halting a leaf cannot change later answers); a Guard's
+condition is ``table[guard][t]`` (set by an environment choice before the tree ticks in
+btfsm, read by py_trees' EternalGuard). Both sides log the leaf lifecycle in order:
+``("start", leaf)`` (py_trees ``initialise``; btfsm: an idle leaf is ticked),
+``("tick", leaf, status)`` (``update``; btfsm: the oracle is asked the outcome) and
+``("halt", leaf)`` (``stop(INVALID)`` of a RUNNING leaf; btfsm: the oracle is told
+the primitive was abandoned), then ``("root", status)`` after every tick.
+"""
+from __future__ import annotations
+
+from btfsm import Action, Bool, EnvChoice, EnvEvent, Guard, Model, Outcome, Status, walk
+from btfsm.interop.pytrees import to_pytrees
+
+STATUS = {"R": Status.RUNNING, "S": Status.SUCCESS, "F": Status.FAILURE}
+
+
+def leaf(name, answers):
+    """An Action answering ``answers[t]`` ('R', 'S' or 'F') on tick t; its declared
+    outcomes are the statuses it uses (so RUNNING-free leaves have no running flag)."""
+    used = sorted({STATUS[a] for a in answers})
+    return Action(name, outcomes=tuple(Outcome(s) for s in used))
+
+
+def build_model(tree, semantics="pytrees"):
+    """The btfsm model: one bool variable and one environment choice per Guard."""
+    guards = [n for n in walk(tree) if isinstance(n, Guard)]
+    variables = tuple(Bool(f"{g.name}_open", True) for g in guards)
+    env = tuple(EnvChoice(f"{g.name}_open", (EnvEvent(f"{g.name}_on", effects={f"{g.name}_open": True}),
+                                             EnvEvent(f"{g.name}_off", effects={f"{g.name}_open": False})))
+                for g in guards)
+    return Model("peer", variables=variables, tree=tree, environment=env, semantics=semantics)
+
+
+class LogOracle:
+    """Answers from the tables; logs start/tick/halt like the py_trees stub does."""
+
+    def __init__(self, table, guards, log):
+        self.table, self.guards, self.log = table, guards, log
+        self.t = 0
+        self.running: dict = {}
+
+    def env(self, i):
+        return False
+
+    def choose(self, i, enabled):
+        return 0 if self.table[self.guards[i]][self.t] != "F" else 1
+
+    def outcome(self, site):
+        name = site.node
+        a = STATUS[self.table[name][self.t]]
+        if not self.running.get(name):
+            self.log.append(("start", name))
+        self.log.append(("tick", name, a.name))
+        self.running[name] = a == Status.RUNNING
+        return [o[0] for o in site.outcomes].index(int(a))
+
+    def halt(self, site):
+        self.log.append(("halt", site.node))
+        self.running[site.node] = False
+
+
+def run_btfsm(tree, table, ticks, semantics="pytrees"):
+    model = build_model(tree, semantics)
+    guards = [n.name for n in walk(tree) if isinstance(n, Guard)]
+    log: list = []
+    oracle = LogOracle(table, guards, log)
+    p = model.program
+    s = p.initial
+    for t in range(ticks):
+        oracle.t = t
+        step = p.step(s, oracle)
+        s = step.state
+        log.append(("root", Status(step.status).name))
+    return log
+
+
+def run_pytrees(tree, table, ticks):
+    model = build_model(tree)
+    log: list = []
+    clock = [0]
+
+    def answer(name):
+        a = table[name][clock[0]]
+        return STATUS[a]
+    root = to_pytrees(model, answer=answer, log=log)
+    for t in range(ticks):
+        clock[0] = t
+        root.tick_once()
+        log.append(("root", root.status.name))
+    return log

@@ -1,0 +1,180 @@
+"""btfsm's ``btcpp`` profile against real BehaviorTree.CPP 4 (``behaviortreepy``), tick by tick.
+
+Hypothesis draws random trees over every control and decorator node the exporter writes
+(thresholds and counts included) with async actions (stateful: RUNNING possible), instant
+actions and conditions whose answers are a pure function of (leaf, tick). Each tree goes
+through ``btfsm.interop.btcpp_export.to_btcpp_xml`` into the real engine and through
+``Program.step`` under ``semantics: btcpp``; the root status and the leaf callbacks (start,
+run, halt, tick, cond, in order) must be identical on every tick. docs/semantics.md 8.1.
+"""
+from __future__ import annotations
+
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+pytest.importorskip("behaviortreepy")
+
+from btcpp_peer import compare  # noqa: E402
+
+TICKS = 10
+TREES = 1000
+
+_COMPOSITES = ("ReactiveSequence", "MemorySequence", "SequenceWithMemory", "ReactiveFallback", "MemoryFallback",
+               "Parallel", "ParallelAll", "IfThenElse", "WhileDoElse")
+_DECORATORS = ("Inverter", "ForceSuccess", "ForceFailure", "Retry", "Repeat", "KeepRunningUntilFailure", "RunOnce")
+
+
+@st.composite
+def trees(draw, depth=4):
+    counter = iter(range(1000))
+
+    def node(d):
+        if d == 0 or (d < depth and draw(st.integers(0, 3)) == 0):  # the root is never a leaf
+            kind = draw(st.sampled_from(("async", "async", "sync", "cond", "skill")))
+            alphabet = "SFR" if kind in ("async", "skill") else "SF"
+            table = "".join(draw(st.lists(st.sampled_from(alphabet), min_size=TICKS, max_size=TICKS)))
+            return (kind, f"L{next(counter)}", table)
+        name = f"n{next(counter)}"
+        if draw(st.booleans()):
+            t = draw(st.sampled_from(_COMPOSITES))
+            lo, hi = (2, 3) if t in ("IfThenElse", "WhileDoElse") else (1, 4)
+            kids = [node(d - 1) for _ in range(draw(st.integers(lo, hi)))]
+            n = len(kids)
+            params = {}
+            if t == "Parallel":
+                s = draw(st.integers(-n, n).filter(lambda x: x != 0))
+                f = draw(st.integers(-n, n).filter(lambda x: x != 0))
+                params = {"success_threshold": s, "failure_threshold": f}
+            elif t == "ParallelAll":
+                params = {"max_failures": draw(st.integers(1, n))}
+            return (t, name, kids, params)
+        t = draw(st.sampled_from(_DECORATORS))
+        params = {}
+        if t == "Retry":
+            params = {"attempts": draw(st.integers(1, 3))}
+        elif t == "Repeat":
+            params = {"times": draw(st.integers(1, 3))}
+        elif t == "RunOnce":
+            params = {"then_skip": False}
+        return (t, name, node(d - 1), params)
+    return node(depth)
+
+
+def _show(spec, a, b, xml):
+    lines = [f"spec: {spec}", xml]
+    for k, (x, y) in enumerate(zip(a, b)):
+        mark = "  " if x == y else "!!"
+        lines.append(f"{mark} tick {k}: btcpp {x}\n{mark}         btfsm {y}")
+    return "\n".join(lines)
+
+
+@settings(derandomize=True, max_examples=TREES, deadline=None, database=None,
+          suppress_health_check=list(HealthCheck))
+@given(trees())
+def test_peer_btcpp_random_trees(spec):
+    a, b, xml = compare(spec, TICKS)
+    assert a == b, _show(spec, a, b, xml)
+
+
+# ---------------------------------------------------------------- the exporter
+
+
+_EVERY_NODE = """
+name: every-node
+semantics: btcpp
+variables: {t: {int: [0, 3], init: 3}}
+environment: [{event: clock, effects: {t: (t + 1) % 4}}]
+primitives:
+  go: [success, failure, running]
+  beep: [success, failure]
+tree:
+  ReactiveSequence: root
+  children:
+    - Condition: ready
+      expr: t != 2
+    - Parallel: par
+      success_threshold: -1
+      failure_threshold: 2
+      children:
+        - IfThenElse: ite
+          children:
+            - {Action: a1, primitive: go}
+            - {Inverter: inv, child: {Action: a2, primitive: beep}}
+            - {ForceSuccess: fs, child: {Action: a3, primitive: go}}
+        - WhileDoElse: wde
+          children:
+            - {Condition: c2, expr: t < 2}
+            - {Retry: retry, attempts: 2, child: {Action: a4, primitive: go}}
+        - ParallelAll: pall
+          max_failures: 1
+          children:
+            - {Repeat: rep, times: 2, child: {Action: a5, primitive: beep}}
+            - {KeepRunningUntilFailure: krf, child: {Action: a6, primitive: go}}
+        - SequenceWithMemory: swm
+          children:
+            - {RunOnce: once, then_skip: false, child: {Action: a7, primitive: go}}
+            - {ForceFailure: ff, child: {Action: a8, primitive: beep}}
+        - MemoryFallback: fb
+          children:
+            - {MemorySequence: seq, children: [{Action: a9, primitive: go}]}
+            - {ReactiveFallback: rfb, children: [{Action: a10, primitive: beep}]}
+"""
+
+
+def _load_in_btcpp(xml, stateful=("go",), sync=("beep",), conditions=("ready", "c2")):
+    import behaviortreepy as bt
+
+    factory = bt.BehaviorTreeFactory()
+    for name in stateful:
+        factory.register_simple_stateful_action(name, lambda n: bt.NodeStatus.RUNNING, lambda n: bt.NodeStatus.SUCCESS)
+    for name in sync:
+        factory.register_simple_action(name, lambda n: bt.NodeStatus.SUCCESS)
+    for name in conditions:
+        factory.register_simple_condition(name, lambda n: bt.NodeStatus.SUCCESS)
+    return factory.create_tree_from_text(xml)
+
+
+def test_export_cli_btcpp_loads_in_real_engine(tmp_path, capsys):
+    """`btfsm export MODEL --format btcpp -o FILE` writes XML that BehaviorTree.CPP loads
+    and ticks (every control and decorator node, TreeNodesModel)."""
+    from btfsm.cli import main
+
+    model = tmp_path / "every.yaml"
+    model.write_text(_EVERY_NODE)
+    out = tmp_path / "every.xml"
+    assert main(["export", str(model), "--format", "btcpp", "-o", str(out)]) == 0
+    xml = out.read_text()
+    assert '<root BTCPP_format="4" main_tree_to_execute="every-node">' in xml
+    assert '<go name="a1"/>' in xml and '<beep name="a5"/>' in xml and '<Action ID="beep"/>' in xml
+    assert '<Condition ID="ready">' in xml and "<description>t != 2</description>" in xml
+    tree = _load_in_btcpp(xml)
+    for _ in range(4):
+        tree.tick_exactly_once()
+    assert main(["export", str(model), "--format", "btcpp"]) == 0
+    assert capsys.readouterr().out == xml
+
+
+def test_export_btcpp_escapes_and_refuses():
+    """Names and expressions are escaped; Guard/Effects and IDs that are not XML names are
+    ModelErrors naming the node."""
+    from btfsm import Action, Bool, Condition, Guard, MemorySequence, Model, Primitive
+    from btfsm.errors import ModelError
+    from btfsm.interop.btcpp_export import to_btcpp_xml
+
+    m = Model('a "quoted" & <odd> model', variables=[Bool("x")], primitives=[Primitive("work")],
+              tree=MemorySequence("s<&>'\"", [Condition("is_x", "x and not x"), Action("w 1", "work")]))
+    xml = to_btcpp_xml(m)
+    assert 'main_tree_to_execute="a &quot;quoted&quot; &amp; &lt;odd&gt; model"' in xml
+    assert '<Sequence name="s&lt;&amp;&gt;&apos;&quot;">' in xml and '<work name="w 1"/>' in xml
+    tree = _load_in_btcpp(xml, stateful=(), sync=("work",), conditions=("is_x",))
+    assert str(tree.tick_exactly_once()).endswith("SUCCESS")
+    args = to_btcpp_xml(Model("a", primitives=[Primitive("move")],
+                              tree=Action("m", "move", args={"speed": 3, "fast": True, "via": [1, 2]})))
+    assert '<move name="m" fast="true" speed="3" via="1;2"/>' in args
+    assert '<input_port name="fast" type="std::string"/>' in args  # a port per arg (register it with ports)
+    with pytest.raises(ModelError, match="Guard has no BehaviorTree.CPP counterpart"):
+        to_btcpp_xml(Model("g", variables=[Bool("x")], primitives=[Primitive("work")],
+                           tree=Guard("g", Action("w", "work"), "x")))
+    with pytest.raises(ModelError, match="not an XML name"):
+        to_btcpp_xml(Model("g", primitives=[Primitive("two words")], tree=Action("w", "two words")))

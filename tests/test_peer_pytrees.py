@@ -1,0 +1,82 @@
+"""The ``pytrees`` profile against real py_trees 2.6, tick by tick, on random trees.
+
+Hypothesis draws trees of every py_trees composite and decorator btfsm maps
+(docs/semantics.md section 8.2): Sequence/Selector with memory True/False, Parallel with
+SuccessOnAll (synchronise or not), SuccessOnOne and SuccessOnSelected (synchronise or
+not), Inverter, FailureIsSuccess, SuccessIsFailure, Retry, Repeat and EternalGuard.
+Each tree is built in py_trees by ``btfsm.interop.pytrees.to_pytrees`` and run as a btfsm
+model under ``semantics="pytrees"``; the leaf lifecycles (start, tick, halt, in order)
+and the root statuses must be identical (``tests/pytrees_peer.py``).
+"""
+from __future__ import annotations
+
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+pytest.importorskip("py_trees")
+
+from btfsm import (ForceFailure, ForceSuccess, Guard, Inverter, MemoryFallback, MemorySequence,  # noqa: E402
+                   Parallel, ReactiveFallback, ReactiveSequence, Repeat, Retry)
+from pytrees_peer import leaf, run_btfsm, run_pytrees  # noqa: E402
+
+TICKS = 8
+TREES = 1200
+
+
+@st.composite
+def peer_trees(draw, max_depth=3):
+    """(tree, table): a random tree and each leaf's / guard's answer on every tick."""
+    table: dict = {}
+    counter = [0]
+
+    def answers(statuses):
+        return "".join(draw(st.lists(st.sampled_from(statuses), min_size=TICKS, max_size=TICKS)))
+
+    def name(prefix):
+        counter[0] += 1
+        return f"{prefix}{counter[0]}"
+
+    def node(depth):
+        kinds = ["leaf"] * 3
+        if depth > 0:
+            kinds += ["RSeq", "MSeq", "RFb", "MFb", "Par", "Par", "Inv", "FS", "FF", "Retry", "Repeat", "Guard"]
+        k = draw(st.sampled_from(kinds))
+        if k == "leaf":
+            n = name("a")
+            table[n] = answers(draw(st.sampled_from(["RSF", "SF", "RS", "RF", "S", "F", "R"])))
+            return leaf(n, table[n])
+        if k in ("RSeq", "MSeq", "RFb", "MFb", "Par"):
+            kids = [node(depth - 1) for _ in range(draw(st.integers(1, 3)))]
+            n = name(k.lower())
+            if k != "Par":
+                return {"RSeq": ReactiveSequence, "MSeq": MemorySequence, "RFb": ReactiveFallback, "MFb": MemoryFallback}[k](n, kids)
+            policy = draw(st.sampled_from(["all", "all_sync", "one", "selected", "selected_sync"]))
+            sync = policy.endswith("sync")
+            if policy.startswith("all"):
+                return Parallel(n, kids, synchronise=sync)
+            if policy == "one":
+                return Parallel(n, kids, success_threshold=1)
+            chosen = draw(st.lists(st.sampled_from([c.name for c in kids]), min_size=1, unique=True))
+            return Parallel(n, kids, selected=tuple(c for c in (x.name for x in kids) if c in chosen), synchronise=sync)
+        child = node(depth - 1)
+        n = name(k.lower())
+        if k == "Retry":
+            return Retry(n, child, draw(st.integers(1, 3)))
+        if k == "Repeat":
+            return Repeat(n, child, draw(st.integers(1, 3)))
+        if k == "Guard":
+            table[n] = answers("SSF")
+            return Guard(n, child, f"{n}_open")
+        return {"Inv": Inverter, "FS": ForceSuccess, "FF": ForceFailure}[k](n, child)
+
+    tree = node(draw(st.integers(1, max_depth)))
+    return tree, table
+
+
+@settings(max_examples=TREES, derandomize=True, deadline=None, database=None,
+          suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])
+@given(peer_trees())
+def test_random_trees_match_real_py_trees(case):
+    tree, table = case
+    assert run_btfsm(tree, table, TICKS) == run_pytrees(tree, table, TICKS)
