@@ -619,7 +619,7 @@ def test_btcpp_loader_helper_is_not_vacuous():
 
 def _exported_form(model):
     """``model`` as XML + side file can say it: Action args as strings (XML attributes),
-    a Parallel's success threshold -1 as the default (every child)."""
+    a Parallel's success threshold -1 as the default (every child), no py_trees options."""
     import dataclasses
 
     from btfsm.bt import Action, Parallel
@@ -637,6 +637,8 @@ def _exported_form(model):
             kw["args"] = tuple((k, value(v)) for k, v in n.args)
         if isinstance(n, Parallel) and n.success_threshold == -1:
             kw["success_threshold"] = None
+        if isinstance(n, Parallel):  # py_trees-only options (pytrees profile) have no BT.CPP attribute
+            kw.update({f: v for f, v in (("synchronise", False), ("selected", ())) if hasattr(n, f)})
         if getattr(n, "children", None):
             kw["children"] = tuple(fix(c) for c in n.children)
         if getattr(n, "child", None) is not None:
