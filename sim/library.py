@@ -8,7 +8,7 @@ per call site, to one of them::
     bind:
       move:    {primitive: move_to, args: {frame: "{area}_{pose}", speed: 0.5}}
       grasp:   {primitive: grip, args: {wait: true}}
-      gripper: [{when: {on: false}, primitive: release}, {when: {on: true}, primitive: grip}]
+      gripper: [{when: {"on": false}, primitive: release}, {when: {"on": true}, primitive: grip}]
 
 ``{name}`` in an argument is the model argument of that call site (a whole-string
 ``"{on}"`` keeps the argument's type). ``outcomes`` maps a library outcome to a model

@@ -30,7 +30,8 @@ from btfsm.status import Status
 from btfsm.world import Bool, Int
 
 ROOT = Path(__file__).resolve().parent.parent
-SHIPPED = sorted(p for p in (ROOT / "models").rglob("*.yaml") if not p.name.endswith(".btfsm.yaml"))  # not side files of XML models
+SHIPPED = sorted(p for p in (ROOT / "models").rglob("*.yaml")
+                 if not p.name.endswith(".btfsm.yaml") and p.parent.name != "scenes")  # not XML side files, not scenes
 SCHEMA = json.loads((ROOT / "btfsm" / "schema" / "model.schema.json").read_text())
 VALIDATOR = jsonschema.Draft202012Validator(SCHEMA)
 

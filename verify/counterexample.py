@@ -107,7 +107,7 @@ class Counterexample:
 
 
 def _state_text(d: dict) -> str:
-    return ", ".join(f"{k}={_v(v)}" for k, v in d.items() if not (":" in k))
+    return ", ".join(f"{k}={_v(v)}" for k, v in d.items() if not (":" in k)) or "(no variables)"
 
 
 def _v(x) -> str:
