@@ -178,3 +178,14 @@ def test_export_btcpp_escapes_and_refuses():
                            tree=Guard("g", Action("w", "work"), "x")))
     with pytest.raises(ModelError, match="not an XML name"):
         to_btcpp_xml(Model("g", primitives=[Primitive("two words")], tree=Action("w", "two words")))
+
+
+def test_export_refuses_py_trees_selected_children():
+    from btfsm import Model
+    from btfsm.bt import Action, Parallel
+    from btfsm.errors import ModelError
+    from btfsm.interop.btcpp_export import to_btcpp_xml
+
+    tree = Parallel("p", [Action("a", outcomes=["success"]), Action("b", outcomes=["running"])], selected=("a",))
+    with pytest.raises(ModelError, match="SuccessOnSelected"):
+        to_btcpp_xml(Model("m", tree=tree))

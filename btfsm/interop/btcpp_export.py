@@ -167,7 +167,10 @@ def _node(n, depth, lines, leaves):
     if tag is None:
         raise ModelError(where, f"node type {type(n).__name__} cannot be exported to BehaviorTree.CPP")
     attrs = ""
-    if isinstance(n, Parallel):
+    if isinstance(n, Parallel) and n.selected:
+        raise ModelError(f"{where}.selected", "selected children (py_trees' SuccessOnSelected) have no "
+                                              "BehaviorTree.CPP counterpart; the btcpp export cannot write them")
+    if isinstance(n, Parallel):  # synchronise needs no attribute: BT.CPP never re-ticks finished children
         s = -1 if n.success_threshold is None else n.success_threshold
         attrs = f' success_count="{s}" failure_count="{n.failure_threshold}"'
     elif isinstance(n, ParallelAll):
