@@ -186,6 +186,7 @@ def test_export_refuses_py_trees_selected_children():
     from btfsm.errors import ModelError
     from btfsm.interop.btcpp_export import to_btcpp_xml
 
-    tree = Parallel("p", [Action("a", outcomes=["success"]), Action("b", outcomes=["running"])], selected=("a",))
+    from btfsm import running, success
+    tree = Parallel("p", [Action("a", outcomes=[success()]), Action("b", outcomes=[running()])], selected=("a",))
     with pytest.raises(ModelError, match="SuccessOnSelected"):
         to_btcpp_xml(Model("m", tree=tree))
