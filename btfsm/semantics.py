@@ -844,10 +844,7 @@ class Program:
             s = ctx.s
             i = s[mem]
             if i == 0:
-                if stale is not None and s[stale]:
-                    c = s[stale]  # the condition leaf kept its FAILURE (profile switch stale_condition)
-                else:
-                    c = kids[0](ctx)
+                c = _condition(ctx, kids[0], stale)
                 if c == RUNNING:
                     return finish(RUNNING, ctx)
                 if c == SUCCESS:
@@ -882,10 +879,7 @@ class Program:
 
         def tick(ctx):
             s = ctx.s
-            if stale is not None and s[stale]:
-                c = s[stale]  # the condition leaf kept its status (profile switch stale_condition)
-            else:
-                c = kids[0](ctx)
+            c = _condition(ctx, kids[0], stale)
             if c == RUNNING:
                 return finish(RUNNING, ctx)
             if c == SUCCESS:
@@ -1098,6 +1092,14 @@ class Program:
 def _stateful(info) -> bool:
     """A leaf that keeps a status between ticks in BehaviorTree.CPP (a StatefulActionNode)."""
     return isinstance(info.node, SkillRequest) or (isinstance(info.node, Action) and info.can_run)
+
+
+def _condition(ctx, tick, stale):
+    """The status of an IfThenElse/WhileDoElse condition: the one its leaf kept (profile
+    switch ``stale_condition``; ``stale`` is then its memory slot), else a fresh tick."""
+    if stale is not None and ctx.s[stale]:
+        return ctx.s[stale]
+    return tick(ctx)
 
 
 def _threshold(value: int, count: int) -> int:
