@@ -15,7 +15,12 @@ from collections import deque
 import numpy as np
 from hypothesis import given, settings, strategies as st
 
-from btfsm import Bool, EnvChoice, EnvEvent, Int, Model, Action, success
+import json
+import os
+
+from btfsm import (FSM, Action, Bool, Edge, EnvChoice, EnvEvent, Int, Marker, Model, SkillRequest, State, failure,
+                   success)
+from btfsm.cli import main
 from btfsm.verify import check
 from btfsm.verify.system import bottom_sccs, cyclic_states, shortest_cycle, strong_components
 
@@ -215,3 +220,40 @@ def test_trap_counterexample_same_shape_past_old_limit():
     assert small[:1] == big[:1] and small[2] == big[2] == [1]
     assert small[1] == 10 and big[1] == 30_000  # x = 1..k after the breaking tick
     assert small[3]["x"] == 10 and big[3]["x"] == 30_000
+
+
+def _drift(k: int) -> Model:
+    """A failing primitive retried forever (no failure edge) while the environment drifts
+    a and b up to k, one of them per request: at FSM level the non-progress transitions
+    are a chain through (k+1)^2 states into one self-loop at a == b == k. The lasso is the
+    path there (2k requests after the first) and a cycle of one, at every size; the old
+    approximation past 500,000 states called the first state of the chain cyclic and gave
+    a prefix of 1 and a 'cycle' elsewhere."""
+    f = FSM("arm", [State("idle"), State("try", outcomes=[failure()])], "idle", ["go"],
+            [Edge("idle", "try", ["go"], guard=f"a + b <= {2 * k}"), Edge("try", "idle", ["go"])],
+            [Marker("try", ["go"])])
+    env = [EnvChoice("drift", [EnvEvent("bump_a", f"a < {k}", {"a": "a + 1"}),
+                               EnvEvent("bump_b", f"b < {k}", {"b": "b + 1"}),
+                               EnvEvent("rest", f"a == {k} and b == {k}", {})])]
+    return Model(f"drift{k}", variables=[Int("a", 0, k), Int("b", 0, k)], fsms=[f],
+                 tree=SkillRequest("do", fsm="arm", goal="go"), environment=env)
+
+
+def drift_small() -> Model:
+    return _drift(3)
+
+
+def drift_big() -> Model:
+    return _drift(750)  # 564,001 states at FSM level
+
+
+def test_lasso_same_shape_past_old_limit_on_the_command_line(capsys):
+    shapes = []
+    for fn, k in (("drift_small", 3), ("drift_big", 750)):
+        code = main(["check", f"{os.path.abspath(__file__)}:{fn}", "--property", "no-dead-states", "--json"])
+        out = json.loads(capsys.readouterr().out)
+        assert code == 1
+        ce = next(r for r in out["properties"] if r["name"] == "no-dead-states")["counterexample"]
+        assert ce["violation"]["kind"] == "non-progress"
+        shapes.append((ce["loop"], len(ce["steps"]) - ce["loop"]))
+    assert shapes == [(6, 1), (1500, 1)]  # prefix 2k, cycle 1
