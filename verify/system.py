@@ -26,7 +26,7 @@ from functools import cached_property
 import numpy as np
 
 __all__ = ["TransitionSystem", "DomainViolation", "shortest_path", "reverse_reach", "forward_reach",
-           "strong_components", "bottom_sccs", "cyclic_states"]
+           "strong_components", "bottom_sccs", "cyclic_states", "shortest_cycle"]
 
 
 @dataclass(frozen=True)
@@ -285,12 +285,18 @@ def shortest_path(ts: TransitionSystem, start: int, goal, mask: "np.ndarray | No
 def strong_components(n: int, src, dst) -> np.ndarray:
     """SCC label of each of the ``n`` nodes of the graph with edges ``src[k] -> dst[k]``
     (scipy's linear-time algorithm over a CSR matrix; exact at any size)."""
-    from scipy.sparse import csr_matrix
     from scipy.sparse.csgraph import connected_components
 
     src, dst = np.asarray(src, np.int64), np.asarray(dst, np.int64)
-    m = csr_matrix((np.ones(src.size, np.int8), (src, dst)), shape=(n, n))
-    return connected_components(m, directed=True, connection="strong")[1]
+    return connected_components(_csr(n, src, dst), directed=True, connection="strong")[1]
+
+
+def _csr(n: int, src: np.ndarray, dst: np.ndarray):
+    """The ``n`` x ``n`` boolean adjacency matrix (repeated edges summed to True, so any
+    number of parallel transitions stays one structural edge)."""
+    from scipy.sparse import csr_matrix
+
+    return csr_matrix((np.ones(src.size, bool), (src, dst)), shape=(n, n))
 
 
 def bottom_sccs(n: int, src, dst, nodes) -> list:
@@ -326,3 +332,46 @@ def cyclic_states(n: int, src, dst) -> np.ndarray:
     on = size[lab] > 1
     on[src[src == dst]] = True
     return np.flatnonzero(on)
+
+
+def shortest_cycle(n: int, src, dst, c: int) -> "list | None":
+    """Positions ``k`` (into ``src``/``dst``) of the edges of a shortest cycle through node
+    ``c`` of the graph with edges ``src[k] -> dst[k]``, starting with an edge out of ``c``;
+    None when ``c`` lies on no cycle. Exact at any size and linear in the edges: one
+    breadth-first search from ``c`` (scipy, in C), then the edge back into ``c`` whose
+    source the search reached first (so nearest: BFS order is by distance), then the BFS
+    tree path to that source. Each step of the path is the lowest-positioned edge between
+    its two nodes (parallel edges differ only by label).
+
+    >>> shortest_cycle(4, [0, 1, 2, 1, 3], [1, 2, 0, 3, 1], 1)
+    [3, 4]
+    >>> shortest_cycle(3, [0, 1], [1, 2], 0) is None
+    True
+    """
+    from scipy.sparse.csgraph import breadth_first_order
+
+    src, dst = np.asarray(src, np.int64), np.asarray(dst, np.int64)
+    back = np.flatnonzero(dst == c)
+    if back.size == 0:
+        return None
+    order, pred = breadth_first_order(_csr(n, src, dst), c, directed=True, return_predecessors=True)
+    rank = np.full(n, np.iinfo(np.int64).max, np.int64)
+    rank[order] = np.arange(order.size, dtype=np.int64)
+    r = rank[src[back]]
+    if int(r.min()) == np.iinfo(np.int64).max:
+        return None
+    closing = int(back[np.flatnonzero(r == r.min())[0]])  # lowest position among the nearest
+    nodes = [int(src[closing])]
+    while nodes[-1] != c:
+        nodes.append(int(pred[nodes[-1]]))
+    nodes.reverse()  # c, ..., src[closing]
+    # the lowest-positioned edge for each tree step: one pass over the edges
+    first = {}
+    steps = set(zip(nodes[:-1], nodes[1:]))
+    if steps:
+        hit = np.flatnonzero(np.isin(src, np.array(nodes[:-1], np.int64)))
+        for k in hit.tolist():
+            key = (int(src[k]), int(dst[k]))
+            if key in steps and key not in first:
+                first[key] = k
+    return [first[a, b] for a, b in zip(nodes[:-1], nodes[1:])] + [closing]

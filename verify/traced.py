@@ -47,7 +47,7 @@ from .labels import readable
 from .search import DEFAULT_MAX_STATES, Budget, EnumOracle
 from .system import DomainViolation, TransitionSystem
 
-__all__ = ["search", "Untraceable", "TooManyPaths", "CHUNK", "DENSE_LIMIT", "PATHS_MIN", "ROWS_LIMIT"]
+__all__ = ["search", "BatchSuccessors", "Untraceable", "TooManyPaths", "CHUNK", "DENSE_LIMIT", "PATHS_MIN", "ROWS_LIMIT"]
 
 CHUNK = 1 << 15  # states expanded per batch
 DENSE_LIMIT = 1 << 24  # code space up to which the visited set is a flat id table (64 MB)
@@ -618,6 +618,28 @@ def search(model, kind, fsm, kept, run, s0, budget, progress, op, fallback: bool
                             status=_view(stat_a, np.int8), goal=goal,
                             expanded=expanded, errors=tuple(errors), violations=tuple(violations), open=op,
                             stopped=None if complete else budget.hit)
+
+
+class BatchSuccessors:
+    """The traced engine's batch expansion on its own, for searches that keep their own
+    visited set (``btfsm.verify.distributed``): ``succ(codes)`` gives ``(rows, targets)``,
+    one entry per transition (the ``ok`` leaves, as ``search`` counts them), for a batch of
+    state codes of the whole model (``initial`` is the initial state's code). The same
+    trie and the same step function as ``search``; no budgets."""
+
+    def __init__(self, model):
+        prog = model.program
+        kept = tuple(range(len(prog.slots)))
+        self.engine = _Engine(model, prog.step, kept, prog.initial, None)
+        self.engine.max_paths = 1 << 62
+        mults, offset = self.engine.mults, self.engine.offset
+        self.initial = sum(v * m for v, m in zip(prog.initial, mults)) - offset
+
+    def __call__(self, codes: np.ndarray):
+        codes = np.asarray(codes, np.int64)
+        out, ev = self.engine.expand(codes, 1 << 62)
+        rows, _lid, dst = _transitions([(leaf, r) for leaf, r in out if leaf.kind == "ok"], codes, ev)
+        return rows, dst
 
 
 def _view(buf, dtype) -> np.ndarray:

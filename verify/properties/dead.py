@@ -15,7 +15,8 @@
    is SUCCESS or FAILURE, or a primitive returned RUNNING (still working; assumed to
    finish). This catches a failing primitive retried forever and a refused withdraw that
    freezes the robot (a request refused with FAILURE is progress: see sinks, 2). The counterexample is a lasso: the shortest path to the nearest
-   state on such a cycle, then the shortest cycle through it.
+   state on such a cycle, then the shortest cycle through it (both exact at any size:
+   scipy strong components and one breadth-first search).
 """
 from __future__ import annotations
 
@@ -25,7 +26,7 @@ from btfsm.status import Status
 
 from ..counterexample import path_counterexample
 from ..explore import EnumOracle
-from ..system import cyclic_states, shortest_path
+from ..system import cyclic_states, shortest_cycle
 from .base import Result, evaluate, budget_hit
 
 __all__ = ["check", "dead_states", "terminal_mask", "non_progress", "progress_mask", "sink_states", "reachable_sinks"]
@@ -118,25 +119,14 @@ def _cycle_states(ts, sub) -> np.ndarray:
 
 
 def _shortest_cycle(ts, c, sub) -> list:
-    """Transitions of a shortest cycle from ``c`` back to ``c`` inside ``sub``."""
-    best = None
-    for t in ts.out_transitions(c).tolist():
-        if not sub[t]:
-            continue
-        j = int(ts.dst[t])
-        rest = shortest_path(ts, j, c, sub)
-        if rest is not None and (best is None or 1 + len(rest) < len(best)):
-            best = [t] + rest
-    if best is None:  # c only leads to a cycle: walk to it
-        path, seen, i = [], {c: 0}, c
-        while True:
-            t = next(t for t in ts.out_transitions(i).tolist() if sub[t])
-            path.append(t)
-            i = int(ts.dst[t])
-            if i in seen:
-                return path[seen[i]:]
-            seen[i] = len(path)
-    return best
+    """Transitions of a shortest cycle from ``c`` back to ``c`` inside ``sub``: one BFS from
+    ``c`` over the selected transitions and the nearest edge back (``shortest_cycle``);
+    exact and linear at any size. ``c`` lies on a cycle (``_cycle_states``)."""
+    t = np.flatnonzero(sub)
+    found = shortest_cycle(ts.n_states, ts.src[t], ts.dst[t], c)
+    if found is None:
+        raise AssertionError(f"state {c} is on no cycle of the selected transitions")
+    return t[np.asarray(found, np.int64)].tolist()
 
 
 def check(ctx) -> Result:
