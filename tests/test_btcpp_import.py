@@ -79,8 +79,6 @@ CONTROL_TABLE = [
 
 @pytest.mark.parametrize("body, key, fields", CONTROL_TABLE, ids=[f"{k}-{i}" for i, (_, k, _) in enumerate(CONTROL_TABLE)])
 def test_control_and_decorator_nodes(tmp_path, body, key, fields):
-    if not has(key):
-        pytest.skip(f"btfsm.bt has no {key} yet (H1's branch)")
     xml = doc(body)
     tree = data_of(xml, LEAVES).data["tree"]
     tag = re.match(r"<(\w+)", body).group(1)
@@ -96,8 +94,6 @@ def test_control_and_decorator_nodes(tmp_path, body, key, fields):
 def test_run_once_default_then_skip(tmp_path):
     """BT.CPP's RunOnce skips (status SKIPPED) after its first run by default; btfsm's
     model says whether it can model that: the error, if any, names the XML line."""
-    if not has("RunOnce"):
-        pytest.skip("btfsm.bt has no RunOnce yet (H1's branch)")
     xml = doc(f"<Sequence>\n<RunOnce>{A}</RunOnce></Sequence>")
     assert "then_skip" not in data_of(xml, LEAVES).data["tree"]["children"][0]  # the default, as in btfsm
     try:
@@ -319,8 +315,6 @@ def test_errors_name_file_line_and_element(tmp_path, xml, side, message, btcpp_r
     path.write_text(xml)
     with pytest.raises(ModelError) as info:
         load_xml_model(path, leaves=_side(tmp_path, side), file_name="t.xml")
-    if "which this version of btfsm does not have" in str(info.value):
-        pytest.skip("a node type of H1's branch")
     assert re.search(message, str(info.value)), str(info.value)
     assert "\n" not in str(info.value)
     if btcpp_refuses:
@@ -421,7 +415,6 @@ def test_example_pick_place_loads_and_is_real_btcpp():
     assert "conveyor_pick/pick_from_conveyor" in names and "place_on_agv" in names
 
 
-@pytest.mark.skipif("resources" not in TOP_FIELDS, reason="Model.resources (helper H4) not merged yet")
 def test_example_pick_place_exclusive_actions(capsys):
     code, out, _ = _run(["check", EXAMPLE, "--semantics", "btcpp"], capsys)
     assert code == 1 and re.search(r"exclusive-actions\s+VIOLATED", out), out
@@ -434,10 +427,8 @@ def test_example_pick_place_exclusive_actions(capsys):
 
 
 def _exporter():
-    try:
-        from btfsm.interop.btcpp_export import to_btcpp_xml
-    except ImportError:
-        pytest.skip("btfsm.interop.btcpp_export is not there yet (H1's branch)")
+    from btfsm.interop.btcpp_export import to_btcpp_xml
+
     return to_btcpp_xml
 
 
