@@ -16,9 +16,9 @@ import yaml
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from btfsm import bt, cli
+from btfsm import cli
 from btfsm.errors import ModelError
-from btfsm.files import TOP_FIELDS, load_model, load_xml_model, loads_model, model_to_data
+from btfsm.files import load_model, load_xml_model, loads_model, model_to_data
 from btfsm.interop.btcpp_import import MAX_DEPTH, parse_xml, xml_to_data
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -41,10 +41,6 @@ def model_of(tmp_path, xml: str, side: "dict | None" = None, name: str = "t"):
     if side is not None:
         (tmp_path / f"{name}.btfsm.yaml").write_text(yaml.safe_dump(side))
     return load_xml_model(path)
-
-
-def has(type_key: str) -> bool:
-    return type_key in bt.NODE_TYPES
 
 
 # ============================================================================ node types
@@ -405,8 +401,6 @@ def test_example_pick_place_loads_and_is_real_btcpp():
     assert "resources" in side  # the #1031 declaration (Model.resources, helper H4)
     xml = EXAMPLE.read_text()
     assert btcpp_loads(xml)
-    if "resources" not in TOP_FIELDS:
-        side.pop("resources")
     r = xml_to_data(xml.encode(), str(EXAMPLE), side, "side")
     assert r.warnings == []
     m = loads_model(yaml.safe_dump(r.data))
