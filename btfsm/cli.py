@@ -38,11 +38,10 @@ import argparse
 import importlib
 import json
 import os
-import signal
 import sys
-from contextlib import contextmanager
 
 from .errors import ConformanceError, DomainError, ModelError, Terminated, UsageError
+from . import signals
 from .profiles import SEMANTICS
 from .validators import (finite_float, input_file, input_text, int_range, output_dir, output_file, probability,
                          seed_int)
@@ -377,29 +376,6 @@ def _write(stream, line: str) -> None:
         pass
 
 
-def _raise_terminated(signum, frame):
-    raise Terminated()
-
-
-@contextmanager
-def _signals():
-    """SIGTERM raises ``Terminated`` (a KeyboardInterrupt) while the command runs."""
-    import threading
-
-    if threading.current_thread() is not threading.main_thread():
-        yield
-        return
-    try:
-        previous = signal.signal(signal.SIGTERM, _raise_terminated)
-    except (ValueError, OSError):
-        yield
-        return
-    try:
-        yield
-    finally:
-        signal.signal(signal.SIGTERM, previous)
-
-
 def _safe_streams() -> None:
     """Names from a model may hold characters the terminal cannot encode: escape them."""
     for stream in (sys.stdout, sys.stderr):
@@ -422,9 +398,11 @@ def main(argv=None) -> int:
     argv = sys.argv[1:] if argv is None else list(argv)
     command, as_json, debug = _prescan(argv)
     _safe_streams()
-    with _signals():
+    with signals.handling():
         try:
-            return _main(argv)
+            code = _main(argv)
+            signals.check()  # an interrupt that was swallowed on its way (e.g. in a destructor)
+            return code
         except SystemExit:
             raise
         except BrokenPipeError:

@@ -10,6 +10,8 @@ fails (``abstraction``), a transition the checked system does not have (``path``
 """
 from __future__ import annotations
 
+from btfsm.signals import check as check_signals
+
 from dataclasses import dataclass, field
 
 __all__ = ["SceneRun", "run_scene", "scene_for"]
@@ -64,6 +66,7 @@ def run_scene(model, scene, seed: "int | None" = None, time_limit: "float | None
     ticks, mismatch, done = 0, None, False
     checks = bool(binding.checks)
     while world.time < limit:
+        check_signals()  # an interrupt swallowed in a destructor still stops the trial
         before = rt.state
         try:
             step = rt.tick(binding.events(before))

@@ -6,6 +6,8 @@ every tick the binding's abstraction check compares the model's variables with t
 """
 from __future__ import annotations
 
+from btfsm.signals import check as check_signals
+
 from btfsm.bt import SkillRequest
 from btfsm.runtime import Runtime
 
@@ -50,6 +52,7 @@ def run_trial(spec: TrialSpec, model=None, on_tick=None) -> TrialResult:
     starts = halts = ticks = 0
     error = ""
     while cell.time < spec.time_limit:
+        check_signals()  # an interrupt swallowed in a destructor still stops the trial
         before = rt.state
         step = rt.tick(binding.events(before[q_slot]))
         ticks += 1
