@@ -26,7 +26,7 @@ from btfsm.status import Status
 
 from ..counterexample import path_counterexample
 from ..explore import successor_scripts
-from ..system import forward_reach, reverse_reach
+from ..system import cyclic_states, forward_reach, reverse_reach
 from ..treegoals import tree_goal_failures
 from .base import Result, budget_hit
 
@@ -186,14 +186,9 @@ def _route_within(ts, g, states) -> "str | None":
 
 
 def _on_cycles(ts, region, held) -> np.ndarray:
-    """States of ``region`` on a cycle of ``held`` transitions (where RUNNING repeats)."""
-    import networkx as nx
-
+    """States of ``region`` on a cycle of ``held`` transitions (where RUNNING repeats);
+    exact at any size (scipy strong components, ``btfsm.verify.system.cyclic_states``)."""
     inside = np.zeros(ts.n_states, bool)
     inside[region] = True
     t = np.flatnonzero(held & inside[ts.src] & inside[ts.dst])
-    g = nx.DiGraph()
-    g.add_edges_from(zip(ts.src[t].tolist(), ts.dst[t].tolist()))
-    out = {x for comp in nx.strongly_connected_components(g) if len(comp) > 1 for x in comp}
-    out |= {int(a) for a, b in zip(ts.src[t].tolist(), ts.dst[t].tolist()) if a == b}
-    return np.array(sorted(out), np.int64)
+    return cyclic_states(ts.n_states, ts.src[t], ts.dst[t])
