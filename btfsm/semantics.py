@@ -520,7 +520,7 @@ class Program:
                     st = child(ctx)
                     if st != go_on:
                         s = ctx.s
-                        for fl, h in hs:
+                        for fl, h in hs:  # _halt_running, inlined: the hottest loop of a tick
                             if s[fl]:
                                 h(ctx)
                         return finish(st, ctx)
@@ -580,10 +580,7 @@ class Program:
                     st = FAILURE
                 else:
                     return finish(RUNNING, ctx)
-                s = ctx.s
-                for fl, h in halts:
-                    if s[fl]:
-                        h(ctx)
+                _halt_running(ctx, halts)
                 return finish(st, ctx)
             return tick
 
@@ -610,9 +607,7 @@ class Program:
                         bad += 1
                 for m in mems:
                     s[m] = 0
-                for fl, h in halts:
-                    if s[fl]:
-                        h(ctx)
+                _halt_running(ctx, halts)
                 return finish(FAILURE if bad >= most else SUCCESS, ctx)
             return tick
 
@@ -756,7 +751,7 @@ class Program:
 
             def tick(ctx):
                 if flag is not None and not ctx.s[flag]:
-                    _halt_before_start(ctx, conflicts)
+                    _halt_running(ctx, conflicts)
                 return finish(run(ctx), ctx)
             return tick
 
@@ -780,7 +775,7 @@ class Program:
                 s = ctx.s
                 starting = not s[flag]
                 if starting:
-                    _halt_before_start(ctx, conflicts)
+                    _halt_running(ctx, conflicts)
                 if pre is not None and not pre(s):
                     if s[flag]:  # a running request ends: withdraw its goal
                         prog.fsm_ticks[fi].withdraw(ctx, name)
@@ -807,9 +802,7 @@ class Program:
             s = ctx.s
             for m in mems:
                 s[m] = 0
-            for fl, h in halts:
-                if s[fl]:
-                    h(ctx)
+            _halt_running(ctx, halts)
             return finish(st, ctx)
 
         def tick(ctx):
@@ -862,9 +855,7 @@ class Program:
             s[mem] = 0
             if stale is not None:
                 s[stale] = 0
-            for fl, h in halts:
-                if s[fl]:
-                    h(ctx)
+            _halt_running(ctx, halts)
             return finish(st, ctx)
         return tick
 
@@ -896,9 +887,7 @@ class Program:
                 return finish(RUNNING, ctx)
             if stale is not None:
                 s[stale] = 0
-            for fl, h in halts:
-                if s[fl]:
-                    h(ctx)
+            _halt_running(ctx, halts)
             return finish(st, ctx)
         return tick
 
@@ -949,9 +938,7 @@ class Program:
                 st = FAILURE
             else:
                 return finish(RUNNING, ctx)
-            for fl, h in halts:
-                if s[fl]:
-                    h(ctx)
+            _halt_running(ctx, halts)
             for d in info.mems:
                 s[d] = 0
             return finish(st, ctx)
@@ -1107,9 +1094,11 @@ def _threshold(value: int, count: int) -> int:
     return value if value >= 0 else max(count + value + 1, 0)
 
 
-def _halt_before_start(ctx, conflicts):
+def _halt_running(ctx, pairs):
+    """Halt each ``(flag, halt)`` whose running flag is set (section 4): the children a node
+    leaves running, or halt before start's competing branches."""
     s = ctx.s
-    for flag, halt in conflicts:
+    for flag, halt in pairs:
         if s[flag]:
             halt(ctx)
 
