@@ -53,7 +53,7 @@ from __future__ import annotations
 
 import re
 
-from btfsm.errors import ModelError
+from btfsm.errors import DomainError, ModelError
 from btfsm.status import FAILURE, RUNNING, SUCCESS
 
 __all__ = ["LIBRARY", "bind_model", "SceneBinding"]
@@ -344,7 +344,7 @@ class SceneBinding:
                         chosen = enabled[0]  # the runtime takes the only enabled option unasked
                 if chosen is not None and chosen[2] is not None:
                     chosen[2](s)
-        except Exception:  # an effect out of its domain: the runtime's tick reports it
+        except DomainError:  # an effect out of its domain: the runtime's tick reports it
             pass
         return out
 
