@@ -5,6 +5,7 @@ cache) and imports from the unpacked wheel alone, outside the editable install.
 """
 from __future__ import annotations
 
+import os
 import subprocess
 import sys
 import sysconfig
@@ -50,11 +51,13 @@ def test_license_and_py_typed(wheel):
 
 
 def _run_isolated(unpacked, code):
-    """Python without site processing (so no editable finder), seeing only the unpacked
-    wheel and the third-party packages of this environment."""
+    """Python without site processing (so no editable finder) and without PYTHONPATH (the
+    source-checkout fallback of conftest.py), seeing only the unpacked wheel and the
+    third-party packages of this environment."""
     site = sysconfig.get_paths()["purelib"]
     prog = f"import sys; sys.path[:0] = [{str(unpacked)!r}, {site!r}]\n{code}"
-    return subprocess.run([sys.executable, "-S", "-c", prog], capture_output=True, text=True, cwd=unpacked)
+    env = {k: v for k, v in os.environ.items() if k != "PYTHONPATH"}
+    return subprocess.run([sys.executable, "-S", "-c", prog], capture_output=True, text=True, cwd=unpacked, env=env)
 
 
 def test_only_btfsm_is_importable(wheel):
