@@ -28,10 +28,19 @@ class TrialSpec:
     pick_window: float = 16.0
     time_limit: float = 1500.0
     physics_rate: float = 240.0  # the BT ticks at the model's tick_rate (10 Hz for ARIAC)
+    # cell parameters a sweep varies (the defaults are the paper's cell)
+    belt_speed: float = 0.2  # m/s
+    speed_scale: float = 0.5  # the arm's move_to velocity scaling (the authors' default 0.5)
+    period: "float | None" = None  # seconds between belt parts; None: dTa(k) = 30 + 0.2 k
 
     @property
     def seed(self) -> int:
         return 1000 * self.k + VARIANTS.index(self.variant)
+
+    @property
+    def arrival_period(self) -> float:
+        """Seconds between two belt parts: ``period`` if given, else dTa(k)."""
+        return arrival_period(self.k) if self.period is None else self.period
 
 
 @dataclass

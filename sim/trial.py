@@ -13,7 +13,7 @@ from btfsm.runtime import Runtime
 
 from .binding import CellBinding
 from .cell import BELT, GRIPPER, Cell, CellConfig
-from .protocol import TrialResult, TrialSpec, arrival_period
+from .protocol import TrialResult, TrialSpec
 
 __all__ = ["run_trial", "build_trial"]
 
@@ -30,14 +30,15 @@ def build_trial(spec: TrialSpec, model=None, config: "CellConfig | None" = None,
     """(model, cell, binding, runtime) for a trial, ready to run. Belt parts reach the
     sensor every dTa(k) seconds, or at the given ``detections`` times."""
     model = model or build_model(spec)
-    config = config or CellConfig(dt=1.0 / spec.physics_rate, pick_window_s=spec.pick_window)
+    config = config or CellConfig(dt=1.0 / spec.physics_rate, pick_window_s=spec.pick_window,
+                                  belt_speed=spec.belt_speed)
     cell = Cell(config, seed=spec.seed if seed is None else seed)
     delay = cell.detect_delay_s
     if detections is None:
-        period = arrival_period(spec.k)
+        period = spec.arrival_period
         detections = [j * period for j in range(1, int(spec.time_limit / period) + 2)]
     cell.schedule_arrivals([t - delay for t in detections if t >= delay])
-    binding = CellBinding(cell, model)
+    binding = CellBinding(cell, model, speed_scale=spec.speed_scale)
     runtime = Runtime(model, binding.implementations(), record=True)
     return model, cell, binding, runtime
 
