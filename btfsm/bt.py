@@ -40,6 +40,7 @@ from typing import Iterator
 
 from .expr import Expr, as_expr
 from .primitives import Outcome, effects_of
+from .timing import duration_of
 
 __all__ = [
     "Node", "Composite", "Decorator", "Leaf",
@@ -231,8 +232,10 @@ class Action(Leaf):
     primitive: str = ""
     outcomes: "tuple | None" = None
     args: tuple = ()
+    duration: "tuple | None" = None  # (min, max) seconds at this node; default: the primitive's
 
     def __post_init__(self):
+        object.__setattr__(self, "duration", duration_of(self.duration, f"tree.{self.name}.duration"))
         if not self.primitive:
             object.__setattr__(self, "primitive", self.name)
         if self.outcomes is not None:

@@ -85,6 +85,7 @@ COMMANDS = {
     "run": ("btfsm.cli:cli_run", "run a model in the runtime with seeded random outcomes; write a trace"),
     "replay": ("btfsm.cli:cli_replay", "re-run a trace or counterexample and confirm it reproduces"),
     "check": ("btfsm.verify.cli:cli_check", "model-check a model; print verdicts and counterexamples"),
+    "bound": ("btfsm.verify.cli:cli_bound", "the exact best and worst response time from a trigger to a response"),
     "export": ("btfsm.verify.cli:cli_export", "export a model to Promela, SMV or dot"),
     "skills": ("btfsm.verify.skills:cli_skills", "derive the skill transitions a tree can request"),
     "sim": ("btfsm.sim.cli:cli_sim", "run a model in the pymunk kitting cell"),
@@ -94,7 +95,7 @@ COMMANDS = {
 }
 
 #: Per command: the argument names that are output paths (checked against the inputs).
-OUTPUTS = {"show": ("output",), "run": ("trace",), "replay": ("render", "gif"), "check": ("counterexample_dir",),
+OUTPUTS = {"show": ("output",), "run": ("trace",), "replay": ("render", "gif"), "check": ("counterexample_dir",), "bound": ("output",),
            "export": ("output",), "sim": ("render", "gif"), "experiment": ("out",), "import": ("output",)}
 INPUTS = {"replay": ("trace", "model"), "import": ("model", "leaves")}
 
@@ -193,6 +194,26 @@ def _args_check(sp):
     sp.add_argument("--engine", choices=("auto", "traced", "scalar"), default="auto",
                     help="model-level exploration engine (default auto: traced, scalar where it cannot trace); "
                          "both give the same system")
+    _args_response(sp, required=False)
+    sp.add_argument("--within", type=finite_float(0, None), metavar="S", default=None,
+                    help="with --trigger/--response: the bound in seconds (property 'response')")
+
+
+def _args_response(sp, required):
+    sp.add_argument("--trigger", type=input_text, required=required, metavar="EXPR",
+                    help="an expression, or event:NAME (the tick in which environment event NAME happens)")
+    sp.add_argument("--response", type=input_text, required=required, metavar="EXPR",
+                    help="the expression that must come to hold after each trigger")
+
+
+def _args_bound(sp):
+    _args_model(sp)
+    _args_response(sp, required=True)
+    sp.add_argument("--output", "-o", type=output_file(".json"), default=None,
+                    help="write the worst-case run as a counterexample file (replay it with btfsm replay)")
+    _args_json(sp, "the figures")
+    _args_max_states(sp)
+    _args_budgets(sp)
 
 
 def _args_export(sp):
@@ -277,7 +298,7 @@ def _args_import(sp):
 
 
 _ARGS = {"validate": _args_validate, "show": _args_show, "run": _args_run, "replay": _args_replay,
-         "check": _args_check, "export": _args_export, "skills": _args_skills,
+         "check": _args_check, "bound": _args_bound, "export": _args_export, "skills": _args_skills,
          "experiment": _args_experiment, "sim": _args_sim, "conform": _args_conform, "import": _args_import}
 
 

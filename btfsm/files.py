@@ -46,6 +46,7 @@ from .model import EnvChoice, EnvEvent, Model
 from .primitives import Outcome, Primitive
 from .profiles import DEFAULT_SEMANTICS, PROFILES
 from .status import Status
+from .timing import Response, duration_of
 from .world import Bool, Enum, Int, Var
 
 __all__ = [
@@ -754,7 +755,7 @@ _NODE_FIELDS = {
     "Inverter": ("child",), "ForceSuccess": ("child",), "ForceFailure": ("child",),
     "Retry": ("attempts", "child"), "Repeat": ("times", "child"), "Guard": ("condition", "child"),
     "Effects": ("on_start", "on_success", "on_failure", "on_halt", "child"),
-    "Condition": ("expr",), "Action": ("primitive", "args", "outcomes"),
+    "Condition": ("expr",), "Action": ("primitive", "args", "outcomes", "duration"),
     "SkillRequest": ("fsm", "goal", "params", "pre", "post"),
 }
 _NODE_REQUIRED = {"Guard": ("condition", "child"), "Condition": ("expr",), "SkillRequest": ("fsm", "goal"),
@@ -764,7 +765,7 @@ _NODE_REQUIRED = {"Guard": ("condition", "child"), "Condition": ("expr",), "Skil
                   "IfThenElse": ("children",), "WhileDoElse": ("children",)}
 TRIGGER_KEYS = ("when", "on", True)  # "on" and True (YAML 1.1's reading of on:) are older spellings
 TOP_FIELDS = ("name", "description", "semantics", "tick_rate", "variables", "primitives", "fsms", "tree",
-              "environment", "invariants", "workable", "terminal", "resources")
+              "environment", "invariants", "workable", "terminal", "resources", "responses")
 FSM_FIELDS = ("goals", "states", "initial", "edges", "markers", "params", "retarget", "withdraw_goal", "terminal")
 
 
@@ -962,8 +963,20 @@ class _Reader:
             p = _join("primitives", name)
             self.string(name, "primitives", obj, name, "a primitive name")
             self.alias(p, p, obj, name)
-            out.append(Primitive(name, self.outcomes(outs, p, obj, name, p)))
+            duration = None
+            if isinstance(outs, dict) and ("outcomes" in outs or "duration" in outs):  # {outcomes: [...], duration: ...}
+                self.fields(outs, p, ("outcomes", "duration"), ("outcomes",), "a list of outcomes, or {outcomes: [...], duration: [min, max]}")
+                duration = self.duration(outs.get("duration"), f"{p}.duration", outs, "duration")
+                outs = outs["outcomes"]
+            out.append(Primitive(name, self.outcomes(outs, p, obj, name, p), duration))
         return tuple(out)
+
+    def duration(self, value, path, parent, key):
+        """``[min, max]`` seconds (max may be null), ``{min: , max: }`` or one number (btfsm.timing)."""
+        try:
+            return duration_of(value, path)
+        except ModelError as exc:
+            raise self.fail(path, exc.problem, parent, key) from None
 
     # ---------------------------------------------------------------- tree
     def node(self, obj, path, root, parent=None, key=None, depth=0):
@@ -1021,6 +1034,8 @@ class _Reader:
             kw["outcomes"] = self.outcomes(obj["outcomes"], f"{path}.outcomes", obj, "outcomes", f"tree.{name}")
         if obj.get("args") is not None:
             kw["args"] = self.constants(obj["args"], f"{path}.args", obj, "args")
+        if obj.get("duration") is not None:
+            kw["duration"] = self.duration(obj["duration"], f"{path}.duration", obj, "duration")
         for f in ("fsm", "goal"):
             if f in obj:
                 kw[f] = self.string(obj[f], f"{path}.{f}", obj, f, f"a{'n FSM' if f == 'fsm' else ' goal'} name")
@@ -1086,7 +1101,7 @@ class _Reader:
         if isinstance(obj, str):
             self.alias(f"fsms.{fsm}.states.{obj}", path, parent, key)
             return State(obj)
-        self.fields(obj, path, ("id", "primitive", "args", "outcomes", "subtree"), ("id",), "a state (an id, or a mapping with id)")
+        self.fields(obj, path, ("id", "primitive", "args", "outcomes", "subtree", "duration"), ("id",), "a state (an id, or a mapping with id)")
         sid = self.string(obj["id"], f"{path}.id", obj, "id", "a state id")
         element = f"fsms.{fsm}.states.{sid}"
         self.alias(element, path, parent, key)
@@ -1099,6 +1114,8 @@ class _Reader:
             kw["outcomes"] = self.outcomes(obj["outcomes"], f"{path}.outcomes", obj, "outcomes", element)
         if obj.get("subtree") is not None:
             kw["subtree"] = self.node(obj["subtree"], f"{path}.subtree", f"{element}.subtree", obj, "subtree")
+        if obj.get("duration") is not None:
+            kw["duration"] = self.duration(obj["duration"], f"{path}.duration", obj, "duration")
         return State(sid, **kw)
 
     def trigger(self, obj, path):
@@ -1148,10 +1165,15 @@ class _Reader:
 
     # ---------------------------------------------------------------- environment
     def event(self, obj, path, parent, key, element):
-        self.fields(obj, path, ("event", "guard", "effects"), ("event",), "an event {event: NAME, guard: ..., effects: {...}}")
+        self.fields(obj, path, ("event", "guard", "effects", "min_interval"), ("event",),
+                    "an event {event: NAME, guard: ..., effects: {...}, min_interval: SECONDS}")
         name = self.string(obj["event"], f"{path}.event", obj, "event", "an event name")
         self.alias(f"{element}.{name}", path, parent, key)
-        return EnvEvent(name, self.opt_expr(obj, "guard", path), self.effects(obj.get("effects"), f"{path}.effects", obj, "effects"))
+        gap = obj.get("min_interval")
+        if gap is not None and (isinstance(gap, bool) or not isinstance(gap, (int, float)) or not 0 <= gap < math.inf):
+            raise self.fail(f"{path}.min_interval", f"expected a finite number of seconds >= 0, got {_kind(gap)}", obj, "min_interval")
+        return EnvEvent(name, self.opt_expr(obj, "guard", path), self.effects(obj.get("effects"), f"{path}.effects", obj, "effects"),
+                        gap)
 
     def environment(self, obj) -> tuple:
         if obj is None:
@@ -1196,6 +1218,33 @@ class _Reader:
             out.append((name, tuple(members)))
         return tuple(out)
 
+    def responses(self, obj, data) -> tuple:
+        """``responses: {NAME: {trigger: EXPR | event:NAME, response: EXPR, within: SECONDS}}``."""
+        if not isinstance(obj, dict):
+            raise self.fail("responses", f"expected a mapping of names to {{trigger, response, within}}, got {_kind(obj)}",
+                            data, "responses")
+        out = []
+        for name, spec in obj.items():
+            self.string(name, "responses", obj, name, "a requirement name")
+            path = _join("responses", name)
+            self.alias(path, path, obj, name)
+            if not isinstance(spec, dict):
+                raise self.fail(path, f"expected {{trigger: ..., response: ..., within: SECONDS}}, got {_kind(spec)}", obj, name)
+            self.fields(spec, path, ("trigger", "response", "within"), ("trigger", "response"),
+                        "{trigger: EXPR or event:NAME, response: EXPR, within: SECONDS}")
+            trig = spec["trigger"]
+            if isinstance(trig, str) and trig.strip().startswith("event:"):
+                trig = trig.strip()
+            else:
+                trig = self.expr(trig, f"{path}.trigger", spec, "trigger")
+            resp = self.expr(spec["response"], f"{path}.response", spec, "response")
+            within = spec.get("within")
+            if within is not None and (isinstance(within, bool) or not isinstance(within, (int, float))
+                                       or not 0 <= within < math.inf):
+                raise self.fail(f"{path}.within", f"expected a finite number of seconds >= 0, got {_kind(within)}", spec, "within")
+            out.append(Response(name, trig, resp, within))
+        return tuple(out)
+
     # ---------------------------------------------------------------- the model
     def model(self, data) -> Model:
         self.fields(data, "", TOP_FIELDS, ("name",), "a mapping with the model")
@@ -1235,6 +1284,8 @@ class _Reader:
                 kw[key] = self.expr(data[key], key, data, key)
         if data.get("resources") is not None:
             kw["resources"] = self.resources(data["resources"], data)
+        if data.get("responses") is not None:
+            kw["responses"] = self.responses(data["responses"], data)
         self.alias_declared_outcomes(kw)
         try:
             return Model(**kw)
@@ -1518,6 +1569,8 @@ def _node_data(n) -> dict:
             out["args"] = _args_data(n.args)
         if n.outcomes is not None:
             out["outcomes"] = [_outcome_data(o) for o in n.outcomes]
+        if n.duration is not None:
+            out["duration"] = list(n.duration)
     if isinstance(n, SkillRequest):
         out["fsm"], out["goal"] = n.fsm, n.goal
         if n.params:
@@ -1533,7 +1586,7 @@ def _node_data(n) -> dict:
 
 
 def _state_data(st: State):
-    if not st.primitive and not st.args and st.outcomes is None and st.subtree is None:
+    if not st.primitive and not st.args and st.outcomes is None and st.subtree is None and st.duration is None:
         return st.id
     out = {"id": st.id}
     if st.primitive:
@@ -1544,6 +1597,8 @@ def _state_data(st: State):
         out["outcomes"] = [_outcome_data(o) for o in st.outcomes]
     if st.subtree is not None:
         out["subtree"] = _node_data(st.subtree)
+    if st.duration is not None:
+        out["duration"] = list(st.duration)
     return out
 
 
@@ -1614,6 +1669,8 @@ def _event_data(ev: EnvEvent) -> dict:
         out["guard"] = _expr_data(ev.guard)
     if ev.effects:
         out["effects"] = _effects_data(ev.effects)
+    if ev.min_interval is not None:
+        out["min_interval"] = ev.min_interval
     return out
 
 
@@ -1630,7 +1687,9 @@ def model_to_data(model: Model) -> dict:
     if model.variables:
         out["variables"] = {v.name: _var_data(v) for v in model.variables}
     if model.primitives:
-        out["primitives"] = {p.name: [_outcome_data(o) for o in p.outcomes] for p in model.primitives}
+        out["primitives"] = {p.name: ([_outcome_data(o) for o in p.outcomes] if p.duration is None else
+                                      {"outcomes": [_outcome_data(o) for o in p.outcomes], "duration": list(p.duration)})
+                             for p in model.primitives}
     if model.fsms:
         out["fsms"] = {f.name: _fsm_data(f) for f in model.fsms}
     if model.tree is not None:
@@ -1646,6 +1705,10 @@ def model_to_data(model: Model) -> dict:
             out[key] = _expr_data(getattr(model, key))
     if model.resources:
         out["resources"] = {name: list(members) for name, members in model.resources}
+    if model.responses:
+        out["responses"] = {r.name: {"trigger": r.trigger if isinstance(r.trigger, str) else _expr_data(r.trigger),
+                                     "response": _expr_data(r.response),
+                                     **({} if r.within is None else {"within": r.within})} for r in model.responses}
     return out
 
 

@@ -25,6 +25,7 @@ from .expr import Expr, as_expr, is_true, to_text
 from .primitives import Outcome, effects_of
 from .status import Status
 from .world import Var, check_label, check_name
+from .timing import duration_of
 
 __all__ = ["State", "Edge", "Marker", "FSM", "ALL_GOALS", "RETARGET_MODES"]
 
@@ -43,8 +44,10 @@ class State:
     args: tuple = ()
     subtree: "Node | None" = None
     outcomes: "tuple | None" = None
+    duration: "tuple | None" = None  # (min, max) seconds in this state; default: the primitive's
 
     def __post_init__(self):
+        object.__setattr__(self, "duration", duration_of(self.duration, f"states.{self.id}.duration"))
         if self.outcomes is not None:
             object.__setattr__(self, "outcomes", tuple(o if isinstance(o, Outcome) else Outcome(**o) for o in self.outcomes))
         args = self.args

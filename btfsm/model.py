@@ -25,6 +25,7 @@ from .expr import Expr, as_expr
 from .fsm import FSM
 from .profiles import PROFILES
 from .primitives import PASS, Primitive, effects_of
+from .timing import responses_of
 from .world import Var, check_label, check_name, check_text
 
 __all__ = ["EnvEvent", "EnvChoice", "Model"]
@@ -38,10 +39,14 @@ class EnvEvent:
     name: str
     guard: "Expr | None" = None
     effects: tuple = ()
+    min_interval: "float | None" = None  # seconds after it happened before it is enabled again
 
     def __post_init__(self):
         object.__setattr__(self, "guard", None if self.guard is None else as_expr(self.guard))
         object.__setattr__(self, "effects", effects_of(self.effects))
+        m = self.min_interval
+        if m is not None and (isinstance(m, bool) or not isinstance(m, (int, float)) or not 0 <= m < float("inf")):
+            raise ModelError(f"environment.{self.name}.min_interval", f"expected a finite number of seconds >= 0, got {m!r}")
 
 
 @dataclass(frozen=True)
@@ -67,7 +72,8 @@ class Model:
     ``resources``: ``(resource name, (node names...))`` pairs (or a mapping): Action and
     SkillRequest nodes that share a physical resource (an arm, a gripper); two of one
     resource must never run at once (property ``exclusive-actions``, docs/semantics.md
-    rule 'Exclusive resources').
+    rule 'Exclusive resources'). ``responses``: ``btfsm.timing.Response`` requirements (or a
+    mapping name -> {trigger, response, within}) that property ``response`` decides.
     """
 
     name: str
@@ -83,6 +89,7 @@ class Model:
     description: str = ""
     semantics: str = "btfsm"
     resources: tuple = ()
+    responses: tuple = ()
     warnings: tuple = field(default=(), compare=False, repr=False)
 
     def __post_init__(self):
@@ -94,6 +101,7 @@ class Model:
             val = getattr(self, f)
             object.__setattr__(self, f, None if val is None else as_expr(val))
         object.__setattr__(self, "resources", _resources(self.resources))
+        object.__setattr__(self, "responses", responses_of(self.responses))
         object.__setattr__(self, "warnings", tuple(self._validate()))
 
     # ------------------------------------------------------------------ lookups

@@ -14,6 +14,7 @@ from dataclasses import dataclass
 
 from .expr import as_expr
 from .status import Status
+from .timing import duration_of
 
 __all__ = ["Outcome", "Primitive", "success", "failure", "running", "effects_of", "PASS"]
 
@@ -55,13 +56,16 @@ def running(name: str = "", **effects) -> Outcome:
 
 @dataclass(frozen=True)
 class Primitive:
-    """A named operation and the outcomes the model allows it."""
+    """A named operation and the outcomes the model allows it; ``duration``: how long one
+    run takes, ``(min, max)`` seconds (docs/semantics.md section 6.1), None: any time."""
 
     name: str
     outcomes: tuple = (Outcome(Status.SUCCESS),)
+    duration: "tuple | None" = None  # (min, max or None) seconds of one run (btfsm.timing)
 
     def __post_init__(self):
         object.__setattr__(self, "outcomes", tuple(self.outcomes))
+        object.__setattr__(self, "duration", duration_of(self.duration, f"primitives.{self.name}.duration"))
 
     def statuses(self) -> frozenset:
         return frozenset(o.status for o in self.outcomes)

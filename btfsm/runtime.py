@@ -234,7 +234,10 @@ class Runtime:
         self._live = self.state
         step = self.program.step(self.state, oracle, self.record)
         if step.state is None:
-            raise ConformanceError(f"tick {self.clock.tick}: environment choice '{step.violations[0][1]}' has no "
+            v = step.violations[0]
+            if v[0] == "timing":  # an answer outside a declared duration (docs/semantics.md section 6.1)
+                raise ConformanceError(f"tick {self.clock.tick}: {v[2]} (the declared duration)")
+            raise ConformanceError(f"tick {self.clock.tick}: environment choice '{v[1]}' has no "
                                    "enabled option: the model cannot take this tick")
         if events:
             unknown = events - oracle.used

@@ -26,6 +26,7 @@ from .bt import (Action, Condition, Effects, ForceFailure, ForceSuccess, Guard, 
 from .errors import ModelError
 from .expr import BOOL, Scope, Slot, Type, compile_effects, compile_fn
 from .profiles import profile
+from .timing import duration_ticks, interval_ticks
 from .status import Status
 
 __all__ = ["Program", "Site", "Step", "SlotInfo"]
@@ -37,11 +38,13 @@ _INVERT = (RUNNING, FAILURE, SUCCESS)
 class Site:
     """A place where a primitive runs: an Action node or an FSM state."""
 
-    __slots__ = ("kind", "node", "fsm", "state", "primitive", "args", "outcomes", "index")
+    __slots__ = ("kind", "node", "fsm", "state", "primitive", "args", "outcomes", "index", "ticks", "timer")
 
-    def __init__(self, kind, node, fsm, state, primitive, args, outcomes, index):
+    def __init__(self, kind, node, fsm, state, primitive, args, outcomes, index, ticks=None, timer=None):
         self.kind, self.node, self.fsm, self.state = kind, node, fsm, state
         self.primitive, self.args, self.outcomes, self.index = primitive, args, outcomes, index
+        self.ticks = ticks  # (lo, hi or None): the ticks of running on which a run may end (section 6.1)
+        self.timer = timer  # the slot counting this run's RUNNING answers, or None
 
     @property
     def label(self) -> str:
@@ -76,6 +79,15 @@ class Step:
         return f"Step(status={Status(self.status).name}, state={self.state})"
 
 
+class _Late(Exception):
+    """An answer the declared timing does not allow (a duration, section 6.1): the tick
+    cannot go this way (``Step.state`` None, violation ``("timing", site label, text)``)."""
+
+    def __init__(self, site, text):
+        super().__init__(text)
+        self.site, self.text = site, text
+
+
 class _Ctx:
     __slots__ = ("s", "oracle", "rec", "fsm_done", "violations", "on_request")
 
@@ -99,8 +111,10 @@ class _N:
         self.tick = self.halt = self.on_halt = None
 
     def state_slots(self) -> tuple:
-        """Every state slot this node owns: running flag and memories."""
-        return tuple(x for x in (self.flag, self.mem, self.keep, self.stale, *self.mems) if x is not None)
+        """Every state slot this node owns: running flag, memories and an Action's run counter."""
+        site = getattr(self, "node_site", None)
+        timer = site.timer if site is not None else None
+        return tuple(x for x in (self.flag, self.mem, self.keep, self.stale, *self.mems, timer) if x is not None)
 
 
 class Program:
@@ -121,7 +135,9 @@ class Program:
         self._layout_nodes()
         self.exclusive = self._exclusive_groups()
         self._compile_fsms()
+        self.env_timers: list = []  # (event index, slot, ticks) of events with a minimum interval
         self.env = [self._compile_env(i, ev) for i, ev in enumerate(model.environment)]
+        self.env_timers = {i: (slot, wait) for i, slot, wait in self.env_timers}
         self.root = self.nodes[model.tree.name].tick if model.tree is not None else None
         self.invariants = [(name, compile_fn(e, self.scope, f"invariants.{name}", BOOL)) for name, e in model.invariants]
         self.workable = self._predicate(model.workable, "workable")
@@ -235,26 +251,53 @@ class Program:
             return lambda s: all(s[t] == v for t, v in pairs)
         return compile_fn(expr, self.scope, where, BOOL)
 
-    def _compile_env(self, i, ev, where=None):
+    def _compile_env(self, i, ev, where=None, option=False):
         """(name, guard, effects, options): options is None for an event, else a tuple
         of compiled options for a choice."""
         where = where or f"environment.{ev.name}"
         options = getattr(ev, "options", None)
         if options is not None:
-            opts = tuple(self._compile_env(i, o, f"{where}.options.{o.name}") for o in options)
+            opts = tuple(self._compile_env(i, o, f"{where}.options.{o.name}", True) for o in options)
             return (ev.name, None, None, opts)
         guard = compile_fn(ev.guard, self.scope, f"{where}.guard", BOOL) if ev.guard is not None else None
+        wait = interval_ticks(ev.min_interval, self.model.tick_rate) if getattr(ev, "min_interval", None) else 0
+        if wait > 1 and option:
+            raise ModelError(f"{where}.min_interval", "an option of an environment choice cannot have a minimum interval")
+        if wait > 1:  # rule 'Event spacing' (section 6.1): ticks since it happened, saturated at wait
+            self.env_timers.append((i, self._slot(f"{ev.name}:since", "timer", wait + 1, 0, wait), wait))
         return (ev.name, guard, compile_effects(ev.effects, self.scope, f"{where}.effects"), None)
 
-    def _site(self, kind, node, fsm, state, primitive, args, where) -> Site:
+    def _site(self, kind, node, fsm, state, primitive, args, where, duration=None) -> Site:
         prim = self.prims.get(primitive)
         if prim is None:
             raise ModelError(where, f"unknown primitive '{primitive}'")
         outs = tuple((int(o.status), compile_effects(o.effects, self.scope, f"{where}.outcomes.{o.name}"), o.name)
                      for o in prim.outcomes)
         site = Site(kind, node, fsm, state, primitive, dict(args), outs, len(self.sites))
+        duration = duration or prim.duration
+        if duration is not None:
+            self._time_site(site, duration, where)
         self.sites.append(site)
         return site
+
+    def _time_site(self, site, duration, where):
+        """Rule 'Durations' (docs/semantics.md section 6.1): a run may end (answer a
+        non-RUNNING outcome) on its k-th tick of running only when lo <= k <= hi. A counter
+        slot holds the RUNNING answers so far, saturated where no bound needs more."""
+        lo, hi = duration_ticks(duration, self.model.tick_rate)
+        statuses = {o[0] for o in site.outcomes}
+        if lo > 1 and RUNNING not in statuses:
+            raise ModelError(f"{where}.duration", f"primitive '{site.primitive}' takes at least {duration[0]:g} s "
+                                                  "but has no RUNNING outcome")
+        if hi is not None and statuses == {RUNNING}:
+            raise ModelError(f"{where}.duration", f"primitive '{site.primitive}' must end within {duration[1]:g} s "
+                                                  "but has only RUNNING outcomes")
+        if lo == 1 and hi is None:
+            return  # [0, unbounded): no restriction
+        site.ticks = (lo, hi)
+        cap = (hi if hi is not None else lo) - 1
+        if cap > 0:
+            site.timer = self._slot(f"{site.label}:ran", "timer", cap + 1)
 
     def _halt_fn(self, info):
         """halt(ctx): halt every running node of ``info``'s subtree, children first."""
@@ -341,18 +384,52 @@ class Program:
                     halt(ctx)
             return tick, leave
         prim = st.primitive or (st.id if st.outcomes is not None else "pass")
-        site = self._site("state", None, f.name, st.id, prim, st.args, where)
-        return self._primitive_runner(site), (lambda ctx: ctx.oracle.halt(site))
+        site = self._site("state", None, f.name, st.id, prim, st.args, where, st.duration)
+        return self._primitive_runner(site), _site_halt(site)
 
     def _primitive_runner(self, site):
         outs = site.outcomes
         evs = tuple(("outcome", site.label, o[2]) for o in outs)
+        if site.ticks is not None:
+            return self._timed_runner(site, evs)
 
         def run(ctx):
             k = ctx.oracle.outcome(site)
             status, eff, _ = outs[k]
             if eff is not None:
                 eff(ctx.s)
+            if ctx.rec is not None:
+                ctx.rec.append(evs[k])
+                if eff is not None:
+                    _record_writes(ctx, eff)
+            return status
+        return run
+
+    def _timed_runner(self, site, evs):
+        """A primitive run under rule 'Durations': the answer must fit the run's tick count."""
+        outs, (lo, hi), timer = site.outcomes, site.ticks, site.timer
+        cap = (hi if hi is not None else lo) - 1
+        rate = self.model.tick_rate
+
+        def run(ctx):
+            s = ctx.s
+            done = s[timer] if timer is not None else 0  # RUNNING answers so far (saturated at cap)
+            k = ctx.oracle.outcome(site)
+            status, eff, name = outs[k]
+            if status == RUNNING:
+                if hi is not None and done >= hi - 1:
+                    raise _Late(site, f"{site.label}: outcome '{name}' (RUNNING) on tick {hi} of the run; "
+                                      f"it must end by then ({(hi - 1) / rate:g} s)")
+                if timer is not None and done < cap:
+                    s[timer] = done + 1
+            else:
+                if done < lo - 1:
+                    raise _Late(site, f"{site.label}: outcome '{name}' on tick {done + 1} of the run; it may end "
+                                      f"from tick {lo} ({(lo - 1) / rate:g} s) on")
+                if timer is not None:
+                    s[timer] = 0
+            if eff is not None:
+                eff(s)
             if ctx.rec is not None:
                 ctx.rec.append(evs[k])
                 if eff is not None:
@@ -475,7 +552,10 @@ class Program:
             site_holder = info  # the site is made in _compile_node; look it up lazily
 
             def on_halt(ctx):
-                ctx.oracle.halt(site_holder.node_site)
+                site = site_holder.node_site
+                if site.timer is not None:
+                    ctx.s[site.timer] = 0  # a halted run starts afresh (rule 'Durations')
+                ctx.oracle.halt(site)
             info.on_halt = on_halt
         elif isinstance(n, SkillRequest):
             fi, name = self.fsm_index[n.fsm], n.name
@@ -745,7 +825,7 @@ class Program:
         conflicts = self._conflicts(info)
 
         if isinstance(n, Action):
-            site = self._site("action", n.name, None, None, n.primitive, n.args, where)
+            site = self._site("action", n.name, None, None, n.primitive, n.args, where, n.duration)
             info.node_site = site
             run = self._exclusive_start(info, self._primitive_runner(site))
 
@@ -1010,24 +1090,48 @@ class Program:
         """One BT tick: environment events, then the tree. Pure in ``state``."""
         ctx = _Ctx(list(state), oracle, [] if record else None)
         s = ctx.s
-        for i, (name, guard, eff, options) in enumerate(self.env):
+        blocked = self.environment_phase(s, oracle, ctx.rec)
+        if blocked is not None:
+            return Step(None, FAILURE, ctx.rec, [("blocked", blocked)])
+        try:
+            status = self.root(ctx) if self.root is not None else SUCCESS
+        except _Late as late:
+            return Step(None, FAILURE, ctx.rec, [("timing", late.site.label, late.text)])
+        if self.exclusive:
+            _exclusive_end(ctx, self.exclusive)
+        return Step(tuple(s), status, ctx.rec, ctx.violations)
+
+    def environment_phase(self, s, oracle, rec=None, indices=None) -> "str | None":
+        """Tick step 1 (docs/semantics.md section 1): the environment entries (those at
+        ``indices`` when given) change the state list ``s`` in place, asking ``oracle``;
+        ``rec`` collects env and write events. Returns the name of a choice with no enabled
+        option (the tick cannot happen), else None."""
+        timers = self.env_timers
+        env = self.env
+        for i in (range(len(env)) if indices is None else indices):
+            name, guard, eff, options = env[i]
             if options is not None:  # a choice: exactly one enabled option
                 enabled = [k for k, o in enumerate(options) if o[1] is None or o[1](s)]
                 if not enabled:
-                    return Step(None, FAILURE, ctx.rec, [("blocked", name)])
+                    return name
                 name, _, eff, _ = options[enabled[oracle.choose(i, enabled)]]
+            elif timers and i in timers:  # rule 'Event spacing': enabled once `wait` ticks have passed
+                slot, wait = timers[i]
+                since = s[slot]
+                if since < wait:
+                    since = s[slot] = since + 1
+                if not (since >= wait and (guard is None or guard(s)) and oracle.env(i)):
+                    continue
+                s[slot] = 0
             elif not ((guard is None or guard(s)) and oracle.env(i)):
                 continue
             if eff is not None:
                 eff(s)
-            if ctx.rec is not None:
-                ctx.rec.append(("env", name))
+            if rec is not None:
+                rec.append(("env", name))
                 if eff is not None:
-                    _record_writes(ctx, eff)
-        status = self.root(ctx) if self.root is not None else SUCCESS
-        if self.exclusive:
-            _exclusive_end(ctx, self.exclusive)
-        return Step(tuple(s), status, ctx.rec, ctx.violations)
+                    rec.extend(("write", k, s[k]) for k in eff.targets)
+        return None
 
     def fsm_step(self, state, fsm: "str | int", goal: "str | int", params, oracle, record: bool = False) -> Step:
         """One tick of one FSM requested from outside a tree (the FSM-level open system)."""
@@ -1035,7 +1139,10 @@ class Program:
         f = self.fsm_info[fi][0]
         g = f.goals.index(goal) if isinstance(goal, str) else goal
         ctx = _Ctx(list(state), oracle, [] if record else None)
-        status = self.fsm_ticks[fi](ctx, g, tuple(params), "<request>")
+        try:
+            status = self.fsm_ticks[fi](ctx, g, tuple(params), "<request>")
+        except _Late as late:
+            return Step(None, FAILURE, ctx.rec, [("timing", late.site.label, late.text)])
         return Step(tuple(ctx.s), status, ctx.rec, ctx.violations)
 
     def decode(self, state) -> dict:
@@ -1126,6 +1233,19 @@ def _exclusive_end(ctx, groups):
                 if ctx.rec is not None:
                     ctx.rec.append(("violation", a, f"exclusive {res}: runs with {name} at the end of the tick"))
                 break
+
+
+def _site_halt(site):
+    """leave(ctx) of an FSM state that runs a primitive: the run is abandoned (a timed run's
+    counter starts afresh, rule 'Durations') and the oracle is told."""
+    timer = site.timer
+    if timer is None:
+        return lambda ctx: ctx.oracle.halt(site)
+
+    def leave(ctx):
+        ctx.s[timer] = 0
+        ctx.oracle.halt(site)
+    return leave
 
 
 def _apply(ctx, eff):

@@ -346,6 +346,9 @@ def replay(source, model, state=None) -> "tuple[int, str] | None":
         if oracle.error:
             return (rec["tick"], oracle.error)
         if step.state is None:
+            v = step.violations[0]
+            if v[0] == "timing":
+                return (rec["tick"], f"the model cannot take this tick: {v[2]} (the declared duration)")
             return (rec["tick"], "the model cannot take this tick (an environment choice has no enabled option)")
         mine = tick_record(program, clock, step, last)
         if mine != rec:

@@ -16,7 +16,7 @@ from btfsm.bt import NODE_TYPES, SkillRequest, walk
 from btfsm.profiles import SEMANTICS
 from btfsm.world import Bool, Enum, Int
 
-__all__ = ["random_models"]
+__all__ = ["random_models", "timed_models"]
 
 _ENUM_VALUES = ["idle", "busy", "bins", "agv", "belt", "it's", "a b"]
 _STATE_IDS = ["home", "approach bins", "grasp", "raise on X", "s4", "état", "put-on"]
@@ -268,3 +268,42 @@ def random_models(draw, max_vars: int = 4, max_fsms: int = 2, tree_depth: int = 
                      resources=resources)
     except ModelError as exc:  # a combination the strategy does not rule out; say which
         raise AssertionError(f"random_models built an invalid model: {exc}") from None
+
+
+def _duration_for(draw, statuses):
+    """A duration the primitive can honour: a lower bound only with a RUNNING outcome, an
+    upper bound only with an outcome that ends the run (docs/semantics.md section 6.1)."""
+    ends = any(s != "running" for s in statuses)
+    runs = "running" in statuses
+    lo = draw(st.sampled_from([0, 0.1, 0.2, 0.35])) if runs else 0
+    hi = draw(st.sampled_from([None, lo, lo + 0.1, lo + 0.3])) if ends else None
+    if not runs and hi is not None:
+        hi = 0 if lo == 0 else hi
+    return None if (lo == 0 and hi is None) else (lo, hi)
+
+
+@st.composite
+def timed_models(draw, **kw):
+    """``random_models`` with durations on declared primitives and FSM states, minimum
+    intervals on environment events, and a tick rate of 10 or 20 Hz."""
+    import dataclasses
+
+    from btfsm.status import Status
+
+    m = draw(random_models(**kw))
+    prims = tuple(dataclasses.replace(p, duration=_duration_for(draw, {o.status.name.lower() for o in p.outcomes}))
+                  if draw(st.booleans()) else p for p in m.primitives)
+    declared = {p.name: p for p in prims}
+    fsms = []
+    for f in m.fsms:
+        states = []
+        for s in f.states:
+            outs = s.outcomes if s.outcomes is not None else (declared[s.primitive].outcomes if s.primitive in declared else None)
+            if outs is not None and s.subtree is None and draw(st.booleans()):
+                s = dataclasses.replace(s, duration=_duration_for(draw, {Status(o.status).name.lower() for o in outs}))
+            states.append(s)
+        fsms.append(dataclasses.replace(f, states=tuple(states)))
+    env = tuple(dataclasses.replace(e, min_interval=draw(st.sampled_from([None, 0.1, 0.2, 0.5])))
+                if isinstance(e, EnvEvent) else e for e in m.environment)
+    return dataclasses.replace(m, primitives=prims, fsms=tuple(fsms), environment=env,
+                               tick_rate=draw(st.sampled_from([10.0, 20.0])))

@@ -15,7 +15,7 @@ import json
 import os
 import sys
 
-__all__ = ["cli_check", "cli_export"]
+__all__ = ["cli_check", "cli_export", "cli_bound"]
 
 
 def cli_check(args) -> int:
@@ -33,7 +33,9 @@ def cli_check(args) -> int:
     max_transitions, max_seconds = _budgets(args, DEFAULT_MAX_TRANSITIONS)
     from btfsm.progress import ExplorationProgress
 
-    model = _load(args)
+    model = _with_response(_load(args), args)
+    if getattr(args, "trigger", None) and props and "response" not in props:
+        props.append("response")
     progress = ExplorationProgress()
     try:
         report = check(model, props or None, max_states=max_states, max_transitions=max_transitions,
@@ -57,6 +59,101 @@ def cli_check(args) -> int:
         for path in written:
             print(f"counterexample written: {path}")
     return report.exit_code
+
+
+def _with_response(model, args):
+    """The model plus the requirement given by ``--trigger``/``--response``/``--within`` (named 'cli')."""
+    import dataclasses
+
+    from btfsm.errors import ModelError, UsageError
+    from btfsm.timing import Response
+
+    trig, resp, within = getattr(args, "trigger", None), getattr(args, "response", None), getattr(args, "within", None)
+    if trig is None and resp is None:
+        if within is not None:
+            raise UsageError("--within needs --trigger and --response")
+        return model
+    if trig is None or resp is None:
+        raise UsageError("--trigger and --response go together")
+    try:
+        req = Response("cli", trig, resp, within)
+        return dataclasses.replace(model, responses=tuple(model.responses) + (req,))
+    except (ModelError, SyntaxError, ValueError) as exc:
+        raise UsageError(f"--trigger/--response: {getattr(exc, 'problem', None) or exc}") from None
+
+
+def cli_bound(args) -> int:
+    """``btfsm bound MODEL --trigger T --response R [-o CE.json] [--json]``: the exact best and
+    worst response time. Exit 0 when the worst case is bounded, 1 when some behaviour never
+    responds (the lasso is written with -o), 2 bad input, 3 budget hit."""
+    from btfsm.errors import ModelError, UsageError
+    from btfsm.timing import Response
+
+    from .explore import explore
+    from .properties.response import INF, ResponseBound, counterexample
+    from .search import DEFAULT_MAX_STATES, DEFAULT_MAX_TRANSITIONS, describe_hit
+
+    model = _load(args)
+    try:
+        req = Response("bound", args.trigger, args.response)
+    except (ModelError, SyntaxError, ValueError) as exc:
+        raise UsageError(f"--trigger/--response: {getattr(exc, 'problem', None) or exc}") from None
+    max_states = DEFAULT_MAX_STATES if args.max_states is None else args.max_states
+    max_transitions, max_seconds = _budgets(args, DEFAULT_MAX_TRANSITIONS)
+    from btfsm.progress import ExplorationProgress
+
+    progress = ExplorationProgress()
+    try:
+        ts = explore(model, max_states=max_states, max_transitions=max_transitions, max_seconds=max_seconds,
+                     progress=lambda s, t, sec: progress("model", s, t, sec))
+    except MemoryError:
+        progress.done()
+        print(f"btfsm bound: out of memory while exploring {model.name}; lower --max-states", file=sys.stderr)
+        return 3
+    progress.done()
+    try:
+        rb = ResponseBound(ts, req)
+    except ModelError as exc:
+        raise UsageError(f"{exc.element}: {exc.problem}") from None
+    worst, best = rb.worst, rb.best
+
+    def figure(t):
+        return None if t is None or t == INF else t
+
+    out = {"model": model.name, "trigger": args.trigger, "response": args.response, "tick_rate": model.tick_rate,
+           "states": ts.n_states, "transitions": ts.n_transitions, "complete": ts.complete,
+           "triggers": int(rb.triggers.size), "unbounded": worst == INF,
+           "worst_ticks": figure(worst), "worst_seconds": None if figure(worst) is None else rb.seconds(worst),
+           "best_ticks": figure(best), "best_seconds": None if figure(best) is None else rb.seconds(best)}
+    written = None
+    if args.output and worst is not None:
+        path, k, loop = rb.worst_witness()
+        summary = (f"'{args.response}' may never come after '{args.trigger}'" if worst == INF else
+                   f"the worst case: '{args.response}' {worst} tick(s) ({rb.seconds(worst):g} s) after '{args.trigger}'")
+        ce = counterexample(rb, path, k, loop, summary, None)
+        from btfsm.outputs import atomic_write_text
+
+        atomic_write_text(args.output, json.dumps(ce.to_json(), indent=1, default=_plain) + "\n")
+        written = args.output
+    if args.json:
+        print(json.dumps(dict(out, counterexample=written)))
+    else:
+        print(f"{model.name}: {ts.n_states:,} states, {ts.n_transitions:,} transitions; trigger '{args.trigger}' "
+              f"occurs in {rb.triggers.size:,} state(s)")
+        if worst is None:
+            print("the trigger never occurs: no response time")
+        else:
+            def fmt(t):
+                return "unbounded (some behaviour never responds)" if t == INF else f"{t} ticks = {rb.seconds(t):g} s"
+            print(f"worst case: {fmt(worst)}")
+            print(f"best case:  {fmt(best)}")
+        if written:
+            print(f"worst-case run written: {written} (btfsm replay {written} {args.model})")
+    if not ts.complete:
+        hit = describe_hit(ts.stopped, max_states, max_transitions, max_seconds) or "budget"
+        print(f"({hit} hit: the figures cover the {ts.n_states:,} states explored; not decided)", file=sys.stderr)
+        return 3
+    return 1 if worst == INF else 0
 
 
 def _budgets(args, default_transitions=None):

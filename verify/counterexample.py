@@ -370,6 +370,7 @@ def _replay_model(ce, model) -> tuple:
         return False, f"initial state differs: {bad}"
     last = None
     n = len(ce.steps)
+    seen = [rt.state]  # the state after each step (for 'response', which looks at the whole run)
     for st in ce.steps:
         impl.queue = [tuple(x) for x in st.get("outcomes", [])]
         impl.error = None
@@ -396,7 +397,52 @@ def _replay_model(ce, model) -> tuple:
             return False, f"step {st['tick']}: state differs: {bad}"
         if _NAMES[int(last.status)] != st.get("status"):
             return False, f"step {st['tick']}: status {_NAMES[int(last.status)]}, counterexample {st.get('status')}"
+        seen.append(rt.state)
+    if ce.violation.get("kind") == "response":
+        return _confirm_response(ce, model, seen)
     return _confirm(ce, model, rt.state, last, None)
+
+
+def _confirm_response(ce, model, states) -> tuple:
+    """A 'response' violation: the trigger occurs at step k and the response holds in no
+    state from there on, for more ticks than the bound, or around the lasso's cycle."""
+    from btfsm.expr import BOOL, as_expr, compile_fn
+
+    prog = model.program
+    v = ce.violation
+    k = int(v["trigger_step"])
+    resp = compile_fn(as_expr(v["response"]), prog.scope, "response", BOOL)
+    trig = v["trigger"]
+    if trig.startswith("event:"):
+        name = trig[len("event:"):]
+        if k < 1 or ["env", name] not in [list(c[:2]) for c in ce.steps[k - 1].get("choices", [])]:
+            return False, f"event '{name}' does not happen in step {k}"
+    elif not compile_fn(as_expr(trig), prog.scope, "trigger", BOOL)(list(states[k])):
+        return False, f"the trigger '{trig}' does not hold after step {k}"
+    held = [i for i in range(k, len(states)) if resp(list(states[i]))]
+    n = len(states) - 1
+    bound = v.get("bound_ticks")
+    if bound is None and ce.loop is None and v.get("worst_ticks") is not None:  # a worst-case witness (btfsm bound)
+        if held == [n] and n - k == v["worst_ticks"]:
+            return True, (f"confirmed: '{v['response']}' first holds {n - k} tick(s) ({(n - k) / model.tick_rate:g} s) "
+                          f"after the trigger at step {k}")
+        return False, f"'{v['response']}' holds after step(s) {held[:3]}, not only after step {n}"
+    if held:
+        return False, f"'{v['response']}' holds after step {held[0]}"
+    if ce.loop is not None:
+        if states[-1] != states[ce.loop]:
+            return False, f"the run does not return to the state after step {ce.loop}"
+        return True, (f"confirmed: after the trigger at step {k}, '{v['response']}' never holds: the run returns to "
+                      f"the state after step {ce.loop} and repeats for ever")
+    if bound is not None and n - k >= bound:
+        return True, (f"confirmed: '{v['response']}' still does not hold {n - k} tick(s) ({(n - k) / model.tick_rate:g} s) "
+                      f"after the trigger at step {k}; the bound is {bound / model.tick_rate:g} s")
+    from .explore import explore
+
+    ts = explore(model, start=states[-1], max_states=2)
+    if ts.n_transitions == 0 and not ts.errors:
+        return True, f"confirmed: after the trigger at step {k} the run stops (no tick can happen) before '{v['response']}'"
+    return False, f"only {n - k} tick(s) after the trigger at step {k}; the bound is {bound} ticks"
 
 
 class _ChoiceOracle(EnumOracle):

@@ -69,7 +69,7 @@ class OpenFSM:
         for slot, vals in self.inputs:
             s[slot] = vals[oracle.choose(("input", slot), vals)]
         rec = [] if record else None
-        if not run_environment(prog.env, s, oracle, self.env, rec):
+        if not run_environment(prog, s, oracle, self.env, rec):
             return None
         goals = self.goals
         if self.pres:
@@ -92,6 +92,8 @@ class OpenFSM:
             for (slot, _), val in zip(self.params, pvals):
                 s[slot] = val
         step = prog.fsm_step(s, self.index, g, pvals, oracle, record)
+        if step.state is None:  # an answer the declared timing does not allow
+            return None
         if self.inputs:
             ns = list(step.state)
             init = prog.initial
@@ -141,6 +143,7 @@ def _fsm_footprint(prog, fname, seen=None) -> tuple:
     for m in f.markers:
         if m.guard is not None:
             reads |= _expr_slots(m.guard, fscope)
+    writes |= {s.timer for s in prog.sites if s.kind == "state" and s.fsm == fname and s.timer is not None}
     for st in f.states:
         if st.subtree is not None:
             r, w = _tree_footprint(prog, st.subtree, seen)
@@ -251,6 +254,8 @@ def open_fsm(model, fsm: str, goals=None) -> OpenFSM:
             if i in env_idx:
                 continue
             r, w = _env_footprint(ev, prog.scope)
+            if i in prog.env_timers:  # its spacing counter (rule 'Event spacing') goes with it
+                r, w = r | {prog.env_timers[i][0]}, w | {prog.env_timers[i][0]}
             if w & kept:
                 env_idx.add(i)
                 writes |= w

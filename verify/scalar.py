@@ -54,7 +54,7 @@ class TreeCache:
     def __init__(self, model, limit: "int | None" = None):
         import dataclasses
 
-        self.env = model.program.env
+        self.env = model.program  # the environment phase runs on the full program
         self.tree = dataclasses.replace(model, environment=()).program
         self.limit = limit or self.LIMIT
         self.cache: dict = {}  # this generation
@@ -107,6 +107,8 @@ class TreeCache:
                 res.append((tid, None, None, None, None, tuple(o.taken), err))
                 continue
             ns = st.state
+            if ns is None:  # an answer the declared timing does not allow (a duration)
+                continue
             code = sum(map(mul, ns, mults)) if small else tuple(ns[k] for k in kept)
             res.append((tid, code, ns, st.status, tuple(st.violations) if st.violations else None, None, None))
         self._keep(post, res)

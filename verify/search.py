@@ -70,27 +70,12 @@ class EnumOracle(ScriptOracle):
         return c
 
 
-def run_environment(env, s, oracle, indices=None, rec=None) -> bool:
-    """Apply the environment entries ``env`` (``Program.env``; only those at ``indices``
-    when given) to the state list ``s`` in place, asking ``oracle`` like ``Program.step``
-    does (docs/semantics.md, tick step 1); ``rec`` collects env and write events.
-    Returns False when a choice has no enabled option (the tick cannot happen)."""
-    for i in (range(len(env)) if indices is None else indices):
-        name, guard, eff, options = env[i]
-        if options is not None:
-            enabled = [k for k, o in enumerate(options) if o[1] is None or o[1](s)]
-            if not enabled:
-                return False
-            name, _, eff, _ = options[enabled[oracle.choose(i, enabled)] if len(enabled) > 1 else enabled[0]]
-        elif not ((guard is None or guard(s)) and oracle.env(i)):
-            continue
-        if eff is not None:
-            eff(s)
-        if rec is not None:
-            rec.append(("env", name))
-            if eff is not None:
-                rec.extend(("write", k, s[k]) for k in eff.targets)
-    return True
+def run_environment(program, s, oracle, indices=None, rec=None) -> bool:
+    """Apply the environment of ``program`` (only the entries at ``indices`` when given)
+    to the state list ``s`` in place, asking ``oracle``: ``Program.environment_phase``, the
+    same code ``Program.step`` runs (docs/semantics.md, tick step 1); ``rec`` collects env
+    and write events. Returns False when a choice has no enabled option."""
+    return program.environment_phase(s, oracle, rec, indices) is None
 
 
 class Budget:

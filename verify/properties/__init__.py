@@ -17,6 +17,7 @@ name                         level    meaning
 ``contracts``                model    no SUCCESS with post false; no two requests on one FSM
 ``domain``                   both     no effect writes outside its variable's domain
 ``exclusive-actions``        model    no two leaves of one declared resource run at once
+``response``                 model    each declared trigger is answered within its bound
 ``lints``                    both     warnings only (never fails)
 ===========================  =======  ==================================================
 """
@@ -30,7 +31,7 @@ __all__ = ["Result", "Context", "PROPERTIES", "property_names", "evaluate", "col
 
 
 def _registry() -> dict:
-    from . import dead, exclusive, goals, latency, lints, safety, workable
+    from . import dead, exclusive, goals, latency, lints, response, safety, workable
 
     return {
         "workable-reachability": workable.check,
@@ -42,6 +43,7 @@ def _registry() -> dict:
         "contracts": safety.check_contracts,
         "domain": safety.check_domain,
         "exclusive-actions": exclusive.check,
+        "response": response.check,
         "lints": lints.check,
     }
 
@@ -66,7 +68,7 @@ def _determinism(ctx) -> Result:
 
 
 PROPERTIES = ("workable-reachability", "goal-reachability", "determinism", "no-dead-states", "request-latency",
-              "invariants", "contracts", "domain", "exclusive-actions", "lints")
+              "invariants", "contracts", "domain", "exclusive-actions", "response", "lints")
 
 
 def property_names() -> tuple:

@@ -1,0 +1,317 @@
+"""``response``: bounded response, decided exactly on the model's transition system.
+
+A model declares requirements ``Response(name, trigger, response, within)`` (the file's
+``responses:`` key; ``btfsm.timing``): every time ``trigger`` occurs, ``response`` must
+hold within ``within`` seconds, for every behaviour the model allows. The trigger occurs
+in every reachable state where an expression trigger holds, or, for ``event:NAME``, in the
+state a tick reaches in which environment event NAME happened. The response time from
+such a state is the number of ticks to the first state where ``response`` holds (0 when
+it holds there), divided by the model's tick rate.
+
+Exactly, on the explicit system (docs/verification.md section 2.1):
+
+* ``worst[u]``: the longest response-free path from ``u`` to a response state: 0 on a
+  response state; infinite when a response-free cycle or a state with no successor is
+  reachable without passing a response state (that behaviour never responds); else
+  ``1 + max`` over the successors. Computed by a reverse topological sweep (Kahn's
+  algorithm, one numpy step per path length), linear in the transitions.
+* ``best[u]``: the shortest path to a response state (reverse breadth-first search).
+
+The worst case of a requirement is the maximum of ``worst`` over the trigger states, its
+best case the minimum of ``best``. A violation gives the shortest counterexample: the
+trigger state nearest the initial state whose worst case exceeds the bound, reached by a
+shortest path, then ``bound`` ticks along a longest response-free path (or, when no
+response ever comes, the lasso into the response-free cycle). ``btfsm replay`` confirms
+both.
+
+>>> import numpy as np
+>>> stop = np.array([False, False, False, True])
+>>> worst_until(4, np.array([0, 0, 1, 2]), np.array([1, 3, 2, 3]), stop).tolist()
+[3, 2, 1, 0]
+>>> best_until(4, np.array([0, 0, 1, 2]), np.array([1, 3, 2, 3]), stop).tolist()
+[1, 2, 1, 0]
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from btfsm.errors import ModelError
+from btfsm.timing import Response
+
+from ..counterexample import path_counterexample
+from ..system import cyclic_states, shortest_cycle, shortest_path
+from .base import Result, budget_hit, evaluate
+
+__all__ = ["check", "NAME", "INF", "worst_until", "best_until", "analyse", "ResponseBound"]
+
+NAME = "response"
+INF = np.iinfo(np.int64).max  # no response on some behaviour
+
+
+def _in_csr(n, src, dst):
+    order = np.argsort(dst, kind="stable")
+    offs = np.zeros(n + 1, np.int64)
+    np.cumsum(np.bincount(dst, minlength=n), out=offs[1:])
+    return offs, order
+
+
+def _incoming(offs, order, nodes) -> np.ndarray:
+    """Positions of the edges into ``nodes`` (``offs``/``order``: the CSR by destination)."""
+    starts = offs[nodes]
+    counts = offs[nodes + 1] - starts
+    total = int(counts.sum())
+    first = np.repeat(starts - (np.cumsum(counts) - counts), counts)
+    return order[first + np.arange(total)]
+
+
+def worst_until(n: int, src, dst, stop) -> np.ndarray:
+    """Per node, the longest path (in edges) to a ``stop`` node that visits no other stop
+    node before; ``INF`` when a path from it avoids stop nodes for ever (a cycle, or a
+    node without successors, reachable outside the stop nodes)."""
+    src, dst = np.asarray(src, np.int64), np.asarray(dst, np.int64)
+    stop = np.asarray(stop, bool)
+    free = ~stop[src]  # edges leaving a non-stop node: the only ones that count
+    s, d = src[free], dst[free]
+    pending = np.bincount(s, minlength=n).astype(np.int64)
+    pending[stop] = 0
+    worst = np.zeros(n, np.int64)
+    done = stop.copy()
+    offs, order = _in_csr(n, s, d)
+    frontier = np.flatnonzero(stop)
+    while frontier.size:
+        idx = _incoming(offs, order, frontier)
+        if not idx.size:
+            break
+        u, v = s[idx], d[idx]
+        np.maximum.at(worst, u, worst[v] + 1)
+        pending -= np.bincount(u, minlength=n)
+        cand = np.unique(u)
+        frontier = cand[(pending[cand] == 0) & ~done[cand]]
+        done[frontier] = True
+    out = np.where(done, worst, INF)
+    return out
+
+
+def best_until(n: int, src, dst, stop) -> np.ndarray:
+    """Per node, the shortest path (in edges) to a ``stop`` node; ``INF`` when none."""
+    src, dst = np.asarray(src, np.int64), np.asarray(dst, np.int64)
+    best = np.full(n, INF, np.int64)
+    stop = np.asarray(stop, bool)
+    best[stop] = 0
+    offs, order = _in_csr(n, src, dst)
+    frontier, k = np.flatnonzero(stop), 0
+    while frontier.size:
+        k += 1
+        idx = _incoming(offs, order, frontier)
+        if not idx.size:
+            break
+        u = np.unique(src[idx])
+        u = u[best[u] == INF]
+        best[u] = k
+        frontier = u
+    return best
+
+
+class ResponseBound:
+    """The exact response times of one requirement on one explored system."""
+
+    def __init__(self, ts, req: Response):
+        self.ts, self.req = ts, req
+        model = ts.model
+        rate = model.tick_rate
+        self.rate = rate
+        try:
+            self.stop = evaluate(ts, req.response)
+        except ModelError as exc:
+            raise ModelError(f"responses.{req.name}.response", exc.problem) from None
+        ev = req.trigger_event
+        if ev is not None:
+            names = {e.name for e in model.environment} | {o.name for e in model.environment
+                                                           for o in (getattr(e, "options", None) or ())}
+            if ev not in names:
+                raise ModelError(f"responses.{req.name}.trigger", f"no environment event or option '{ev}'")
+            hit = np.array([("env", ev) in lab for lab in ts.labels] or [False], bool)
+            self.trigger_edges = np.flatnonzero(hit[ts.label]) if ts.n_transitions else np.zeros(0, np.int64)
+            tstates = np.unique(ts.dst[self.trigger_edges])
+        else:
+            try:
+                tmask = evaluate(ts, req.trigger)
+            except ModelError as exc:
+                raise ModelError(f"responses.{req.name}.trigger", exc.problem) from None
+            self.trigger_edges = None
+            tstates = np.flatnonzero(tmask)
+        self.triggers = tstates
+        n = ts.n_states
+        self.worst_at = worst_until(n, ts.src, ts.dst, self.stop)
+        self.best_at = best_until(n, ts.src, ts.dst, self.stop)
+
+    @property
+    def occurs(self) -> bool:
+        return self.triggers.size > 0
+
+    @property
+    def worst(self) -> "int | None":
+        """Worst case in ticks (INF: unbounded), None when the trigger never occurs."""
+        return int(self.worst_at[self.triggers].max()) if self.occurs else None
+
+    @property
+    def best(self) -> "int | None":
+        return int(self.best_at[self.triggers].min()) if self.occurs else None
+
+    def seconds(self, ticks):
+        return None if ticks is None else (float("inf") if ticks == INF else ticks / self.rate)
+
+    def bound_ticks(self) -> "int | None":
+        w = self.req.within
+        return None if w is None else int(np.floor(w * self.rate + 1e-9))
+
+    # ---------------------------------------------------------------- witnesses
+    def _entry(self, states) -> tuple:
+        """(prefix transitions, trigger state) reaching the nearest of ``states`` (BFS
+        order), ending with the trigger tick for an event trigger."""
+        ts = self.ts
+        states = np.asarray(states, np.int64)
+        if self.trigger_edges is None:
+            t = int(states.min())
+            return ts.path_to(t), t
+        mask = np.zeros(ts.n_states, bool)
+        mask[states] = True
+        edges = self.trigger_edges[mask[ts.dst[self.trigger_edges]]]
+        e = int(edges[np.lexsort((edges, ts.src[edges]))[0]])  # the nearest source, then the first tick
+        return ts.path_to(int(ts.src[e])) + [e], int(ts.dst[e])
+
+    def _longest_walk(self, u: int, steps: int) -> list:
+        """``steps`` transitions from ``u`` along a longest response-free path (fewer if a
+        state without successors is reached)."""
+        ts, worst, stop = self.ts, self.worst_at, self.stop
+        offs = ts.offsets
+        out = []
+        for _ in range(steps):
+            if stop[u]:
+                break
+            lo, hi = int(offs[u]), int(offs[u + 1])
+            if lo == hi:
+                break
+            w = worst[ts.dst[lo:hi]]
+            t = lo + int(np.argmax(w))  # INF first, else the longest; the first such transition
+            out.append(t)
+            u = int(ts.dst[t])
+        return out
+
+    def worst_witness(self) -> tuple:
+        """(transitions, trigger step index, loop or None): a run reaching a trigger state with
+        the worst case and following a longest response-free path; for an unbounded worst
+        case, the lasso into a response-free cycle (or the path to a state without successors)."""
+        ts = self.ts
+        worst = self.worst
+        at = self.triggers[self.worst_at[self.triggers] == worst]
+        prefix, t = self._entry(at)
+        if worst != INF:
+            return prefix + self._longest_walk(t, worst), len(prefix), None
+        return self._lasso(prefix, t)
+
+    def violation_witness(self, bound: int) -> tuple:
+        """(transitions, trigger step index, loop or None) of the shortest run whose response
+        takes more than ``bound`` ticks: the lasso when the response never comes."""
+        bad = self.triggers[self.worst_at[self.triggers] > bound]
+        prefix, t = self._entry(bad)
+        if self.worst_at[t] == INF:
+            return self._lasso(prefix, t)
+        return prefix + self._longest_walk(t, bound), len(prefix), None
+
+    def _lasso(self, prefix, t) -> tuple:
+        ts, stop = self.ts, self.stop
+        free = ~stop[ts.src]
+        idx = np.flatnonzero(free)
+        on_cycle = cyclic_states(ts.n_states, ts.src[idx], ts.dst[idx])
+        on_cycle = on_cycle[~stop[on_cycle]]
+        has_out = np.diff(ts.offsets) > 0
+        dead = np.flatnonzero(~stop & ~has_out[: ts.n_states]) if ts.complete else np.zeros(0, np.int64)
+        goal = np.zeros(ts.n_states, bool)
+        goal[on_cycle] = True
+        goal[dead] = True
+        walk = shortest_path(ts, t, goal, free)
+        if walk is None:
+            raise AssertionError("an unbounded response with no response-free cycle or dead end reachable")
+        end = int(ts.dst[walk[-1]]) if walk else t
+        if end in set(dead.tolist()):
+            return prefix + walk, len(prefix), None
+        sub = np.flatnonzero(free)
+        cyc = shortest_cycle(ts.n_states, ts.src[sub], ts.dst[sub], end)
+        path = prefix + walk
+        return path + sub[np.asarray(cyc, np.int64)].tolist(), len(prefix), len(path)
+
+
+def analyse(ts, req: Response) -> ResponseBound:
+    return ResponseBound(ts, req)
+
+
+def _fmt(rb, ticks) -> str:
+    if ticks is None:
+        return "-"
+    if ticks == INF:
+        return "unbounded"
+    return f"{ticks} ticks ({rb.seconds(ticks):g} s)"
+
+
+def _requirements(ctx) -> tuple:
+    extra = getattr(ctx, "responses", None) or ()
+    return tuple(ctx.model.responses) + tuple(extra)
+
+
+def counterexample(rb, transitions, trigger_step, loop, summary, bound):
+    req = rb.req
+    viol = {"kind": "response", "name": req.name,
+            "trigger": req.trigger if isinstance(req.trigger, str) else str(req.trigger),
+            "response": str(req.response), "trigger_step": trigger_step, "bound_ticks": bound,
+            "worst_ticks": None if rb.worst == INF else rb.worst, "tick_rate": rb.rate}
+    if loop is not None:
+        viol["text"] = (f"'{req.name}': after the trigger at step {trigger_step} the run enters a cycle "
+                        f"(from step {loop + 1}) on which '{req.response}' never holds")
+    elif bound is not None:
+        viol["text"] = (f"'{req.name}': '{req.response}' still does not hold {bound} tick(s) ({req.within:g} s, the "
+                        f"bound) after the trigger at step {trigger_step}")
+    else:
+        viol["text"] = (f"'{req.name}': the worst case: {len(transitions) - trigger_step} tick(s) from the trigger "
+                        f"at step {trigger_step} to '{req.response}'")
+    return path_counterexample(rb.ts, transitions, NAME, summary, viol, loop=loop)
+
+
+def check(ctx) -> Result:
+    reqs = _requirements(ctx)
+    if not reqs:
+        return Result(NAME, True, None, ["no response requirement declared (the model's 'responses:' key): nothing to check"])
+    ts = ctx.model_ts()
+    notes, info, verdict, ce = [], {"responses": {}}, True, None
+    for req in reqs:
+        rb = ResponseBound(ts, req)
+        bound = rb.bound_ticks()
+        worst, best = rb.worst, rb.best
+        entry = {"trigger": req.trigger if isinstance(req.trigger, str) else str(req.trigger),
+                 "response": str(req.response), "within_seconds": req.within, "bound_ticks": bound,
+                 "triggers": int(rb.triggers.size),
+                 "worst_ticks": None if worst in (None, INF) else worst,
+                 "worst_seconds": None if worst in (None, INF) else rb.seconds(worst),
+                 "best_ticks": None if best in (None, INF) else best,
+                 "best_seconds": None if best in (None, INF) else rb.seconds(best),
+                 "unbounded": worst == INF}
+        info["responses"][req.name] = entry
+        if not rb.occurs:
+            notes.append(f"{req.name}: the trigger never occurs in a reachable state")
+            continue
+        text = f"{req.name}: worst case {_fmt(rb, worst)}, best case {_fmt(rb, best)}"
+        if bound is not None:
+            text += f"; bound {req.within:g} s = {bound} ticks"
+        notes.append(text)
+        if bound is not None and worst > bound:
+            verdict = False
+            if ce is None:
+                path, k, loop = rb.violation_witness(bound)
+                summary = (f"'{req.name}': '{req.response}' may never come after the trigger" if worst == INF else
+                           f"'{req.name}': the response can take {worst / rb.rate:g} s > {req.within:g} s")
+                ce = counterexample(rb, path, k, loop, summary, bound)
+    if not ts.complete:
+        notes.append(f"{budget_hit(ts)}: the figures cover the explored part only; not decided")
+        if verdict:
+            verdict = None
+    return Result(NAME, verdict, ce, notes, info)
