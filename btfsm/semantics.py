@@ -131,6 +131,7 @@ class Program:
             self._slot(var.name, "var", var.hi - var.lo + 1, var.lo)
             self.scope[var.name] = Scope.of([var], len(self.slots) - 1)[var.name]
         self.prims = model.all_primitives()
+        self._fsm_timers: dict = {}  # FSM name -> the slot counting its state's run (rule 'Durations')
         self._layout_fsms()
         self._layout_nodes()
         self.exclusive = self._exclusive_groups()
@@ -296,8 +297,18 @@ class Program:
             return  # [0, unbounded): no restriction
         site.ticks = (lo, hi)
         cap = (hi if hi is not None else lo) - 1
-        if cap > 0:
+        if cap <= 0:
+            return
+        if site.kind != "state":
             site.timer = self._slot(f"{site.label}:ran", "timer", cap + 1)
+            return
+        # one counter per FSM: only the token's state runs, and leaving a state resets it
+        slot = self._fsm_timers.get(site.fsm)
+        if slot is None:
+            slot = self._fsm_timers[site.fsm] = self._slot(f"{site.fsm}:ran", "timer", cap + 1)
+        elif self.slots[slot].size < cap + 1:
+            self.slots[slot] = SlotInfo(f"{site.fsm}:ran", "timer", cap + 1)
+        site.timer = slot
 
     def _halt_fn(self, info):
         """halt(ctx): halt every running node of ``info``'s subtree, children first."""

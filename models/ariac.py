@@ -32,9 +32,11 @@ from __future__ import annotations
 from btfsm import (FSM, Action, Bool, Condition, Edge, Effects, Int, Marker, MemoryFallback,
                    MemorySequence, Model, Parallel, Primitive, ReactiveFallback, ReactiveSequence,
                    SkillRequest, State, EnvEvent, failure, running, success)
+from btfsm.timing import Response
 
 __all__ = ["AREAS", "ROTATIONS", "SKILLS", "PRIMITIVES", "ARM_REQUESTS", "generate_fsm", "unite", "arm_fsm",
-           "tree", "preemptive", "baseline", "states_of", "HUBS"]
+           "tree", "preemptive", "baseline", "states_of", "HUBS", "ARM_DURATIONS", "ARRIVAL_MIN_INTERVAL",
+           "PICK_WINDOW", "timed", "preemptive_timed", "baseline_timed"]
 
 AREAS = ("agv", "bins", "conveyor")
 # the authors' rotation order: (area, area before, area after)
@@ -275,3 +277,49 @@ def preemptive(n_tray: int = 18, queue_max: int = 2, grasp_attempts: int = 2) ->
 def baseline(n_tray: int = 18, queue_max: int = 2, grasp_attempts: int = 2) -> Model:
     """The paper's non-preemptive baseline: one memory fallback over the four branches."""
     return _model("baseline", n_tray, queue_max, grasp_attempts)
+
+
+# ---------------------------------------------------------------------- time (issue 12)
+
+#: Seconds the arm may spend in each state whose primitive runs (docs/semantics.md 6.1):
+#: the longest visit measured in the 80 trials of the experiment plus 10 %, rounded up to a
+#: tick (``python -m btfsm.sim.durations`` prints the measurement beside this table). States
+#: never visited there have no bound. Measured, not derived from the motion profiles.
+ARM_DURATIONS = {
+    "approach_agv": 6.6, "approach_bins": 6.6, "approach_conveyor": 4.3,
+    "agv_to_bins": 6.9, "conveyor_to_bins": 4.7, "bins_to_agv": 5.9, "conveyor_to_agv": 6.6,
+    "agv_to_conveyor": 3.8, "bins_to_conveyor": 4.3,
+    "grasp_bins": 1.3, "raise_bins": 1.7, "put_back_bins": 1.6, "put_bins": 1.5, "escape_bins": 1.7,
+    "put_agv": 1.5, "escape_agv": 2.0, "grasp_conveyor": 0.7, "raise_conveyor": 1.7,
+}
+#: The experiment's belt parts are detected dTa(k) = 30 + 0.2 k >= 30.2 s apart.
+ARRIVAL_MIN_INTERVAL = 30.0
+#: The pick window dt* (s): a belt part is lost this long after its detection.
+PICK_WINDOW = 16.0
+
+
+def timed(model: Model) -> Model:
+    """``model`` (an ARIAC variant) with the arm's measured durations, the arrivals' minimum
+    interval and the requirement ``reach``: every detected belt part is reached (the arm
+    starts grasping at the conveyor) within dt* = 16 s. Picking it cannot be bounded in this
+    model: its grasp may miss (a declared outcome), after which the part is given up."""
+    import dataclasses
+
+    f = model.fsms[0]
+    states = tuple(dataclasses.replace(s, duration=(0.0, ARM_DURATIONS[s.id])) if s.id in ARM_DURATIONS else s
+                   for s in f.states)
+    env = tuple(dataclasses.replace(e, min_interval=ARRIVAL_MIN_INTERVAL) for e in model.environment)
+    reach = Response("reach", "event:arrive", "arm.state == 'grasp_conveyor'", PICK_WINDOW)
+    return dataclasses.replace(model, name=f"{model.name}-timed", fsms=(dataclasses.replace(f, states=states),),
+                               environment=env, responses=(reach,),
+                               description=model.description + "; durations measured in the cell (ARM_DURATIONS)")
+
+
+def preemptive_timed(n_tray: int = 2) -> Model:
+    """The preemptive variant with time (``timed``); 2 tray parts keep the check small."""
+    return timed(preemptive(n_tray=n_tray))
+
+
+def baseline_timed(n_tray: int = 2) -> Model:
+    """The baseline variant with time (``timed``); 2 tray parts keep the check small."""
+    return timed(baseline(n_tray=n_tray))

@@ -6,7 +6,7 @@ names through this table; ``load_builtin`` here does the same without the file l
 >>> load_builtin("spectrum-reverse").name
 'spectrum-reverse'
 >>> sorted(n for n in BUILTIN if n.startswith("ariac"))
-['ariac-baseline', 'ariac-preemptive']
+['ariac-baseline', 'ariac-baseline-timed', 'ariac-preemptive', 'ariac-preemptive-timed']
 """
 from __future__ import annotations
 
@@ -14,12 +14,15 @@ import importlib
 
 from btfsm.errors import ModelError
 
-__all__ = ["BUILTIN", "DEFECTS", "load_builtin", "names"]
+__all__ = ["BUILTIN", "DEFECTS", "HEAVY", "load_builtin", "names"]
 
 BUILTIN: dict = {
     # the paper's ARIAC cell, corrected design (models/ariac.py)
     "ariac-preemptive": "btfsm.models.ariac:preemptive",
     "ariac-baseline": "btfsm.models.ariac:baseline",
+    # the same with time: measured durations, arrivals >= 30 s apart, requirement 'reach'
+    "ariac-preemptive-timed": "btfsm.models.ariac:preemptive_timed",
+    "ariac-baseline-timed": "btfsm.models.ariac:baseline_timed",
     # the authors' original FSM and executive, defects kept (models/original.py)
     "original": "btfsm.models.original:original",
     "original-preemptive": "btfsm.models.original:original_preemptive",
@@ -49,6 +52,10 @@ BUILTIN: dict = {
     "defect-shadowed-marker": "btfsm.models.examples.defects:shadowed_marker",
     "defect-exclusive": "btfsm.models.examples.defects:exclusive",
 }
+
+# models whose whole state space takes tens of seconds to explore (about a million states):
+# the test suite's loops over every built-in model leave them to their own tests
+HEAVY = frozenset({"ariac-preemptive-timed", "ariac-baseline-timed"})
 
 # defect model -> the property it is seeded to violate (the catalogue's table)
 DEFECTS: dict = {

@@ -137,10 +137,13 @@ def test_event_spacing(gap, rate, wait):
         raise AssertionError("never enabled again")
 
 
-def test_models_without_time_have_no_timer_slots():
+def test_timer_slots_exist_exactly_where_time_is_declared():
     for name in sorted(BUILTIN):
         m = load_builtin(name)
-        assert all(sl.kind != "timer" for sl in m.program.slots), name
+        timed = any(e.min_interval for e in m.environment if hasattr(e, "min_interval")) or \
+            any(s.duration for f in m.fsms for s in f.states) or any(p.duration for p in m.primitives)
+        assert any(sl.kind == "timer" for sl in m.program.slots) == bool(timed), name
+        assert timed == name.endswith("-timed"), name
 
 
 def test_bad_durations_are_model_errors():
