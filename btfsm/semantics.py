@@ -141,6 +141,7 @@ class Program:
         self.env_timers = {i: (slot, wait) for i, slot, wait in self.env_timers}
         self.root = self.nodes[model.tree.name].tick if model.tree is not None else None
         self.invariants = [(name, compile_fn(e, self.scope, f"invariants.{name}", BOOL)) for name, e in model.invariants]
+        self._check_responses()
         self.workable = self._predicate(model.workable, "workable")
         self.terminal = self._predicate(model.terminal, "terminal") if model.terminal is not None else None
         self.initial = tuple(self._initial)
@@ -267,6 +268,19 @@ class Program:
         if wait > 1:  # rule 'Event spacing' (section 6.1): ticks since it happened, saturated at wait
             self.env_timers.append((i, self._slot(f"{ev.name}:since", "timer", wait + 1, 0, wait), wait))
         return (ev.name, guard, compile_effects(ev.effects, self.scope, f"{where}.effects"), None)
+
+    def _check_responses(self):
+        """The requirements' expressions compile and their trigger events exist (property
+        'response' evaluates them over the explored states)."""
+        events = {e.name for e in self.model.environment} | {
+            o.name for e in self.model.environment for o in (getattr(e, "options", None) or ())}
+        for r in self.model.responses:
+            where = f"responses.{r.name}"
+            if r.trigger_event is None:
+                compile_fn(r.trigger, self.scope, f"{where}.trigger", BOOL)
+            elif r.trigger_event not in events:
+                raise ModelError(f"{where}.trigger", f"no environment event or option '{r.trigger_event}'")
+            compile_fn(r.response, self.scope, f"{where}.response", BOOL)
 
     def _site(self, kind, node, fsm, state, primitive, args, where, duration=None) -> Site:
         prim = self.prims.get(primitive)

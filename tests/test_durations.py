@@ -191,6 +191,8 @@ responses:
     ("environment: [{event: e, min_interval: -2}]", "environment[0].min_interval: expected a finite number"),
     ("responses: {r: {trigger: 'event:e', response: 'x ==', within: 1}}", "responses.r.response"),
     ("responses: {r: {trigger: 'event:e'}}", "responses.r"),
+    ("variables: {q: bool}\nresponses: {r: {trigger: 'event:e', response: zz}}", "responses.r.trigger: no environment event"),
+    ("variables: {q: bool}\nresponses: {r: {trigger: q, response: zz}}", "responses.r.response: unknown name 'zz'"),
 ])
 def test_bad_time_declarations_exit_2(tmp_path, capsys, snippet, where):
     p = tmp_path / "bad.yaml"
