@@ -90,13 +90,14 @@ COMMANDS = {
     "skills": ("btfsm.verify.skills:cli_skills", "derive the skill transitions a tree can request"),
     "sim": ("btfsm.sim.cli:cli_sim", "run a model in the pymunk kitting cell"),
     "experiment": ("btfsm.sim.cli:cli_experiment", "reproduce the paper's ARIAC experiment"),
+    "sweep": ("btfsm.sim.cli:cli_sweep", "run the experiment over a grid of cell parameters (on Dask)"),
     "conform": ("btfsm.sim.cli:cli_conform", "run scenarios and check runtime conformance"),
     "import": ("btfsm.cli:cli_import", "read a BehaviorTree.CPP XML v4 tree (+ side file); write a btfsm model file"),
 }
 
 #: Per command: the argument names that are output paths (checked against the inputs).
 OUTPUTS = {"show": ("output",), "run": ("trace",), "replay": ("render", "gif"), "check": ("counterexample_dir",), "bound": ("output",),
-           "export": ("output",), "sim": ("render", "gif"), "experiment": ("out",), "import": ("output",)}
+           "export": ("output",), "sim": ("render", "gif"), "experiment": ("out",), "sweep": ("out",), "import": ("output",)}
 INPUTS = {"replay": ("trace", "model"), "import": ("model", "leaves")}
 
 
@@ -259,6 +260,34 @@ def _args_experiment(sp):
     _args_json(sp, "the summary")
 
 
+def _args_sweep(sp):
+    sp.add_argument("--k", type=int_range(1, 40), action="append", default=[], help="trial index k (seed and dTa(k); repeatable)")
+    sp.add_argument("--trials", type=int_range(1, 40), help="this many k values spread evenly over 1..40 (default 1)")
+    sp.add_argument("--variant", action="append", choices=("preemptive", "baseline"), help="default: both")
+    pos = finite_float(0, 100, lo_open=True)
+    sp.add_argument("--belt-speed", type=pos, nargs="+", default=[0.2], metavar="M_S", help="belt speeds, m/s (default 0.2)")
+    sp.add_argument("--period", type=finite_float(1, MAX_SIM_TIME), nargs="+", default=None, metavar="S",
+                    help="seconds between belt parts (default dTa(k) = 30 + 0.2 k)")
+    sp.add_argument("--speed-scale", type=finite_float(0, 1, lo_open=True), nargs="+", default=[0.5], metavar="X",
+                    help="the arm's velocity scaling (default 0.5, the authors')")
+    sp.add_argument("--pick-window", type=finite_float(0, 1000, lo_open=True), nargs="+", default=None, metavar="S",
+                    help="dt*: seconds a detected part stays pickable (default: the time the belt takes to carry it "
+                         "through the arm's reach, 3.2 m / belt speed: 16 s at 0.2 m/s)")
+    sp.add_argument("--time", type=finite_float(0, MAX_SIM_TIME, lo_open=True), default=1500.0,
+                    help="time limit per trial in simulated seconds (default 1500)")
+    sp.add_argument("--engine", choices=("dask", "processes", "inline"), default="dask",
+                    help="dask (default: an embedded local cluster, or --scheduler), processes (a local pool), "
+                         "inline (this process)")
+    sp.add_argument("--scheduler", type=input_text, default=None, metavar="ADDRESS",
+                    help="a running Dask scheduler (tcp://HOST:PORT) instead of the embedded cluster")
+    sp.add_argument("--workers", type=int_range(1, MAX_WORKERS), default=os.cpu_count() or 1,
+                    help="worker processes of the embedded cluster or pool (default: all cores)")
+    sp.add_argument("--out", default="out/sweep", type=output_dir,
+                    help="folder for sweep.csv, sweep.parquet, the figure and the finished trials (cache/); "
+                         "a re-run with the same --out reuses finished trials")
+    sp.add_argument("--quiet", action="store_true", help="no progress bar")
+
+
 def _args_sim(sp):
     _args_model(sp)
     sp.add_argument("--k", type=int_range(1, 40), default=1, help="belt parts every 30 + 0.2 k s (1..40, default 1)")
@@ -299,7 +328,7 @@ def _args_import(sp):
 
 _ARGS = {"validate": _args_validate, "show": _args_show, "run": _args_run, "replay": _args_replay,
          "check": _args_check, "bound": _args_bound, "export": _args_export, "skills": _args_skills,
-         "experiment": _args_experiment, "sim": _args_sim, "conform": _args_conform, "import": _args_import}
+         "experiment": _args_experiment, "sweep": _args_sweep, "sim": _args_sim, "conform": _args_conform, "import": _args_import}
 
 
 def _refuse_input_as_output(args) -> None:

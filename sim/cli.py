@@ -243,3 +243,48 @@ def cli_conform(args) -> int:
     else:
         print(f"{len(rows) - failed} of {len(rows)} scenarios conform")
     return 1 if failed else 0
+
+
+def cli_sweep(args) -> int:
+    """``btfsm sweep``: the experiment over a grid of trial parameters (``btfsm.sim.sweep``)."""
+    from .protocol import VARIANTS
+    from .sweep import check_geometry, grid, plot_lost, run_sweep, write_table
+    from btfsm.outputs import ensure_output_dir
+
+    ks = select_ks(args.k, args.trials) if (args.k or args.trials) else [1]
+    variants = tuple(dict.fromkeys(args.variant)) if args.variant else VARIANTS
+    specs = grid(variants, ks, belt_speed=tuple(dict.fromkeys(args.belt_speed)),
+                 period=tuple(dict.fromkeys(args.period)) if args.period else (None,),
+                 speed_scale=tuple(dict.fromkeys(args.speed_scale)),
+                 pick_window=tuple(dict.fromkeys(args.pick_window)) if args.pick_window else (None,),
+                 time_limit=args.time)
+    try:
+        check_geometry(specs)
+    except ValueError as exc:
+        raise UsageError(str(exc)) from None
+    ensure_output_dir(args.out)
+    where = args.scheduler or (f"an embedded Dask cluster of {args.workers} worker(s)" if args.engine == "dask" else
+                               f"{args.engine} ({args.workers} worker(s))")
+    print(f"sweep: {len(specs)} trials ({', '.join(variants)}; k = {_ks_text(ks)}) on {where}", file=sys.stderr)
+    t0 = time.perf_counter()
+    results = run_sweep(specs, engine=args.engine, workers=args.workers, scheduler=args.scheduler, folder=args.out,
+                        progress=not args.quiet)
+    wall = time.perf_counter() - t0
+    csv_path, pq_path = write_table(specs, results, args.out)
+    png = plot_lost(specs, results, os.path.join(args.out, "lost_vs_belt_speed.png"))
+    print(f"{'variant':12s} {'belt m/s':>8s} {'period s':>8s} {'scale':>6s} {'dt* s':>6s} {'trials':>6s} "
+          f"{'lost':>5s} {'max reaction s':>14s}")
+    groups: dict = {}
+    for s, r in zip(specs, results):
+        groups.setdefault((s.variant, s.belt_speed, s.period, s.speed_scale, s.pick_window), []).append(r)
+    for (v, bs, per, sc, pw), rs in groups.items():
+        rts = [t for r in rs for t in r.reaction_times]
+        print(f"{v:12s} {bs:8g} {('dTa(k)' if per is None else f'{per:g}'):>8s} {sc:6g} {pw:6g} {len(rs):6d} "
+              f"{sum(r.lost for r in rs):5d} {(f'{max(rts):.1f}' if rts else '-'):>14s}")
+    print(f"{len(specs)} trials in {wall:.1f} s wall")
+    print(f"table: {csv_path}" + (f", {pq_path}" if pq_path else " (Parquet needs pyarrow)"))
+    print(f"figure: {png}")
+    errors = [r for r in results if r.conformance_error]
+    for r in errors[:3]:
+        print(f"conformance error in {r.variant} k={r.k}: {r.conformance_error}", file=sys.stderr)
+    return 1 if errors else 0
