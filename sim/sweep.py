@@ -147,11 +147,9 @@ def run_sweep(specs, *, engine: str = "dask", workers: int = 2, scheduler: "str 
 
 
 def _has_dask() -> bool:
-    try:
-        import distributed  # noqa: F401
-    except ImportError:
-        return False
-    return True
+    import importlib.util
+
+    return importlib.util.find_spec("distributed") is not None
 
 
 def _run_dask(specs, todo, workers, scheduler, finish):

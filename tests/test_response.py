@@ -8,7 +8,6 @@ figures, exit codes, counterexamples that replay.
 """
 from __future__ import annotations
 
-import dataclasses
 import json
 
 import numpy as np
@@ -19,7 +18,6 @@ from hypothesis import strategies as st
 from btfsm import ModelError
 from btfsm.cli import main
 from btfsm.timing import Response
-from btfsm.verify import replay_counterexample
 from btfsm.verify.explore import explore
 from btfsm.verify.properties.response import INF, ResponseBound, best_until, worst_until
 

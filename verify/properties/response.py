@@ -202,7 +202,6 @@ class ResponseBound:
         """(transitions, trigger step index, loop or None): a run reaching a trigger state with
         the worst case and following a longest response-free path; for an unbounded worst
         case, the lasso into a response-free cycle (or the path to a state without successors)."""
-        ts = self.ts
         worst = self.worst
         at = self.triggers[self.worst_at[self.triggers] == worst]
         prefix, t = self._entry(at)
