@@ -116,11 +116,14 @@ TABLE = {
 }
 
 # Positional and structural misuse: (argv,) each must exit 2.
-STRUCTURAL = ([[]] + [[c] for c in COMMANDS if c != "experiment"] + [["no-such-command"], ["--no-such-flag"],
+STRUCTURAL = ([[]] + [[c] for c in COMMANDS if c not in ("experiment", "sweep")] + [["no-such-command"], ["--no-such-flag"],
               ["validate", TWO, "--no-such-flag"], ["export", TWO], ["replay", TWO], ["check", TWO, "extra"],
               ["sim", TWO, "--k"], ["run", TWO, "--ticks"], ["experiment", "positional"],
-              ["experiment", "--k", "1", "--trials"], ["validate", TWO, "--strict=yes"]]
-              + [[c, bad] for c in COMMANDS if c not in ("experiment", "replay") for bad in BAD_INPUTS]
+              ["experiment", "--k", "1", "--trials"], ["validate", TWO, "--strict=yes"],
+              ["sweep", "positional"], ["sweep", "--belt-speed"], ["sweep", "--belt-speed", "-0.1"],
+              ["sweep", "--period", "0"], ["sweep", "--pick-window", "nan"], ["sweep", "--workers", "0"],
+              ["bound", TWO], ["bound", TWO, "--trigger", "x"]]
+              + [[c, bad] for c in COMMANDS if c not in ("experiment", "sweep", "replay") for bad in BAD_INPUTS]
               + [["replay", bad, TWO] for bad in BAD_INPUTS if bad != A_FILE]
               + [["replay", A_FILE + ".jsonl", bad] for bad in BAD_INPUTS])
 
@@ -198,11 +201,14 @@ TOKENS = ["--json", "--debug", "--strict", "--quiet", "--drops", "--no-path", "-
           "0", "1", "-1", "2", "40", "41", "0.5", "1e-9", "nan", "inf", "-inf", "1e400", HUGE_DIGITS, "", "abc",
           "dot", "svg", "json", "text", "smv", "promela", "baseline", "preemptive", "scalar", "traced",
           TWO, ARIAC, "tree", "arm", "all", "/dev/full", "/proc/x", A_DIR, A_FILE, A_FIFO, "\udc80", "\0"]
-SLOW_VALID = {"sim", "experiment", "conform", "replay"}
+SLOW_VALID = {"sim", "experiment", "conform", "replay", "sweep"}
+TIME_TOKENS = TOKENS + ["--trigger", "--response", "--within", "event:arrive", "event:nope", "q == 0", "arrive",
+                        "--belt-speed", "--period", "--speed-scale", "--pick-window", "--scheduler", "dask", "inline",
+                        "processes", "0.25", "0.3", "16"]
 
 
 def _argv(command):
-    token = st.one_of(st.sampled_from(TOKENS), st.text(max_size=8))
+    token = st.one_of(st.sampled_from(TIME_TOKENS if command in ("bound", "sweep") else TOKENS), st.text(max_size=8))
     return st.lists(token, max_size=6).map(lambda rest: [command, *rest])
 
 
@@ -216,6 +222,9 @@ def _guard_slow(argv, tmp_path):
     if argv[0] == "experiment":
         argv = argv + ["--out", str(tmp_path / "exp"), "--k", "1", "--variant", "baseline", "--workers", "1",
                        "--quiet"]
+    if argv[0] == "sweep":  # one tiny trial in this process (the engines are tested in test_sweep.py)
+        argv = argv + ["--out", str(tmp_path / "sweep"), "--k", "1", "--variant", "baseline", "--engine", "inline",
+                       "--belt-speed", "0.2", "--quiet"]
     if argv[0] == "conform":
         argv = argv + ["--scenarios", "1", "--no-path"]
     if argv[0] == "sim":
@@ -228,7 +237,7 @@ _SETTINGS = settings(max_examples=HYPOTHESIS_EXAMPLES, deadline=None, derandomiz
 
 
 @pytest.mark.parametrize("group", [("validate", "show", "skills", "import"), ("run", "check", "export"),
-                                   ("sim", "conform", "replay"), ("experiment",)])
+                                   ("sim", "conform", "replay"), ("experiment",), ("bound", "sweep")])
 def test_generated_argv(group, capsys, tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
 
