@@ -213,3 +213,13 @@ def test_a_model_without_requirements_holds_trivially():
 
     res = check(load_builtin("two-area"), ["response"]).results[0]
     assert res.holds is True and "no response requirement declared" in res.notes[0]
+
+
+def test_both_engines_explore_a_model_with_an_event_requirement(timed_file):
+    """The scalar engine ticks the tree without the environment (its TreeCache): a
+    requirement triggered by an environment event must not stop it from building that."""
+    from btfsm.files import load_model
+    from test_verify_traced import assert_same
+
+    m = load_model(str(timed_file))
+    assert_same(explore(m, engine="scalar"), explore(m, engine="traced"))

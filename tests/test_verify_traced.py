@@ -152,3 +152,23 @@ def test_cli_engine_option(capsys):
     first, second = (json.loads(x) for x in capsys.readouterr().out.strip().splitlines())
     assert codes == [1, 1] and _without_times(first) == _without_times(second)
     assert main(["check", "defect-trap", "--engine", "fast"]) == 2  # usage error: one line, exit 2
+
+
+def test_auto_explores_small_systems_with_the_scalar_engine(monkeypatch):
+    """engine='auto': at most AUTO_SCALAR_STATES states -> the scalar engine alone; larger
+    systems are explored again by the traced engine; the same system either way."""
+    from btfsm.verify import explore as explore_mod
+
+    small = load_builtin("ariac-preemptive")
+    ref = explore(small, engine="traced")
+    called = []
+    real = traced.search
+    monkeypatch.setattr(traced, "search", lambda *a, **k: called.append(1) or real(*a, **k))
+    assert_same(explore(small), ref)
+    assert called == []
+    big = load_builtin("pickplace3")  # 10,288 states
+    assert big and explore_mod.AUTO_SCALAR_STATES < 10_288
+    assert_same(explore(big), explore(big, engine="scalar"))
+    assert called == [1]
+    # a state budget within the probe is the user's cut, as the engines agree on it
+    assert_same(explore(big, max_states=100), explore(big, engine="traced", max_states=100))

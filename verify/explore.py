@@ -31,7 +31,7 @@ from .labels import readable
 from .search import DEFAULT_MAX_STATES, DEFAULT_MAX_TRANSITIONS, Budget, EnumOracle, run_environment
 from .system import TransitionSystem
 
-__all__ = ["explore", "explore_fsm", "OpenFSM", "open_fsm", "requests_of", "EnumOracle", "run_environment",
+__all__ = ["AUTO_SCALAR_STATES", "explore", "explore_fsm", "OpenFSM", "open_fsm", "requests_of", "EnumOracle", "run_environment",
            "successor_scripts", "run_script", "script_of", "DEFAULT_MAX_STATES",
            "DEFAULT_MAX_TRANSITIONS", "Budget"]
 
@@ -301,8 +301,9 @@ def explore(model, *, max_states=None, max_transitions=None, max_seconds=None, p
 
     ``engine``: ``"traced"`` runs ``btfsm.verify.traced`` (the step function traced once per
     path, then applied to whole batches with numpy); ``"scalar"`` runs the step once per
-    transition (``btfsm.verify.scalar``); ``"auto"`` (the default) is traced unless the tracer cannot follow
-    the model (``btfsm.verify.traced.Untraceable``), then scalar. Both give the same system,
+    transition (``btfsm.verify.scalar``); ``"auto"`` (the default) is scalar for systems of
+    at most ``AUTO_SCALAR_STATES`` states, else traced, unless the tracer cannot follow the
+    model (``btfsm.verify.traced.Untraceable``), then scalar. Both give the same system,
     numbering included (tests compare them).
 
     When the model has an environment, the scalar engine memoises the tree's results by
@@ -327,19 +328,37 @@ def explore_fsm(model, fsm, *, goals=None, max_states=None, max_transitions=None
     return _explore_with(engine, model, "fsm", op.fsm, op.kept, op.run, init, budget, progress, op)
 
 
+#: ``engine="auto"``: systems up to this many states are explored by the scalar engine. The
+#: traced engine pays for tracing each path once; below a few thousand states that costs
+#: more than it saves (ARIAC, 1,605 states: scalar 0.04 s, traced 0.14 s; pick/place at 3,
+#: 10,288 states: scalar 0.32 s, traced 0.06 s).
+AUTO_SCALAR_STATES = 4096
+
+
 def _explore_with(engine, model, kind, fsm, kept, run, init, budget, progress, op) -> TransitionSystem:
-    """One system, explored by the engine asked for (see ``explore``). With ``auto``, a
-    traced search whose paths multiply (``TooManyPaths``) goes on with the scalar engine
-    under the same budget (its clock included); ``traced`` then stops at a "paths" budget."""
+    """One system, explored by the engine asked for (see ``explore``). With ``auto``, the
+    scalar engine first explores up to ``AUTO_SCALAR_STATES`` states (tracing does not pay
+    off on small systems); a system that is larger is explored again, from the start, by
+    the traced engine under the same budget (its clock included). A traced search whose
+    paths multiply (``TooManyPaths``) goes on with the scalar engine; ``traced`` then stops
+    at a "paths" budget."""
     if engine not in ("auto", "traced", "scalar"):
         raise ValueError(f"engine must be auto, traced or scalar, not {engine!r}")
+    split = scalar.TreeCache(model) if kind == "model" and model.environment and model.tree is not None else None
+    if engine == "auto":
+        small = AUTO_SCALAR_STATES if budget.max_states is None else min(budget.max_states, AUTO_SCALAR_STATES)
+        probe = Budget(small, budget.max_transitions, budget.max_seconds)
+        probe.start = budget.start
+        ts = scalar.search(model, kind, fsm, kept, run, init, probe, progress, op, split)
+        if ts.complete or probe.hit != "states" or small == budget.max_states:
+            budget.hit = probe.hit  # the whole system, or the cut the user's budget makes (the same in both engines)
+            return ts
     if engine != "scalar":
         try:
             return traced.search(model, kind, fsm, kept, run, init, budget, progress, op, fallback=engine == "auto")
         except traced.Untraceable:
             if engine == "traced":
                 raise
-    split = scalar.TreeCache(model) if kind == "model" and model.environment and model.tree is not None else None
     return scalar.search(model, kind, fsm, kept, run, init, budget, progress, op, split)
 
 

@@ -55,7 +55,7 @@ class TreeCache:
         import dataclasses
 
         self.env = model.program  # the environment phase runs on the full program
-        self.tree = dataclasses.replace(model, environment=()).program
+        self.tree = dataclasses.replace(model, environment=(), responses=()).program
         self.limit = limit or self.LIMIT
         self.cache: dict = {}  # this generation
         self.old: dict = {}  # the previous one: entries used again move up
