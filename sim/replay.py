@@ -35,6 +35,7 @@ class CellReplay:
     injected: list = field(default_factory=list)  # (time, FSM state, part id)
     lost: list = field(default_factory=list)  # (time, part id)
     frozen: "tuple | None" = None  # (FSM state, from time, to time) longest time the arm did not move on
+    kind: str = ""  # the counterexample's violation kind
     timeline: list = field(default_factory=list)  # (time, FSM state, goal) changes
     end_time: float = 0.0
     picture: "str | None" = None
@@ -49,6 +50,10 @@ class CellReplay:
             st, t0, t1 = self.frozen
             lines.append(f"  the arm stayed in '{st}' from t = {t0:.1f} s to t = {t1:.1f} s ({t1 - t0:.1f} s without a move)")
         lines.append("  last FSM states: " + "; ".join(f"{t:.1f} s {s} ({g or '-'})" for t, s, g in self.timeline[-4:]))
+        if self.kind == "response":  # a late response loses the belt part in the cell, or it does not
+            lines.append("  the cell shows the late response: a belt part was lost" if self.lost else
+                         "  the cell does not show the late response: no belt part was lost (only the counterexample's "
+                         "arrival times are replayed; the cell's moves take their own time, not the declared maxima)")
         if self.picture:
             lines.append(f"  picture: {self.picture}")
         return "\n".join(lines)
@@ -81,7 +86,7 @@ def replay_in_cell(model, ce, *, time_limit: float = 120.0, render: "str | None"
     model, cell, binding, rt = build_trial(spec, model, detections=())
     d = binding.d
     pending = [t for t in triggers_of(ce, d.fsm) if t[1] == "arrive"]
-    result = CellReplay(model.name, list(pending))
+    result = CellReplay(model.name, list(pending), kind=(ce.get("violation") or {}).get("kind", ""))
     q_slot = model.program.scope["queue"].index
     steps = max(1, round(spec.physics_rate / model.tick_rate))
     recorder = None
