@@ -62,7 +62,7 @@ MAX_SCENARIOS = 100_000
 MAX_FRAMES = 100_000
 
 #: Third-party modules that only some commands need (``pip install 'btfsm[sim]'``).
-OPTIONAL_MODULES = {"pymunk", "matplotlib", "PIL", "numpy", "tqdm"}
+OPTIONAL_MODULES = {"matplotlib", "PIL", "dask", "distributed", "pyarrow", "numpy", "tqdm"}
 
 
 class CliParser(argparse.ArgumentParser):
@@ -88,7 +88,7 @@ COMMANDS = {
     "bound": ("btfsm.verify.cli:cli_bound", "the exact best and worst response time from a trigger to a response"),
     "export": ("btfsm.verify.cli:cli_export", "export a model to Promela, SMV or dot"),
     "skills": ("btfsm.verify.skills:cli_skills", "derive the skill transitions a tree can request"),
-    "sim": ("btfsm.sim.cli:cli_sim", "run a model in the pymunk kitting cell"),
+    "sim": ("btfsm.sim.cli:cli_sim", "run a model in a simulated cell (its scene; the ARIAC cell for the paper's models)"),
     "experiment": ("btfsm.sim.cli:cli_experiment", "reproduce the paper's ARIAC experiment"),
     "sweep": ("btfsm.sim.cli:cli_sweep", "run the experiment over a grid of cell parameters (on Dask)"),
     "conform": ("btfsm.sim.cli:cli_conform", "run scenarios and check runtime conformance"),

@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Set up btfsm on a fresh machine, model-check the paper's ARIAC model and run a short
-# simulation of it in the pymunk cell. Usage: bash scripts/quickstart.sh
+# simulation of it in the ARIAC kitting cell (models/scenes/ariac.yaml). Usage: bash scripts/quickstart.sh
 set -euo pipefail
 cd "$(dirname "$0")/.."
 PY=${PYTHON:-python3}

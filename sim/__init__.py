@@ -1,1 +1,1 @@
-"""sim: the pymunk ARIAC kitting cell that runs checked models."""
+"""sim: simulated cells described by scene files (the ARIAC kitting cell among them) that run checked models."""

@@ -1,30 +1,34 @@
-"""Binds the ARIAC model's primitives to the pymunk cell, and the cell's sensors to events.
+"""The paper's kitting binding: the ARIAC models' primitives in a scene world, and the
+belt sensor's detections as ``arrive`` events.
 
-The runtime that drives the cell is the ordinary ``btfsm.runtime.Runtime`` over the same
-``Model`` that ``btfsm check`` verified; this module only supplies, by primitive name:
+The ARIAC cell is a scene file (``models/scenes/ariac.yaml``) whose ``binding`` names
+:class:`KittingBinding` with its arguments (the robot, the bins, the tray, the belt and
+its sensor, the arm's speed scale and the approach clearance). It is a Python binding,
+not a ``bind`` table of library primitives, because the paper's primitives choose their
+targets from the goal the arm is driven to: ``move(area, pose)`` goes above the target of
+the goal being driven (a bin part, a free bin spot, a tray slot, a belt part that is
+tracked), ``put``/``put_back`` descend to it, ``raise``/``escape`` lift straight up;
+``gripper(on)`` switches the vacuum (a held part is released where it is);
+``grasp(area)`` descends onto the target part until the vacuum attaches ("attached"), or
+reports "missed" when there is nothing to grasp; ``record_pose``, ``detach``,
+``query_queue`` are bookkeeping and instant.
 
-* ``move(area, pose, tolerance)``: transits and approaches go above the target of the
-  goal being driven (a bin part, a free bin spot, a tray slot, a belt part that is
-  tracked), ``put``/``put_back`` descend to it, ``raise``/``escape`` lift straight up;
-* ``gripper(on)``: suction on/off (a held part is released where it is);
-* ``grasp(area)``: descend onto the target part until the vacuum attaches ("attached"),
-  or report "missed" when there is nothing to grasp;
-* ``record_pose``, ``detach``, ``query_queue``: bookkeeping, instant.
-
-Sensor events: each belt detection becomes one ``arrive`` event (at most one per tick, and
-only while the model's ``queue`` is below its bound; later ones wait their turn).
-
-``abstraction_errors`` compares the model's variables with the cell after each tick (the
-conformance check of what the primitives physically did).
+Sensor events: each part the belt sensor sees becomes one ``arrive`` event (at most one
+per tick, and only while the model's ``queue`` is below its bound; later ones wait their
+turn). ``after_tick`` compares the model's variables with the world after each tick
+(gripper contents, tray count, belt queue): the conformance check of what the
+primitives physically did.
 """
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass
 
-from .cell import BELT, Place
+from btfsm.errors import ModelError
 
-__all__ = ["CellBinding", "Dialect", "ARIAC", "ORIGINAL", "DIALECTS"]
+from .scene import Place
+
+__all__ = ["KittingBinding", "Dialect", "ARIAC", "ORIGINAL", "DIALECTS", "dialect_of", "unsupported"]
 
 @dataclass(frozen=True)
 class Dialect:
@@ -79,52 +83,90 @@ DIALECTS = (ARIAC, ORIGINAL)
 _STATUS = {"RUNNING": 0, "SUCCESS": 1, "FAILURE": 2}
 
 
-class CellBinding:
-    """Primitive implementations and sensor events for ``btfsm.models.ariac`` in a ``Cell``."""
+def _missing(model, d: Dialect) -> list:
+    prims = model.all_primitives()
+    names = {v.name for v in model.variables}
+    missing = [f"primitive '{p}'" for p in (d.move, d.gripper, d.grasp) if p not in prims]
+    missing += [f"variable '{v}'" for v in ("queue", d.gripper_var, d.tray_var) if v not in names]
+    if not any(f.name == d.fsm for f in model.fsms):
+        missing.append(f"FSM '{d.fsm}'")
+    if "arrive" not in {ev.name for ev in model.environment}:
+        missing.append("environment event 'arrive'")
+    return missing
 
-    def __init__(self, cell, model, bins=(2, 3), speed_scale: float = 0.5):
-        self.cell, self.model, self.bins = cell, model, tuple(bins)
-        self.speed = speed_scale  # the authors' move_to default velocity scaling is 0.5
-        self.d = self.dialect_of(model)
+
+def dialect_of(model) -> "Dialect | None":
+    """The dialect ``model`` is written in, or None."""
+    for d in DIALECTS:
+        if not _missing(model, d):
+            return d
+    return None
+
+
+def unsupported(model) -> str:
+    """Why the kitting binding cannot run ``model`` ("" when it can)."""
+    if dialect_of(model) is not None:
+        return ""
+    return "it lacks " + ", ".join(_missing(model, ARIAC)) + " (the ARIAC dialect)"
+
+
+class KittingBinding:
+    """The ARIAC models' primitives and belt events in a scene world (see the module text).
+
+    Constructed by ``btfsm.sim.library.bind_model`` from the scene's ``binding`` section:
+    ``KittingBinding(scene, model, world, robot=..., bins=[...], tray=..., belt=...,
+    sensor=..., speed_scale=0.5, clearance=0.2)``."""
+
+    def __init__(self, scene, model, world, *, robot: str = "arm", bins=("bin2", "bin3"), tray: str = "tray",
+                 belt: str = "conveyor", sensor: str = "beam", speed_scale: float = 0.5, clearance: float = 0.2):
+        self.scene, self.world, self.model = scene, world, model
+        self.d = dialect_of(model)
         if self.d is None:
-            raise ValueError(f"{model.name}: the kitting cell cannot run this model ({self.unsupported(model)})")
-        self.targets: dict = {}  # area -> part id (pick) or Place (place)
+            raise ModelError("binding", f"the kitting binding cannot run model '{model.name}' ({unsupported(model)})",
+                             scene.file)
+        for what, name, table in (("robot", robot, scene.robots), ("belt", belt, scene.belts),
+                                  ("sensor", sensor, scene.sensors), ("area", tray, scene.areas),
+                                  *(("area", b, scene.areas) for b in bins)):
+            if name not in table:
+                raise ModelError("binding.args", f"no {what} named '{name}' (known: {', '.join(sorted(table)) or 'none'})",
+                                 scene.file)
+        if scene.robots[robot]["z"] is None:
+            raise ModelError(f"robots.{robot}", "the kitting binding needs a robot with a z axis", scene.file)
+        if not scene.areas[tray]["slots"]:
+            raise ModelError(f"areas.{tray}", "the kitting binding needs a tray with slots", scene.file)
+        self.robot, self.bins, self.tray, self.belt, self.sensor = robot, tuple(bins), tray, belt, sensor
+        self.speed = float(speed_scale)  # the authors' move_to default velocity scaling is 0.5
+        self.clearance = float(clearance)
+        self.r = world.robots[robot]
+        self.targets: dict = {}  # area -> part id (pick) or spot (place)
         self.origin: dict = {}  # area -> (x, y, z) where the held part was grasped
         self.delivered: list = []  # belt part ids told to the model, in queue order
         self.backlog: list = []  # detected belt parts not told yet
-        self._seen = 0  # detections consumed
+        self.detections: list = []  # (part id, time) of every part the belt sensor saw, once each
+        self._seen_ids: set = set()
+        self._seen = 0  # world events consumed
         self._bin_turn = 0
         self._moving_to = None
         self._grasping = None
         qvar = model.var("queue")
         self.queue_max = qvar.hi
         self.n_tray = model.var(self.d.tray_var).hi
+        prog = model.program
+        self._q_slot = prog.scope["queue"].index
+        self._check_reach()
 
-    @staticmethod
-    def _missing(model, d: Dialect) -> list:
-        prims = model.all_primitives()
-        names = {v.name for v in model.variables}
-        missing = [f"primitive '{p}'" for p in (d.move, d.gripper, d.grasp) if p not in prims]
-        missing += [f"variable '{v}'" for v in ("queue", d.gripper_var, d.tray_var) if v not in names]
-        if not any(f.name == d.fsm for f in model.fsms):
-            missing.append(f"FSM '{d.fsm}'")
-        if "arrive" not in {ev.name for ev in model.environment}:
-            missing.append("environment event 'arrive'")
-        return missing
-
-    @classmethod
-    def dialect_of(cls, model) -> "Dialect | None":
-        for d in DIALECTS:
-            if not cls._missing(model, d):
-                return d
-        return None
-
-    @classmethod
-    def unsupported(cls, model) -> str:
-        """Why the cell cannot run ``model`` ("" when it can)."""
-        if cls.dialect_of(model) is not None:
-            return ""
-        return "it lacks " + ", ".join(cls._missing(model, ARIAC)) + " (the ARIAC dialect)"
+    def _check_reach(self) -> None:
+        """ModelError unless the arm reaches every tray slot, bin spot, and the belt from
+        its sensor to its end (where a part is lost)."""
+        sc = self.scene
+        points = list(sc.areas[self.tray]["slots"])
+        for k in self.bins:
+            points += [spot for spot in self._bin_grid(k)]
+        points += list(self._window())
+        for x, y in points:
+            if not sc.reachable(self.robot, (x, y)):
+                raise ModelError("binding", f"({x:.3f}, {y:.3f}) is out of the arm's reach: move the rail, "
+                                            "the pick window or the layout", sc.file)
 
     # ------------------------------------------------------------------ runtime glue
     def implementations(self) -> dict:
@@ -144,35 +186,107 @@ class CellBinding:
             return name
         raise KeyError(f"{call.site.primitive} declares no {status} outcome")
 
-    def events(self, queue_now: int) -> list:
-        """Environment events for the next tick, from the belt sensor."""
-        det = self.cell.detections
-        while self._seen < len(det):
-            self.backlog.append(det[self._seen][0])
+    def _collect(self) -> None:
+        ev = self.world.events
+        while self._seen < len(ev):
+            _t, sensor, _name, pid = ev[self._seen]
             self._seen += 1
-        if self.backlog and queue_now < self.queue_max:
+            if sensor == self.sensor and pid not in self._seen_ids:
+                self._seen_ids.add(pid)
+                self.detections.append((pid, _t))
+                self.backlog.append(pid)
+
+    def events(self, state) -> list:
+        """Environment events for the next tick, from the belt sensor."""
+        self._collect()
+        if self.backlog and state[self._q_slot] < self.queue_max:
             self.delivered.append(self.backlog.pop(0))
             return ["arrive"]
         return []
 
-    def after_tick(self, queue_now: int) -> None:
-        """The model consumed queue entries (a belt pick ended): forget those parts."""
+    def after_tick(self, rt) -> list:
+        """Forget the belt parts the model consumed (a belt pick ended); then the model's
+        variables that disagree with the world (empty when they agree)."""
+        queue_now = rt.state[self._q_slot]
         while len(self.delivered) > queue_now:
             pid = self.delivered.pop(0)
-            if self.targets.get("conveyor") == pid:
-                del self.targets["conveyor"]
+            if self.targets.get(self.belt) == pid:
+                del self.targets[self.belt]
+        return self.abstraction_errors(rt.vars, *rt.fsm_state(self.d.fsm))
+
+    # ------------------------------------------------------------------ world queries
+    def place_of(self, pid: int) -> Place:
+        return self.world.parts[pid].place
+
+    def _area_of(self, model_area: str) -> str:
+        """The scene name for one of the model's areas (bins, agv, conveyor)."""
+        return {"agv": self.tray, "conveyor": self.belt}.get(model_area, model_area)
+
+    def _pickable(self, pid: int) -> bool:
+        """True while part ``pid`` lies in a bin or on the belt (where the arm picks)."""
+        kind, name = self.place_of(pid)
+        return kind == "BELT" or (kind == "AREA" and name in self.bins)
+
+    def tray_count(self) -> int:
+        return self.world.count(self.tray)
+
+    def free_slots(self) -> list:
+        w = self.world
+        taken = [(w.parts[i].x, w.parts[i].y) for i in w.parts_in(Place("AREA", self.tray))]
+        return [k for k, (sx, sy) in enumerate(self.scene.areas[self.tray]["slots"])
+                if all(math.hypot(sx - x, sy - y) > 1e-6 for x, y in taken)]
+
+    def _held_height(self) -> float:
+        pid = self.r.holding
+        return 0.0 if pid is None else self.world.parts[pid].height
+
+    def _centre(self, area: str) -> tuple:
+        x0, y0, x1, y1 = self.scene.areas[area]["region"]
+        return ((x0 + x1) / 2, (y0 + y1) / 2)
+
+    def pose_at(self, target) -> tuple:
+        """Contact pose: on top of a part (id), or a held part touching a tray slot
+        (``("slot", k)``) or a bin (``("bin", area, (x, y))``)."""
+        if isinstance(target, int):
+            p = self.world.parts[target]
+            return (p.x, p.y, self.world.top(target))
+        if target[0] == "slot":
+            x, y = self.scene.areas[self.tray]["slots"][target[1]]
+            return (x, y, self.scene.areas[self.tray]["height"] + self._held_height())
+        _, area, (x, y) = target
+        return (x, y, self.scene.areas[area]["height"] + self._held_height())
+
+    def _approach(self, area: str) -> tuple:
+        x, y = self._centre(area)
+        return (x, y, self.scene.areas[area]["height"] + 0.05 + self.clearance)
+
+    def _window(self) -> tuple:
+        """The belt's stretch where the arm picks: from the sensor (projected on the belt's
+        centre line) to the belt's end, as two points."""
+        b = self.scene.belts[self.belt]
+        (ax, ay), (bx, by), L = b["from"], b["to"], b["length"]
+        ux, uy = (bx - ax) / L, (by - ay) / L
+        x0, y0, x1, y1 = self.scene.sensors[self.sensor]["region"]
+        s_in = ((x0 + x1) / 2 - ax) * ux + ((y0 + y1) / 2 - ay) * uy
+        return (ax + ux * s_in, ay + uy * s_in), (bx, by)
+
+    def _conveyor_approach(self) -> tuple:
+        """Above the belt, half-way along the pick stretch (clamped to the arm's reach)."""
+        (px, py), (ex, ey) = self._window()
+        x, y = self.scene.clamp_to_reach(self.robot, ((px + ex) / 2, (py + ey) / 2))
+        return (x, y, self.scene.belts[self.belt]["height"] + 0.05 + self.clearance)
 
     # ------------------------------------------------------------------ targets
     def _target(self, area: str, kind: str):
-        """The target of a ``kind`` (pick/place) skill at ``area``; chosen anew when the
-        old one is used up."""
-        cell, tgt = self.cell, self.targets.get(area)
+        """The target of a ``kind`` (pick/place) skill at model area ``area``; chosen
+        anew when the old one is used up."""
+        tgt = self.targets.get(area)
         if kind == "pick":
-            if isinstance(tgt, int) and cell.place_of(tgt).kind in ("BELT" if area == "conveyor" else "BIN", "GRIPPER"):
+            if isinstance(tgt, int) and (self._pickable(tgt) or self.place_of(tgt).kind == "GRIPPER"):
                 return tgt
             tgt = self._choose_part(area)
         else:
-            if isinstance(tgt, Place) and self._free(tgt):
+            if isinstance(tgt, tuple) and tgt[0] == "slot" and tgt[1] in self.free_slots():
                 return tgt
             tgt = self._choose_spot(area)
         if tgt is None:
@@ -182,27 +296,26 @@ class CellBinding:
         return tgt
 
     def _choose_part(self, area: str):
-        cell = self.cell
+        w = self.world
         if area == "conveyor":
             for pid in self.delivered:
-                if cell.place_of(pid) == BELT:
+                if self.place_of(pid).kind == "BELT":
                     return pid
             return None
         if area == "bins":
-            for i in range(len(self.bins)):  # alternate bins 2 and 3 while both have parts
+            for i in range(len(self.bins)):  # alternate the bins while both have parts
                 k = self.bins[(self._bin_turn + i) % len(self.bins)]
-                pid = cell.next_bin_part(k)
-                if pid is not None:
+                ids = w.parts_in(Place("AREA", k))
+                if ids:
                     self._bin_turn = (self._bin_turn + i + 1) % len(self.bins)
-                    return pid
+                    return ids[0]
             return None
         return None  # the tray is never picked from in this experiment
 
     def _choose_spot(self, area: str):
-        cell = self.cell
         if area == "agv":
-            free = cell.free_slots()
-            return Place.tray(free[0]) if free else None
+            free = self.free_slots()
+            return ("slot", free[0]) if free else None
         if area == "bins":
             for k in self.bins:
                 spot = self._free_bin_spot(k)
@@ -210,39 +323,32 @@ class CellBinding:
                     return ("bin", k, spot)
         return None
 
-    def _free_bin_spot(self, k: int):
-        cell = self.cell
-        spec = next(s for s in cell.config.bins if s.index == k)
-        taken = [cell.position(pid)[:2] for pid in cell.parts_in(Place.bin(k))]
-        for x, y in cell.config.bin_grid(spec):
-            if all(math.hypot(x - a, y - b) > 0.75 * cell.config.bin_pitch for a, b in taken):
+    def _bin_grid(self, k: str) -> list:
+        """The 3 x 3 spots of bin ``k``, row by row from its +y side (where its parts start)."""
+        x0, y0, x1, y1 = self.scene.areas[k]["region"]
+        return [(x0 + (x1 - x0) / 3 * (c + 0.5), y1 - (y1 - y0) / 3 * (r + 0.5)) for r in range(3) for c in range(3)]
+
+    def _free_bin_spot(self, k: str):
+        w = self.world
+        x0, _, x1, _ = self.scene.areas[k]["region"]
+        pitch = (x1 - x0) / 3
+        taken = [(w.parts[i].x, w.parts[i].y) for i in w.parts_in(Place("AREA", k))]
+        for x, y in self._bin_grid(k):
+            if all(math.hypot(x - a_, y - b_) > 0.75 * pitch for a_, b_ in taken):
                 return (x, y)
         return None
 
-    def _free(self, tgt) -> bool:
-        if isinstance(tgt, Place):
-            return tgt.index in self.cell.free_slots()
-        return False
-
     # ------------------------------------------------------------------ poses
-    def _place_pose(self, spot) -> tuple:
-        cell = self.cell
-        if isinstance(spot, Place):
-            return cell.pose_at(spot)
-        _, k, (x, y) = spot
-        return (x, y, cell.pose_at(Place.bin(k))[2])
-
     def _above(self, pose) -> tuple:
         x, y, z = pose
-        return (x, y, z + self.cell.config.clearance)
+        return (x, y, z + self.clearance)
 
     def _hub(self, area: str) -> tuple:
-        cell = self.cell
         if area == "agv":
-            return cell.tray_approach()
+            return self._approach(self.tray)
         if area == "bins":
-            return cell.bin_approach(self.bins[0])
-        return cell.conveyor_approach()
+            return self._approach(self.bins[0])
+        return self._conveyor_approach()
 
     def _work_pose(self, area: str, goal: "str | None"):
         """Above the goal's target when the goal works at ``area``; else the area's hub.
@@ -251,16 +357,19 @@ class CellBinding:
         if goal_area == area:
             tgt = self._target(area, kind)
             if tgt is not None:
-                if kind == "place" and not isinstance(tgt, int):
-                    return ("move", self._above(self._place_pose(tgt)))
+                if kind == "place":
+                    return ("move", self._above(self.pose_at(tgt)))
                 if area == "conveyor":
                     return ("track", tgt)
-                return ("move", self.cell.pose_above(tgt))
+                return ("move", self._above(self.pose_at(tgt)))
         return ("move", self._hub(area))
+
+    def _move_to(self, pose) -> None:
+        x, y, z = pose
+        self.world.move_to(self.robot, (x, y), self.speed, z=z, acceleration=self.speed * self.speed)
 
     # ------------------------------------------------------------------ primitives
     def move(self, call):
-        arm = self.cell.arm
         running, success = self._answer(call, "RUNNING"), self._answer(call, "SUCCESS")
         if call.first:
             self._moving_to = self._move_target(self.d.area(call.args), self.d.role(call.site.state), call.goal)
@@ -268,77 +377,78 @@ class CellBinding:
                 return success  # nothing to reach: the skill learns it at the grasp
             kind, where = self._moving_to
             if kind == "track":
-                arm.track(where, self.cell.pose_above(where)[2])
+                self.world.track(self.robot, where, self._above(self.pose_at(where))[2])
             else:
-                arm.move_to(*where, speed_scale=self.speed)
+                self._move_to(where)
             return running
         if self._moving_to is None:
             return success
         kind, where = self._moving_to
-        if kind == "track" and self.cell.place_of(where) != BELT and self.cell.gripper.attached_part != where:
-            arm.stop()
+        if kind == "track" and self.place_of(where).kind != "BELT" and self.r.holding != where:
+            self.world.stop(self.robot)
             return success  # the part left the belt: stop chasing it
-        return success if arm.arrived else running
+        return success if self.r.arrived else running
 
     def _move_target(self, area: str, role: str, goal):
-        x, y, z = self.cell.arm.pose
+        r = self.r
         if role == "lift":
-            return ("move", (x, y, max(z, self._hub(area)[2])))
+            return ("move", (r.x, r.y, max(r.z, self._hub(area)[2])))
         if role == "put_back":
             pose = self.origin.get(area)
             return ("move", pose) if pose is not None else None
         if role == "put":
             tgt = self._target(area, "place")
-            return ("move", self._place_pose(tgt)) if tgt is not None else None
+            return ("move", self.pose_at(tgt)) if tgt is not None else None
         return self._work_pose(area, goal)  # hubs and the transits arriving at ``area``
 
     def stop(self, call):
-        self.cell.arm.stop()
+        self.world.stop(self.robot)
         self._moving_to = None
 
     def gripper(self, call):
         if call.args["on"]:
-            self.cell.gripper.enable()
+            self.world.grip(self.robot)
         else:
-            self.cell.gripper.disable()
+            self.world.release(self.robot)
         return self._answer(call, "SUCCESS")
 
     def grasp(self, call):
-        cell, area = self.cell, self.d.area(call.args)
+        area = self.d.area(call.args)
         running, success, failure = (self._answer(call, s) for s in ("RUNNING", "SUCCESS", "FAILURE"))
-        if cell.gripper.attached_part is not None:
+        if self.r.holding is not None:
             return success
         if call.first:
             tgt = self._target(area, "pick") if self.d.goal(call.goal)[1] == area else self.targets.get(area)
-            if not isinstance(tgt, int) or cell.place_of(tgt).kind not in ("BIN", "BELT"):
+            if not isinstance(tgt, int) or not self._pickable(tgt):
                 return failure
             self._grasping = tgt
-            x, y, z = cell.pose_at(tgt)
+            x, y, z = self.pose_at(tgt)
             self.origin[area] = (x, y, z)
             if area == "conveyor":
-                cell.arm.track(tgt, z)
+                self.world.track(self.robot, tgt, z)
             else:
-                cell.arm.move_to(x, y, z, speed_scale=self.speed)
+                self._move_to((x, y, z))
             return running
         tgt = self._grasping
-        if tgt is None or cell.place_of(tgt).kind not in ("BIN", "BELT"):
-            cell.arm.stop()
+        if tgt is None or not self._pickable(tgt):
+            self.world.stop(self.robot)
             return failure
-        if cell.arm.arrived and not cell.arm.moving:
+        if self.r.arrived and not self.r.moving:
             return failure  # reached the part's top and the vacuum did not take it
         return running
 
     # ------------------------------------------------------------------ conformance
     def abstraction_errors(self, vars: dict, arm_state: str, goal=None) -> list:
-        """Model variables that disagree with the cell (empty when they agree)."""
-        cell, d, out = self.cell, self.d, []
-        full = cell.gripper.attached_part is not None
+        """Model variables that disagree with the world (empty when they agree)."""
+        d, out = self.d, []
+        full = self.r.holding is not None
         model_full = vars[d.gripper_var] if d.gripper_var_means_full else not vars[d.gripper_var]
         if model_full != full and not (d.gripper_var_after_skill and goal is not None):
             out.append(f"{d.gripper_var} is {vars[d.gripper_var]} but the gripper {'holds a part' if full else 'holds nothing'}")
-        extra = cell.tray_count - vars[d.tray_var]
+        tray = self.tray_count()
+        extra = tray - vars[d.tray_var]
         if not (extra == 0 or (extra == 1 and arm_state in d.tray_end_states)):
-            out.append(f"{d.tray_var} is {vars[d.tray_var]} but {cell.tray_count} parts are on the tray")
+            out.append(f"{d.tray_var} is {vars[d.tray_var]} but {tray} parts are on the tray")
         if vars["queue"] != len(self.delivered):
             out.append(f"queue is {vars['queue']} but {len(self.delivered)} detected parts wait")
         return out

@@ -140,7 +140,6 @@ def cli_sim(args) -> int:
 
     from .conformance import variant_of
     from .experiment import TrialSpec
-    from .render import Recorder, render_png
     from .trial import run_trial
 
     model = load_cli_model(args)
@@ -154,20 +153,20 @@ def cli_sim(args) -> int:
         raise UsageError("--k must be in 1..40")
     if args.gif and not (args.fps > 0 and args.max_frames >= 1):
         raise UsageError("--gif needs --fps > 0 and --max-frames >= 1")
-    from .binding import CellBinding
+    from .binding import dialect_of
 
-    dialect = CellBinding.dialect_of(model)
+    dialect = dialect_of(model)
     spec = TrialSpec(variant, args.k, parts=model.var(dialect.tray_var).hi, time_limit=args.time)
-    recorder = Recorder(every_steps=1, max_frames=args.max_frames) if args.gif else None
+    frames = []
     every = max(1, round(model.tick_rate / args.fps)) if args.gif else 0
     last = {}
 
-    def on_tick(rt, cell):
+    def on_tick(rt, world):
         st, goal = rt.fsm_state(dialect.fsm)
-        last["text"] = f"{dialect.fsm}: {st}\ngoal: {goal or '-'}"
-        last["cell"] = cell
-        if recorder is not None and rt.clock.tick % every == 0:
-            recorder.capture(cell, last["text"])
+        last["text"] = f"{dialect.fsm}: {st}, goal: {goal or '-'}"
+        last["world"] = world
+        if args.gif and rt.clock.tick % every == 0 and len(frames) < args.max_frames:
+            frames.append(world.snapshot())
 
     r = run_trial(spec, model, on_tick=on_tick)
     print(f"{model.name}: k={args.k} (dTa = {30 + 0.2 * args.k:.1f} s): "
@@ -178,14 +177,19 @@ def cli_sim(args) -> int:
         print(f"reaction times [s]: {', '.join(f'{t:.1f}' for t in r.reaction_times)}")
     if r.conformance_error:
         print(f"conformance: {r.conformance_error}")
+    world = last["world"]
     if args.render:
+        from .scene_render import render_scene
+
         with atomic_path(args.render) as tmp:
-            render_png(last["cell"], tmp, title=model.name, fsm_state=last.get("text"))
+            render_scene(world.scene, world.snapshot(), tmp, title=f"{model.name} ({last.get('text')})")
         print(f"picture: {args.render}")
-    if recorder is not None:
+    if args.gif and frames:
+        from .scene_render import write_gif
+
         with atomic_path(args.gif) as tmp:
-            frames = recorder.write_gif(tmp, fps=args.fps)
-        print(f"animation: {args.gif} ({frames} frames)")
+            n = write_gif(world.scene, frames, tmp, fps=args.fps, title=model.name)
+        print(f"animation: {args.gif} ({n} frames)")
     return 1 if r.conformance_error else 0
 
 

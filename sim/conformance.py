@@ -1,14 +1,17 @@
-"""Runtime conformance: does the cell, driven by the runtime, behave as the checked model?
+"""Runtime conformance: does the scene world, driven by the runtime, behave as the checked model?
 
 Two checks run after every tick:
 
 * **path**: the runtime's (state before, state after) is a transition of the compiled
   transition system that ``btfsm check`` explored (``PathMonitor``);
-* **abstraction**: the model's variables agree with what the cell physically did
-  (``CellBinding.abstraction_errors``: gripper contents, tray count, belt queue).
+* **abstraction**: the model's variables agree with what the world physically did (the
+  binding's ``after_tick``: the scene's ``checks``; for the ARIAC models
+  ``KittingBinding.abstraction_errors``: gripper contents, tray count, belt queue).
 
-``run_scenario`` runs one scenario (variant, arrival schedule, seed, optional gripper
-drop regions) and returns the first mismatch with its tick, or None.
+Every step the part accounting invariant is checked too (``accounting``).
+``run_scenario`` runs one ARIAC scenario (variant, arrival schedule, seed, optional
+gripper drop regions) in the ARIAC scene and returns the first mismatch with its tick,
+or None; other models run seeded scenarios of their own scene.
 """
 from __future__ import annotations
 
@@ -72,41 +75,41 @@ class ScenarioResult:
 
 
 def run_scenario(scenario: Scenario, model=None, monitor: "PathMonitor | None" = None) -> ScenarioResult:
-    """Run the scenario in the cell; stop at the first mismatch."""
-    from btfsm.errors import ConformanceError
+    """Run the scenario in the ARIAC scene; stop at the first mismatch."""
+    from btfsm.errors import ConformanceError, DomainError
 
-    from .cell import CellConfig
     from .experiment import TrialSpec
     from .trial import build_model, build_trial
 
     spec = TrialSpec(scenario.variant, 0, parts=scenario.parts, time_limit=scenario.time_limit)
     model = model or build_model(spec)
-    config = CellConfig(dt=1.0 / spec.physics_rate, drop_regions=tuple(scenario.drop_regions))
-    model, cell, binding, rt = build_trial(spec, model, config, seed=scenario.seed, detections=scenario.detections)
-    q_slot, tray_slot = model.program.scope["queue"].index, model.program.scope[binding.d.tray_var].index
+    model, world, binding, rt = build_trial(spec, model, seed=scenario.seed, detections=scenario.detections,
+                                            faults=tuple(scenario.drop_regions))
+    tray_slot = model.program.scope[binding.d.tray_var].index
     steps = max(1, round(spec.physics_rate / model.tick_rate))
     ticks = 0
-    while cell.time < scenario.time_limit:
+    while world.time < scenario.time_limit:
         before = rt.state
         try:
-            step = rt.tick(binding.events(before[q_slot]))
-        except ConformanceError as exc:
-            return ScenarioResult(scenario, ticks, False, Mismatch(ticks, cell.time, "conformance", str(exc)))
-        binding.after_tick(step.state[q_slot])
-        problems = binding.abstraction_errors(rt.vars, *rt.fsm_state(binding.d.fsm))
+            step = rt.tick(binding.events(before))
+        except (ConformanceError, DomainError) as exc:
+            return ScenarioResult(scenario, ticks, False, Mismatch(ticks, world.time, "conformance", str(exc)))
+        problems = binding.after_tick(rt)
         if problems:
-            return ScenarioResult(scenario, ticks, False, Mismatch(ticks, cell.time, "abstraction", "; ".join(problems)))
+            return ScenarioResult(scenario, ticks, False, Mismatch(ticks, world.time, "abstraction", "; ".join(problems)))
         if monitor is not None:
             why = monitor.check(before, step.state)
             if why:
-                return ScenarioResult(scenario, ticks, False, Mismatch(ticks, cell.time, "path", why))
+                return ScenarioResult(scenario, ticks, False, Mismatch(ticks, world.time, "path", why))
         ticks += 1
-        if step.state[tray_slot] >= scenario.parts and cell.tray_count >= scenario.parts:
+        if step.state[tray_slot] >= scenario.parts and binding.tray_count() >= scenario.parts:
             break
-        cell.step(steps)
-        cell.check_invariant()
-    lost = sum(1 for pid in cell.lost_parts)
-    return ScenarioResult(scenario, ticks, cell.tray_count >= scenario.parts, None, lost)
+        world.step(steps)
+        try:
+            world.check_invariant()
+        except AssertionError as exc:
+            return ScenarioResult(scenario, ticks, False, Mismatch(ticks, world.time, "accounting", str(exc)))
+    return ScenarioResult(scenario, ticks, binding.tray_count() >= scenario.parts, None, world.lost)
 
 
 def random_scenarios(n: int, seed: int = 0, variant: str = "preemptive", parts: int = 4,
@@ -128,20 +131,20 @@ def random_scenarios(n: int, seed: int = 0, variant: str = "preemptive", parts: 
 
 
 def is_kitting_model(model) -> bool:
-    """True when the ARIAC kitting cell (``sim/cell.py``) can run ``model``."""
-    from .binding import CellBinding
+    """True when the kitting binding of the ARIAC scene can run ``model`` (an ARIAC dialect)."""
+    from .binding import dialect_of
 
-    return CellBinding.dialect_of(model) is not None
+    return dialect_of(model) is not None
 
 
 def variant_of(model) -> str:
-    """Which experiment variant a model is (the cell binding runs the ARIAC models);
+    """Which experiment variant a model is (the kitting binding runs the ARIAC models);
     UsageError naming what is missing when the kitting cell cannot run it."""
     from btfsm.errors import UsageError
 
-    from .binding import CellBinding
+    from .binding import unsupported
 
-    missing = CellBinding.unsupported(model)
+    missing = unsupported(model)
     if missing:
         raise UsageError(f"{model.name}: the kitting cell cannot run this model ({missing})")
     return "baseline" if model.name.endswith("baseline") or model.name == "original" else "preemptive"
@@ -206,9 +209,9 @@ def conform(model, scenarios: int = 10, seed: int = 0, time_limit: float = 700.0
         monitor, checked = PathMonitor(ts), len(ts.states)
         if on_explored is not None:
             on_explored(checked)
-    from .binding import CellBinding
+    from .binding import dialect_of
 
-    parts = model.var(CellBinding.dialect_of(model).tray_var).hi
+    parts = model.var(dialect_of(model).tray_var).hi
     cases = random_scenarios(scenarios, seed, variant, parts=parts, time_limit=time_limit, drops=drops)
     results = []
     for i, sc in enumerate(cases):

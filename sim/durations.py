@@ -28,7 +28,7 @@ def _visits(spec) -> dict:
     runs: dict = defaultdict(int)
     cur = {"state": None, "n": 0}
 
-    def on_tick(rt, cell):
+    def on_tick(rt, world):
         state, _ = rt.fsm_state("arm")
         if state == cur["state"]:
             cur["n"] += 1

@@ -30,7 +30,8 @@ __all__ = ["TrialSpec", "TrialResult", "PAPER", "VARIANTS", "trial_specs", "run_
            "trial_file", "save_trial", "load_finished", "TRIAL_FILE_FORMAT"]
 
 #: Version of the per-trial files in ``OUT/trials/``; files of another version are ignored.
-TRIAL_FILE_FORMAT = 1
+#: 2 since the ARIAC cell became a scene file (2026-11-25): trials of the pymunk cell are run again.
+TRIAL_FILE_FORMAT = 2
 
 # The paper's figures over its 80 trials, as the project brief quotes them.
 PAPER = {

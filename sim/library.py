@@ -348,6 +348,10 @@ class SceneBinding:
             pass
         return out
 
+    def after_tick(self, rt) -> list:
+        """The scene's checks after a tick: what disagrees (empty when all agree)."""
+        return self.check(rt.vars) if self.checks else []
+
     def check(self, vars: dict) -> list:
         out = []
         for var, kind, name, lo, hi in self.checks:
@@ -371,9 +375,19 @@ class _Impl:
         self.b.halt_site(call)
 
 
-def bind_model(scene, model, world) -> SceneBinding:
+def bind_model(scene, model, world):
     """Check the scene's ``bind`` and ``checks`` against ``model``; ModelError before any
-    trial when something does not fit."""
+    trial when something does not fit. A scene with a ``binding`` section (``python:
+    package.module:Class`` and ``args``) is bound by that class instead:
+    ``Class(scene, model, world, **args)``, an object with ``implementations()``,
+    ``events(state)`` and ``after_tick(runtime) -> [problem]`` (it raises ModelError for
+    a model it cannot run)."""
+    if scene.binding is not None:
+        cls = _import(scene.binding["python"], "binding.python", scene)
+        try:
+            return cls(scene, model, world, **scene.binding.get("args", {}))
+        except TypeError as exc:
+            raise scene.error("binding.args", str(exc)) from None
     b = SceneBinding(scene, model, world)
     prog = model.program
     prims = model.all_primitives()

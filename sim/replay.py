@@ -1,4 +1,4 @@
-"""Replay a model checker's counterexample in the kitting cell.
+"""Replay a model checker's counterexample in the kitting cell (the ARIAC scene) or in a scene.
 
 A counterexample says which environment events happened in which FSM state (a belt part
 arrives while the arm is at ``release on agv``). The cell cannot follow its scripted
@@ -39,9 +39,18 @@ class CellReplay:
     timeline: list = field(default_factory=list)  # (time, FSM state, goal) changes
     end_time: float = 0.0
     picture: "str | None" = None
+    paced: int = 0  # ticks of the counterexample the replay was paced to (0: not paced)
+    held: int = 0  # ticks a primitive that had finished in the cell was held RUNNING to follow it
+    diverged: "tuple | None" = None  # (tick, counterexample's FSM state, the cell's) where pacing stopped
 
     def text(self) -> str:
         lines = [f"cell replay of a counterexample on {self.model}: {len(self.triggers)} environment event(s)"]
+        if self.paced:
+            lines.append(f"  paced to the counterexample's {self.paced} ticks: each FSM state lasts at least as long as "
+                         f"there (a primitive the cell finished earlier was held running {self.held} tick(s) in all)")
+            if self.diverged:
+                t, want, got = self.diverged
+                lines.append(f"  pacing stopped at tick {t}: the counterexample is at '{want}', the cell at '{got}'")
         for t, st, pid in self.injected:
             lines.append(f"  t = {t:6.1f} s: belt part {pid} sent to the sensor (arm FSM at '{st}', as in the counterexample)")
         for t, pid in self.lost:
@@ -52,8 +61,7 @@ class CellReplay:
         lines.append("  last FSM states: " + "; ".join(f"{t:.1f} s {s} ({g or '-'})" for t, s, g in self.timeline[-4:]))
         if self.kind == "response":  # a late response loses the belt part in the cell, or it does not
             lines.append("  the cell shows the late response: a belt part was lost" if self.lost else
-                         "  the cell does not show the late response: no belt part was lost (only the counterexample's "
-                         "arrival times are replayed; the cell's moves take their own time, not the declared maxima)")
+                         "  the cell does not show the late response: no belt part was lost")
         if self.picture:
             lines.append(f"  picture: {self.picture}")
         return "\n".join(lines)
@@ -67,13 +75,97 @@ class CellReplay:
         return any(t0 <= t <= t1 for t, _ in self.lost)
 
 
-def replay_in_cell(model, ce, *, time_limit: float = 120.0, render: "str | None" = None, gif: "str | None" = None,
-                   settle: float = 20.0) -> CellReplay:
-    """Run ``model`` in the cell, raising the counterexample's events in its FSM states.
+def fsm_states_of(ce: dict, fsm: str) -> list:
+    """The FSM's state before the first step of ``ce`` and after each step (index i: after step i)."""
+    state = ce["initial"].get(f"{fsm}.state")
+    out = [state]
+    for step in ce["steps"]:
+        state = step.get("state", {}).get(f"{fsm}.state", state)
+        out.append(state)
+    return out
 
-    Stops ``settle`` seconds after the last injected part was lost or picked, or at
+
+class _Pacer:
+    """Replays the counterexample's FSM visits with their durations as lower bounds: while
+    the cell's FSM is in the counterexample's v-th visit (state s, n ticks), a primitive
+    that would leave s before its n-th tick there is held RUNNING (the arm waits where its
+    move ended); a visit the cell makes longer stays longer (the cell's arm cannot be made
+    faster). Each visit thus lasts at least as long as in the counterexample, so a
+    response it makes late is at least as late in the cell. Pacing stops at the first
+    visit whose state differs from the counterexample's (``diverged``)."""
+
+    def __init__(self, states: list):
+        runs = []  # [state, ticks] of each visit; states[0] is the state before the first tick
+        for st in states:
+            if runs and runs[-1][0] == st:
+                runs[-1][1] += 1
+            else:
+                runs.append([st, 1])
+        self.visits = runs
+        self.ticks = len(states) - 1
+        self.v = self.c = 0  # the current visit, and the ticks the cell spent in it so far
+        self.now, self.held, self.diverged = None, 0, None
+        self.tick = 0
+
+    def active(self) -> bool:
+        return self.diverged is None and self.v < len(self.visits)
+
+    def at(self, v: int, c: int) -> bool:
+        return self.active() and (self.v, self.c) == (v, c)
+
+    def hold(self) -> bool:
+        return self.active() and self.c + 1 < self.visits[self.v][1]
+
+    def after(self, state) -> None:
+        self.tick += 1
+        if not self.active():
+            return
+        if state == self.visits[self.v][0]:
+            self.c += 1
+            return
+        self.v, self.c = self.v + 1, 0
+        if self.v < len(self.visits) and state != self.visits[self.v][0]:
+            self.diverged = (self.tick, self.visits[self.v][0], state)
+
+    def position(self, step: int) -> tuple:
+        """(visit, ticks into it) of the counterexample's tick ``step`` (1-based)."""
+        done = 0
+        for v, (_, n) in enumerate(self.visits):
+            if step - 1 < done + n:
+                return v, step - 1 - done
+            done += n
+        return len(self.visits) - 1, 0
+
+    def wrap(self, impl):
+        pacer = self
+        tick = impl if callable(impl) else impl.tick
+
+        class Paced:
+            halt = getattr(impl, "halt", None)
+
+            def tick(self, call):
+                answer = tick(call)
+                if pacer.hold():
+                    running = [o[2] for o in call.site.outcomes if o[0] == 0]
+                    if running and answer not in running:
+                        pacer.held += 1
+                        return running[0]
+                return answer
+        return Paced()
+
+
+def replay_in_cell(model, ce, *, time_limit: float = 120.0, render: "str | None" = None, gif: "str | None" = None,
+                   settle: float = 20.0, pace: "bool | None" = None) -> CellReplay:
+    """Run ``model`` in the ARIAC scene, raising the counterexample's events in its FSM states.
+
+    ``pace`` (default: for a ``response`` counterexample, whose timing is the point): the
+    events happen at the counterexample's ticks and a primitive the cell finishes before
+    the counterexample does is held running until the counterexample's tick (the arm waits
+    where its move ended); the cell's arm cannot be made faster than it is. Stops
+    ``settle`` seconds after the last injected part was lost or picked, or at
     ``time_limit``."""
-    from .cell import BELT
+    from btfsm.runtime import Runtime
+
     from .experiment import TrialSpec
     from .trial import build_trial
 
@@ -82,54 +174,71 @@ def replay_in_cell(model, ce, *, time_limit: float = 120.0, render: "str | None"
             ce = json.load(fh)
     if "counterexample" in ce:
         ce = ce["counterexample"]
+    kind = (ce.get("violation") or {}).get("kind", "")
     spec = TrialSpec("preemptive", 1, time_limit=time_limit)
-    model, cell, binding, rt = build_trial(spec, model, detections=())
+    model, world, binding, rt = build_trial(spec, model, detections=())
     d = binding.d
     pending = [t for t in triggers_of(ce, d.fsm) if t[1] == "arrive"]
-    result = CellReplay(model.name, list(pending), kind=(ce.get("violation") or {}).get("kind", ""))
-    q_slot = model.program.scope["queue"].index
+    result = CellReplay(model.name, list(pending), kind=kind)
+    pacer = None
+    if pace if pace is not None else kind == "response":
+        pacer = _Pacer(fsm_states_of(ce, d.fsm))
+        rt = Runtime(model, {k: pacer.wrap(v) for k, v in binding.implementations().items()}, record=True)
+        # a part for the counterexample's tick i reaches the sensor in the world steps before
+        # the cell's tick at the same point of the same visit
+        arrive_at = [pacer.position(i) for i, step in enumerate(ce["steps"], start=1)
+                     for ev in step.get("env", ()) if ev == "arrive"]
+        arrive_at = [(v, max(0, c - 1)) for v, c in arrive_at]
+        result.paced = pacer.ticks
     steps = max(1, round(spec.physics_rate / model.tick_rate))
-    recorder = None
-    if gif:
-        from .render import Recorder
-
-        recorder = Recorder(every_steps=1)
+    frames = [] if gif else None
     since, last, done_at = 0.0, None, None
-    y_sensor = cell.config.belt_y_detect + 1e-3
-    while cell.time < time_limit:
+    beam = world.scene.sensors[binding.sensor]["region"]
+    while world.time < time_limit:
         st, goal = rt.fsm_state(d.fsm)
         if (st, goal) != last:
-            result.timeline.append((round(cell.time, 2), st, goal))
+            result.timeline.append((round(world.time, 2), st, goal))
             if last is None or st != last[0]:
-                since = cell.time
+                since = world.time
             last = (st, goal)
-        if pending and pending[0][0] == st:
-            pid = cell.spawn_conveyor_part(y=y_sensor)
-            result.injected.append((round(cell.time, 2), st, pid))
+        due = (pending and (pacer.at(*arrive_at[len(result.injected)]) if pacer is not None and pacer.active()
+                            else pending[0][0] == st))
+        if due:
+            pid = world.spawn(beam)
+            result.injected.append((round(world.time, 2), st, pid))
             pending.pop(0)
-        step = rt.tick(binding.events(rt.state[q_slot]))
-        binding.after_tick(step.state[q_slot])
-        cell.step(steps)
-        if recorder is not None and rt.clock.tick % 5 == 0:
-            recorder.capture(cell, f"{d.fsm}: {st}\ngoal: {goal or '-'}")
-        stay = (st, since, cell.time)
+        if pacer is not None:
+            pacer.now = st
+        rt.tick(binding.events(rt.state))
+        binding.after_tick(rt)
+        if pacer is not None:
+            pacer.after(rt.fsm_state(d.fsm)[0])
+        world.step(steps)
+        if frames is not None and rt.clock.tick % 5 == 0 and len(frames) < 2000:
+            frames.append(world.snapshot())
+        stay = (st, since, world.time)
         if result.frozen is None or stay[2] - stay[1] > result.frozen[2] - result.frozen[1]:
-            result.frozen = (st, round(since, 2), round(cell.time, 2))
+            result.frozen = (st, round(since, 2), round(world.time, 2))
         injected = [pid for _, _, pid in result.injected]
-        result.lost = [(round(t, 2), pid) for t, pid, src, dst in cell.events if pid in injected and dst.kind == "LOST"]
-        if not pending and injected and done_at is None and all(cell.place_of(p) != BELT for p in injected):
-            done_at = cell.time
-        if done_at is not None and cell.time >= done_at + settle:
+        result.lost = [(round(t, 2), pid) for t, pid, _src, dst in world.log if pid in injected and dst.kind == "LOST"]
+        if (not pending and injected and done_at is None
+                and all(world.parts[p].place.kind != "BELT" for p in injected)):
+            done_at = world.time
+        if done_at is not None and world.time >= done_at + settle:
             break
-    result.end_time = round(cell.time, 2)
+    if pacer is not None:
+        result.held, result.diverged = pacer.held, pacer.diverged
+    result.end_time = round(world.time, 2)
     if render:
-        from .render import render_png
+        from .scene_render import render_scene
 
         st, goal = rt.fsm_state(d.fsm)
-        result.picture = render_png(cell, render, title=f"{model.name}: counterexample in the cell",
-                                    fsm_state=f"{d.fsm}: {st}\ngoal: {goal or '-'}")
-    if recorder is not None:
-        recorder.write_gif(gif, fps=10)
+        result.picture = render_scene(world.scene, world.snapshot(), render,
+                                      title=f"{model.name}: counterexample in the cell ({d.fsm}: {st}, goal {goal or '-'})")
+    if frames is not None:
+        from .scene_render import write_gif
+
+        write_gif(world.scene, frames, gif, fps=10, title=f"{model.name}: counterexample in the cell")
     return result
 
 
@@ -264,16 +373,16 @@ def replay_for_cli(model, ce_json: dict, args) -> str:
     paper's models, else the scene (``--scene`` or the model's default scene)."""
     from btfsm.errors import UsageError
 
-    from .binding import CellBinding
+    from .binding import dialect_of, unsupported
     from .scene import load_scene
     from .scene_trial import scene_for
 
     path = getattr(args, "scene", None)
-    if path is None and CellBinding.dialect_of(model) is not None:
+    if path is None and dialect_of(model) is not None:
         return replay_in_cell(model, ce_json, time_limit=args.time, render=args.render, gif=args.gif).text()
     path = path or scene_for(model, args.model)
     if path is None:
-        why = CellBinding.unsupported(model)
+        why = unsupported(model)
         raise UsageError(f"{model.name}: the kitting cell cannot run this model ({why}) and it has no scene: "
                          "give --scene FILE (docs/cell.md)")
     if args.gif:

@@ -80,6 +80,8 @@ class Scene:
         self.frames = {k: (float(v[0]), float(v[1])) for k, v in data.get("frames", {}).items()}
         self.part_types = {DEFAULT_PART: 0.03}
         self.part_types.update({k: float(v["radius"]) for k, v in data.get("part_types", {}).items()})
+        self.part_heights = {DEFAULT_PART: 0.0}
+        self.part_heights.update({k: float(v.get("height", 0.0)) for k, v in data.get("part_types", {}).items()})
         self.areas, self.belts, self.sinks, self.doors = {}, {}, {}, {}
         self.sensors, self.faults, self.robots = {}, {}, {}
         for name, a in data.get("areas", {}).items():
@@ -98,7 +100,8 @@ class Scene:
             if capacity is not None and n > capacity:
                 raise self.error(f"{where}.parts", f"{n} parts exceed the capacity {capacity}")
             self.areas[name] = {"region": region, "parts": parts, "capacity": capacity, "slots": slots,
-                                "slot_tolerance": float(a.get("slot_tolerance", 0.03))}
+                                "slot_tolerance": float(a.get("slot_tolerance", 0.03)),
+                                "height": float(a.get("height", 0.0))}
         for name, b in data.get("belts", {}).items():
             where = f"belts.{name}"
             p0, p1 = self.point(b["from"], f"{where}.from"), self.point(b["to"], f"{where}.to")
@@ -112,7 +115,7 @@ class Scene:
                 raise self.error(f"{where}.arrivals", f"give one of schedule, period or random, not {' and '.join(kinds)}")
             self.belts[name] = {"name": name, "from": p0, "to": p1, "length": length, "speed": float(b["speed"]),
                                 "width": float(b.get("width", 0.3)), "end": b.get("end", "lost"),
-                                "part_type": ptype, "arrivals": dict(arr)}
+                                "part_type": ptype, "arrivals": dict(arr), "height": float(b.get("height", 0.0))}
         for name, r in data.get("sinks", {}).items():
             self.sinks[name] = self.region(r, f"sinks.{name}")
         for name, d in data.get("doors", {}).items():
@@ -141,13 +144,26 @@ class Scene:
             robot = {"rail": rail, "reach": float(r["reach"]), "speed": float(r.get("speed", 1.0)),
                      "acceleration": float(r.get("acceleration", 2.0)),
                      "gripper": g.get("type", "vacuum"), "radius": float(g.get("radius", 0.04)),
-                     "close_time": float(g.get("close_time", 0.5 if g.get("type") == "fingers" else 0.0))}
+                     "close_time": float(g.get("close_time", 0.5 if g.get("type") == "fingers" else 0.0)),
+                     "grasp_tolerance": float(g.get("grasp_tolerance", 0.01)),
+                     "track_tolerance": float(r.get("track_tolerance", 0.005)), "z": None}
+            if "z" in r:
+                z = r["z"]
+                lo, hi = float(z.get("min", 0.0)), float(z.get("max", 10.0))
+                if not lo <= float(z["home"]) <= hi:
+                    raise self.error(f"{where}.z.home", f"{z['home']:g} is outside [{lo:g}, {hi:g}]")
+                robot["z"] = {"home": float(z["home"]), "min": lo, "max": hi,
+                              "speed": float(z.get("speed", robot["speed"])),
+                              "acceleration": float(z.get("acceleration", robot["acceleration"]))}
             self.robots[name] = robot
             home = self.point(r["home"], f"{where}.home")
             if not self.reachable(name, home):
                 raise self.error(f"{where}.home", f"({home[0]:g}, {home[1]:g}) is out of the robot's reach")
             robot["home"] = home
         self.bind = data.get("bind", {})
+        self.binding = data.get("binding")  # {python: "module:Class", args: {...}} or None
+        if self.binding is not None and self.bind:
+            raise self.error("binding", "give either 'bind' (the primitive library) or 'binding' (a Python class), not both")
         self.checks = list(data.get("checks", []))
         for i, c in enumerate(self.checks):
             self.world_query(c["world"], f"checks[{i}].world")
@@ -180,6 +196,20 @@ class Scene:
     def reachable(self, robot: str, p) -> bool:
         r = self.robots[robot]
         return _seg_dist(p, *r["rail"]) <= r["reach"] + _EPS
+
+    def clamp_to_reach(self, robot: str, p) -> tuple:
+        """The reachable point nearest to ``p`` (``p`` itself when it is reachable)."""
+        r = self.robots[robot]
+        (ax, ay), (bx, by) = r["rail"]
+        dx, dy = bx - ax, by - ay
+        L2 = dx * dx + dy * dy
+        t = 0.0 if L2 == 0.0 else max(0.0, min(1.0, ((p[0] - ax) * dx + (p[1] - ay) * dy) / L2))
+        cx, cy = ax + t * dx, ay + t * dy
+        ex, ey = p[0] - cx, p[1] - cy
+        d = math.hypot(ex, ey)
+        if d <= r["reach"]:
+            return (float(p[0]), float(p[1]))
+        return (cx + ex * r["reach"] / d, cy + ey * r["reach"] / d)
 
     def world_query(self, text: str, where: str) -> tuple:
         """``holding(ROBOT)``, ``count(AREA)``, ``sensor(NAME)`` or ``door(NAME)`` as (kind, name)."""
@@ -285,27 +315,31 @@ class Profile:
 
 # --------------------------------------------------------------------------- world
 class _Part:
-    __slots__ = ("id", "type", "radius", "x", "y", "place", "s")
+    __slots__ = ("id", "type", "radius", "height", "x", "y", "place", "s")
 
-    def __init__(self, pid, ptype, radius, x, y):
-        self.id, self.type, self.radius, self.x, self.y = pid, ptype, radius, x, y
+    def __init__(self, pid, ptype, radius, x, y, height=0.0):
+        self.id, self.type, self.radius, self.height, self.x, self.y = pid, ptype, radius, height, x, y
         self.place = None
         self.s = 0.0  # distance along the belt while on one
 
 
 class _Robot:
-    __slots__ = ("name", "spec", "x", "y", "x0", "y0", "x1", "y1", "prof", "k", "moving", "blocked",
-                 "holding", "closing", "armed", "faults_in")
+    __slots__ = ("name", "spec", "x", "y", "z", "x0", "y0", "z0", "x1", "y1", "z1", "prof", "k", "moving",
+                 "blocked", "holding", "closing", "armed", "faults_in", "tracking", "vel", "arrived")
 
     def __init__(self, name, spec):
         self.name, self.spec = name, spec
         self.x, self.y = spec["home"]
-        self.x0 = self.y0 = self.x1 = self.y1 = 0.0
+        self.z = spec["z"]["home"] if spec["z"] is not None else 0.0
+        self.x0 = self.y0 = self.z0 = self.x1 = self.y1 = self.z1 = 0.0
         self.prof, self.k, self.moving, self.blocked = None, 0, False, False
         self.holding = None  # part id
         self.closing = None  # steps left while fingers close, or None
         self.armed = True  # False after a fault drop until the gripper is released
         self.faults_in: set = set()
+        self.tracking = None  # id of the part the tool follows, or None
+        self.vel = (0.0, 0.0)  # the tool's velocity while tracking
+        self.arrived = False  # the last move ended at its target / the tracked part is under the tool
 
 
 class World:
@@ -320,7 +354,7 @@ class World:
         self.parts: list = []
         self.members: dict = {}  # Place -> [part ids], insertion-ordered
         self.log: list = []  # (time, part id, from, to)
-        self.events: list = []  # (time, sensor, event name) raised, in order
+        self.events: list = []  # (time, sensor, event name, part id) raised, in order
         self.doors = {n: (1.0 if d["open"] else 0.0) for n, d in scene.doors.items()}  # openness 0..1
         self.door_goal = {n: (1.0 if d["open"] else 0.0) for n, d in scene.doors.items()}
         self.robots = {n: _Robot(n, spec) for n, spec in scene.robots.items()}
@@ -367,7 +401,7 @@ class World:
         return []
 
     def _new_part(self, ptype, x, y, place) -> _Part:
-        part = _Part(len(self.parts), ptype, self.scene.part_types[ptype], x, y)
+        part = _Part(len(self.parts), ptype, self.scene.part_types[ptype], x, y, self.scene.part_heights[ptype])
         self.parts.append(part)
         self._move(part, place)
         return part
@@ -473,21 +507,53 @@ class World:
         return None
 
     # ---- robot commands (the primitive library calls these)
-    def move_to(self, robot: str, p, speed: float = 1.0) -> bool:
-        """Start a straight rest-to-rest move; False when the target is behind a closed door."""
+    def move_to(self, robot: str, p, speed: float = 1.0, z: "float | None" = None,
+                acceleration: "float | None" = None) -> bool:
+        """Start a straight rest-to-rest move to ``p`` (and height ``z`` for a robot with a z
+        axis; None keeps its height); ``speed`` scales the velocity limits and
+        ``acceleration`` (default: ``speed``) the acceleration limits. False when the
+        target is behind a closed door."""
         r = self.robots[robot]
+        r.tracking, r.arrived = None, False
         if self.door_at(p) is not None:
             r.moving, r.blocked = False, True
             return False
         spec = r.spec
+        acc = speed if acceleration is None else acceleration
         r.x0, r.y0, r.x1, r.y1 = r.x, r.y, float(p[0]), float(p[1])
-        r.prof = Profile(math.hypot(r.x1 - r.x0, r.y1 - r.y0), spec["speed"] * speed, spec["acceleration"] * speed)
+        if spec["z"] is None:
+            r.prof = Profile(math.hypot(r.x1 - r.x0, r.y1 - r.y0), spec["speed"] * speed, spec["acceleration"] * acc)
+        else:
+            zs = spec["z"]
+            r.z0, r.z1 = r.z, (r.z if z is None else float(z))
+            if not zs["min"] <= r.z1 <= zs["max"]:
+                raise ValueError(f"target height {r.z1:.3f} outside [{zs['min']:g}, {zs['max']:g}]")
+            d_xy, d_z = math.hypot(r.x1 - r.x0, r.y1 - r.y0), abs(r.z1 - r.z0)
+            v = a = math.inf  # one synchronised profile of the path fraction 0 -> 1
+            if d_xy > 0.0:
+                v, a = min(v, spec["speed"] / d_xy), min(a, spec["acceleration"] / d_xy)
+            if d_z > 0.0:
+                v, a = min(v, zs["speed"] / d_z), min(a, zs["acceleration"] / d_z)
+            r.prof = Profile(1.0 if v != math.inf else 0.0, v * speed, a * acc)
         r.k, r.moving, r.blocked = 0, True, False
         return True
 
+    def track(self, robot: str, part_id: int, z: "float | None" = None) -> None:
+        """Follow part ``part_id`` (on a belt or resting) with the tool: its velocity fed
+        forward, the approach limited by the robot's speed and braking (twice its
+        acceleration), the height moved to ``z`` on its own profile. ``arrived`` holds while
+        the part is within ``track_tolerance`` under the tool and the height is reached."""
+        r = self.robots[robot]
+        if r.tracking is None:
+            r.vel = (0.0, 0.0)
+        r.tracking, r.moving, r.blocked, r.arrived, r.k = part_id, True, False, False, 0
+        zs = r.spec["z"]
+        r.z0, r.z1 = r.z, (r.z if z is None or zs is None else float(z))
+        r.prof = Profile(abs(r.z1 - r.z0), zs["speed"], zs["acceleration"]) if zs else Profile(0.0, 1.0, 1.0)
+
     def stop(self, robot: str) -> None:
         r = self.robots[robot]
-        r.moving = False
+        r.moving, r.tracking, r.vel, r.arrived = False, None, (0.0, 0.0), False
 
     def door_at(self, p) -> "str | None":
         """The door (not fully open) whose region contains p, or None."""
@@ -525,14 +591,26 @@ class World:
         """True while the gripper is closing (fingers) or waiting for a part (vacuum)."""
         return self.robots[robot].closing is not None
 
+    def top(self, pid: int) -> float:
+        """Height of a part's top: its support's height (area, belt; the floor is 0) plus its own."""
+        p = self.parts[pid]
+        kind, name = p.place
+        base = (self.scene.areas[name]["height"] if kind == "AREA" else
+                self.scene.belts[name]["height"] if kind == "BELT" else
+                self.robots[name].z if kind == "GRIPPER" else 0.0)
+        return base + p.height
+
     def part_under(self, robot: str) -> "int | None":
         r = self.robots[robot]
         best, bd = None, r.spec["radius"]
+        zmax = None if r.spec["z"] is None else r.z - r.spec["grasp_tolerance"]
         for place, ids in self.members.items():
             if place.kind in ("GRIPPER", "LOST"):
                 continue
             for pid in ids:
                 p = self.parts[pid]
+                if zmax is not None and zmax > self.top(pid):
+                    continue  # the cup is above the part
                 d = math.hypot(p.x - r.x, p.y - r.y)
                 if d < bd or (best is None and d <= bd) or (d == bd and best is not None and pid < best):
                     best, bd = pid, d
@@ -587,7 +665,9 @@ class World:
                 self.doors[name] = min(goal, now + rate) if goal > now else max(goal, now - rate)
 
     def _robot(self, r: _Robot) -> None:
-        if r.moving:
+        if r.tracking is not None:
+            self._track(r)
+        elif r.moving:
             r.k += 1
             t = r.k * self.dt
             prof = r.prof
@@ -597,8 +677,10 @@ class World:
                 r.moving, r.blocked = False, True  # stop short of a closed door
             else:
                 r.x, r.y = nx, ny
+                if r.spec["z"] is not None:
+                    r.z = r.z0 + (r.z1 - r.z0) * f
                 if t >= prof.total:
-                    r.moving = False
+                    r.moving, r.arrived = False, True
         if r.closing is not None and r.holding is None:
             if r.closing > 0:
                 r.closing -= 1
@@ -622,6 +704,50 @@ class World:
                     r.faults_in.discard(name)
         else:
             r.faults_in.clear()
+
+    def _track(self, r: _Robot) -> None:
+        part = self.parts[r.tracking]
+        if part.place.kind in ("GRIPPER", "LOST"):
+            self.stop(r.name)  # tracking ends when the part is taken or lost
+            return
+        dt = self.dt
+        r.k += 1
+        t = r.k * dt
+        if r.prof.dist > 0.0:
+            r.z = r.z0 + (r.z1 - r.z0) * r.prof.at(t) / r.prof.dist
+        vx, vy = self._pursuit(r, part)
+        dvx, dvy = vx - r.vel[0], vy - r.vel[1]
+        dv, dv_max = math.hypot(dvx, dvy), 2.0 * r.spec["acceleration"] * dt
+        if dv > dv_max:  # acceleration limit
+            vx, vy = r.vel[0] + dvx * dv_max / dv, r.vel[1] + dvy * dv_max / dv
+        r.vel = (vx, vy)
+        r.x, r.y = r.x + vx * dt, r.y + vy * dt
+        px, py = self._ahead(part)
+        r.arrived = math.hypot(px - r.x, py - r.y) <= r.spec["track_tolerance"] and t >= r.prof.total
+
+    def _velocity(self, part: _Part) -> tuple:
+        if part.place.kind != "BELT":
+            return (0.0, 0.0)
+        b = self.scene.belts[part.place.name]
+        (ax, ay), (bx, by), L = b["from"], b["to"], b["length"]
+        return ((bx - ax) / L * b["speed"], (by - ay) / L * b["speed"])
+
+    def _ahead(self, part: _Part) -> tuple:
+        """Where the part will be after this step's belt motion (belts move after robots)."""
+        vx, vy = self._velocity(part)
+        return (part.x + vx * self.dt, part.y + vy * self.dt)
+
+    def _pursuit(self, r: _Robot, part: _Part) -> tuple:
+        """The part's velocity (feed-forward) plus a braking-limited approach to it."""
+        px, py = self._ahead(part)
+        cx, cy = self.scene.clamp_to_reach(r.name, (px, py))
+        fx, fy = self._velocity(part) if (cx, cy) == (px, py) else (0.0, 0.0)
+        ex, ey = cx - r.x, cy - r.y
+        dist = math.hypot(ex, ey)
+        if dist == 0.0:
+            return (fx, fy)
+        speed = min(r.spec["speed"], math.sqrt(2.0 * r.spec["acceleration"] * dist), dist / self.dt)
+        return (fx + ex / dist * speed, fy + ey / dist * speed)
 
     def _belts(self) -> None:
         for name, b in self.scene.belts.items():
@@ -675,9 +801,9 @@ class World:
             if now == old:
                 continue
             if s["on_enter"]:
-                self.events.extend((self.time, name, s["on_enter"]) for _ in sorted(now - old))
+                self.events.extend((self.time, name, s["on_enter"], pid) for pid in sorted(now - old))
             if s["on_exit"]:  # a part taken by a gripper does not "leave": it is taken
-                self.events.extend((self.time, name, s["on_exit"]) for pid in sorted(old - now)
+                self.events.extend((self.time, name, s["on_exit"], pid) for pid in sorted(old - now)
                                    if self.parts[pid].place.kind != "GRIPPER")
             self.inside[name] = now
 
@@ -710,7 +836,7 @@ class World:
         h = hashlib.sha256()
         vals = []
         for r in self.robots.values():
-            vals += [r.x, r.y]
+            vals += [r.x, r.y] + ([r.z] if r.spec["z"] is not None else [])
             h.update(f"{r.name}:{r.holding}:{r.closing}|".encode())
         for p in self.parts:
             vals += [p.x, p.y, p.s]

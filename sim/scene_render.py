@@ -66,8 +66,11 @@ def draw_world(ax, scene, snap: dict, title: "str | None" = None) -> None:
         if kind != "LOST":
             ax.add_patch(Circle((x, y), rad, color=_COLOUR.get(kind, "black")))
     for name, (x, y, held) in snap["robots"].items():
-        a, b = scene.robots[name]["rail"]
-        ax.plot([a[0], x], [a[1], y], color="0.2", lw=1.5)
+        (ax_, ay_), (bx_, by_) = scene.robots[name]["rail"]  # the arm starts at its carriage
+        dx, dy = bx_ - ax_, by_ - ay_
+        L2 = dx * dx + dy * dy
+        t = 0.0 if L2 == 0.0 else max(0.0, min(1.0, ((x - ax_) * dx + (y - ay_) * dy) / L2))
+        ax.plot([ax_ + t * dx, x], [ay_ + t * dy, y], color="0.2", lw=1.5)
         ax.add_patch(Circle((x, y), scene.robots[name]["radius"], fill=False, edgecolor="red", lw=1.5))
     lost = sum(1 for p in snap["parts"] if p[5] == "LOST")
     ax.set_title(f"{title or scene.name}\nt = {snap['time']:.1f} s, lost {lost}", fontsize=9)
@@ -92,22 +95,37 @@ def render_scene(scene, snap: dict, path, title: "str | None" = None) -> str:
     return str(path)
 
 
-def write_gif(scene, snaps, path, fps: float = 2.0, title: "str | None" = None) -> int:
+def write_gif(scene, snaps, path, fps: float = 2.0, title: "str | None" = None, progress: bool = True) -> int:
+    """Write world snapshots (any iterable, e.g. a generator) as an animated GIF; return
+    the number of frames. A folder as ``path`` is refused before any drawing
+    (IsADirectoryError); ``progress``: a bar on stderr while frames are drawn (on a
+    terminal only; with an ETA when ``snaps`` has a length)."""
+    import os
+
     from PIL import Image
 
+    from btfsm.outputs import atomic_path
+    from btfsm.progress import progress_bar
+
+    if os.path.isdir(path):
+        raise IsADirectoryError(21, "is a directory", str(path))
     fig = _figure()
     ax = fig.add_subplot(1, 1, 1)
     frames = []
-    for snap in snaps:
-        ax.clear()
-        draw_world(ax, scene, snap, title)
-        if not frames:
-            fig.tight_layout()
-        fig.canvas.draw()
-        rgb = Image.frombuffer("RGBA", fig.canvas.get_width_height(), fig.canvas.buffer_rgba()).convert("RGB")
-        frames.append(rgb.quantize(colors=64, method=Image.Quantize.FASTOCTREE))
+    total = len(snaps) if hasattr(snaps, "__len__") else None
+    with progress_bar(total, desc="GIF frames", unit=" frame", disable=not progress) as bar:
+        for snap in snaps:
+            ax.clear()
+            draw_world(ax, scene, snap, title)
+            if not frames:
+                fig.tight_layout()  # same layout for every frame
+            fig.canvas.draw()
+            rgb = Image.frombuffer("RGBA", fig.canvas.get_width_height(), fig.canvas.buffer_rgba()).convert("RGB")
+            frames.append(rgb.quantize(colors=64, method=Image.Quantize.FASTOCTREE))
+            bar.update(1)
     if not frames:
         raise ValueError("no frames to write")
-    frames[0].save(path, format="GIF", save_all=True, append_images=frames[1:], loop=0,
-                   duration=max(1, round(1000.0 / fps)))
+    with atomic_path(path) as tmp:
+        frames[0].save(tmp, format="GIF", save_all=True, append_images=frames[1:], loop=0,
+                       duration=max(1, round(1000.0 / fps)))
     return len(frames)

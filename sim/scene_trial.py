@@ -64,7 +64,6 @@ def run_scene(model, scene, seed: "int | None" = None, time_limit: "float | None
     steps = max(1, round(1.0 / (model.tick_rate * scene.dt)))
     terminal = model.program.terminal
     ticks, mismatch, done = 0, None, False
-    checks = bool(binding.checks)
     while world.time < limit:
         check_signals()  # an interrupt swallowed in a destructor still stops the trial
         before = rt.state
@@ -73,11 +72,10 @@ def run_scene(model, scene, seed: "int | None" = None, time_limit: "float | None
         except (ConformanceError, DomainError) as exc:
             mismatch = Mismatch(ticks, world.time, "conformance", str(exc))
             break
-        if checks:
-            problems = binding.check(rt.vars)
-            if problems:
-                mismatch = Mismatch(ticks, world.time, "abstraction", "; ".join(problems))
-                break
+        problems = binding.after_tick(rt)
+        if problems:
+            mismatch = Mismatch(ticks, world.time, "abstraction", "; ".join(problems))
+            break
         if monitor is not None:
             why = monitor.check(before, step.state)
             if why:

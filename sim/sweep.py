@@ -36,7 +36,7 @@ __all__ = ["grid", "run_sweep", "cached", "write_table", "plot_lost", "check_geo
 PARAMS = ("belt_speed", "period", "speed_scale", "pick_window")
 WINDOW_M = 0.2 * 16.0  # metres of belt a part rides within the arm's reach after detection (default cell)
 ENGINES = ("dask", "processes", "inline")
-CACHE_FORMAT = "btfsm-sweep-trial/1"
+CACHE_FORMAT = "btfsm-sweep-trial/2"  # /2: the ARIAC cell is a scene file (trials of the pymunk cell run again)
 
 
 def grid(variants=VARIANTS, ks=(1,), *, belt_speed=(0.2,), period=(None,), speed_scale=(0.5,), pick_window=(None,),
@@ -57,7 +57,9 @@ def grid(variants=VARIANTS, ks=(1,), *, belt_speed=(0.2,), period=(None,), speed
 def check_geometry(specs) -> None:
     """ValueError naming the first spec whose cell cannot be laid out (a pick window that
     ends out of the arm's reach)."""
-    from .cell import Cell, CellConfig
+    from btfsm.errors import ModelError
+
+    from .trial import build_trial
 
     seen = set()
     for s in specs:
@@ -66,9 +68,10 @@ def check_geometry(specs) -> None:
             continue
         seen.add(key)
         try:
-            Cell(CellConfig(dt=1.0 / s.physics_rate, pick_window_s=s.pick_window, belt_speed=s.belt_speed), seed=0)
-        except ValueError as exc:
-            raise ValueError(f"belt speed {s.belt_speed:g} m/s with pick window {s.pick_window:g} s: {exc}") from None
+            build_trial(s)
+        except ModelError as exc:
+            raise ValueError(f"belt speed {s.belt_speed:g} m/s with pick window {s.pick_window:g} s: "
+                             f"{exc.problem}") from None
 
 
 def run_spec(spec: TrialSpec) -> TrialResult:

@@ -1,21 +1,65 @@
-"""One trial of the experiment: the checked ARIAC model driving the pymunk cell.
+"""One trial of the experiment: the checked ARIAC model driving the ARIAC scene.
 
-The BT ticks at the model's ``tick_rate`` (10 Hz) through ``btfsm.runtime.Runtime``; between two
-ticks the cell takes ``physics_rate / tick_rate`` fixed steps (240 Hz physics). After
-every tick the binding's abstraction check compares the model's variables with the cell.
+The cell is ``models/scenes/ariac.yaml`` with the trial's parameters written into it
+(:func:`ariac_scene`: the step, the belt's speed and end, the arrival times) and the
+kitting binding (``btfsm.sim.binding.KittingBinding``). The BT ticks at the model's
+``tick_rate`` (10 Hz) through ``btfsm.runtime.Runtime``; between two ticks the world takes
+``physics_rate / tick_rate`` fixed steps (240 Hz). After every tick the binding's
+abstraction check compares the model's variables with the world.
 """
 from __future__ import annotations
+
+import copy
+from functools import lru_cache
 
 from btfsm.signals import check as check_signals
 
 from btfsm.bt import SkillRequest
 from btfsm.runtime import Runtime
 
-from .binding import CellBinding
-from .cell import BELT, GRIPPER, Cell, CellConfig
 from .protocol import TrialResult, TrialSpec
+from .scene import LOST
 
-__all__ = ["run_trial", "build_trial"]
+__all__ = ["run_trial", "build_trial", "build_model", "ariac_scene", "ARIAC_SCENE"]
+
+ARIAC_SCENE = "ariac"  # models/scenes/ariac.yaml
+
+
+@lru_cache(maxsize=1)
+def _ariac_data() -> dict:
+    from btfsm.files import load_data
+
+    from .scene import builtin_scene
+
+    path = builtin_scene(ARIAC_SCENE)
+    return load_data(path, file_name=path)
+
+
+def ariac_scene(spec: TrialSpec, detections=None, faults=()):
+    """The ARIAC scene for ``spec``: step ``1 / physics_rate``, the belt at
+    ``spec.belt_speed``, its end ``pick_window`` seconds of travel past the sensor, and
+    belt parts that reach the sensor every ``arrival_period`` seconds (or at the given
+    ``detections`` times); ``faults``: regions where a held part drops."""
+    from .scene import scene_from_data
+
+    data = copy.deepcopy(_ariac_data())
+    belt = data["belts"]["conveyor"]
+    beam = data["sensors"]["beam"]["region"]
+    y_detect = beam[3]  # parts move towards -y: they enter the beam at its +y edge
+    spawn_y = belt["from"][1]
+    belt["speed"] = spec.belt_speed
+    belt["to"] = [belt["from"][0], y_detect - spec.belt_speed * spec.pick_window]
+    delay = (spawn_y - y_detect) / spec.belt_speed
+    if detections is None:
+        period = spec.arrival_period
+        detections = [j * period for j in range(1, int(spec.time_limit / period) + 2)]
+    belt["arrivals"] = {"schedule": [t - delay for t in detections if t >= delay]}
+    data["dt"] = 1.0 / spec.physics_rate
+    data["time_limit"] = spec.time_limit
+    data["seed"] = spec.seed
+    if faults:
+        data["faults"] = {f"drop{i}": {"region": list(r), "probability": 1.0} for i, r in enumerate(faults)}
+    return scene_from_data(data, f"{ARIAC_SCENE} scene ({spec.variant} k={spec.k})")
 
 
 def build_model(spec: TrialSpec):
@@ -25,57 +69,58 @@ def build_model(spec: TrialSpec):
     return make(n_tray=spec.parts)
 
 
-def build_trial(spec: TrialSpec, model=None, config: "CellConfig | None" = None, *,
-                seed: "int | None" = None, detections=None):
-    """(model, cell, binding, runtime) for a trial, ready to run. Belt parts reach the
-    sensor every dTa(k) seconds, or at the given ``detections`` times."""
+def build_trial(spec: TrialSpec, model=None, *, seed: "int | None" = None, detections=None, faults=()):
+    """(model, world, binding, runtime) for a trial, ready to run."""
+    from .library import bind_model
+    from .scene import World
+
     model = model or build_model(spec)
-    config = config or CellConfig(dt=1.0 / spec.physics_rate, pick_window_s=spec.pick_window,
-                                  belt_speed=spec.belt_speed)
-    cell = Cell(config, seed=spec.seed if seed is None else seed)
-    delay = cell.detect_delay_s
-    if detections is None:
-        period = spec.arrival_period
-        detections = [j * period for j in range(1, int(spec.time_limit / period) + 2)]
-    cell.schedule_arrivals([t - delay for t in detections if t >= delay])
-    binding = CellBinding(cell, model, speed_scale=spec.speed_scale)
+    scene = ariac_scene(spec, detections, faults)
+    world = World(scene, spec.seed if seed is None else seed)
+    binding = bind_model(scene, model, world)
     runtime = Runtime(model, binding.implementations(), record=True)
-    return model, cell, binding, runtime
+    return model, world, binding, runtime
 
 
 def run_trial(spec: TrialSpec, model=None, on_tick=None) -> TrialResult:
     """Run one trial to completion (``parts`` on the tray) or to the time limit."""
-    model, cell, binding, rt = build_trial(spec, model)
+    model, world, binding, rt = build_trial(spec, model)
     prog = model.program
-    q_slot, tray_slot = prog.scope["queue"].index, prog.scope[binding.d.tray_var].index
+    tray_slot = prog.scope[binding.d.tray_var].index
     skills = {n.name: prog.nodes[n.name].flag for n in model.nodes() if isinstance(n, SkillRequest)}
     steps_per_tick = max(1, round(spec.physics_rate / model.tick_rate))  # the BT's rate is the model's
     starts = halts = ticks = 0
     error = ""
-    while cell.time < spec.time_limit:
+    while world.time < spec.time_limit:
         check_signals()  # an interrupt swallowed in a destructor still stops the trial
         before = rt.state
-        step = rt.tick(binding.events(before[q_slot]))
+        step = rt.tick(binding.events(before))
         ticks += 1
-        binding.after_tick(step.state[q_slot])
+        problems = binding.after_tick(rt)
         for ev in step.events:
             if ev[0] == "status" and ev[1] in skills and not before[skills[ev[1]]]:
                 starts += 1
             elif ev[0] == "halt" and ev[1] in skills:
                 halts += 1
-        if not error:
-            problems = binding.abstraction_errors(rt.vars, *rt.fsm_state(binding.d.fsm))
-            if problems:
-                error = f"t={cell.time:.2f}s tick {ticks}: " + "; ".join(problems)
+        if problems and not error:
+            error = f"t={world.time:.2f}s tick {ticks}: " + "; ".join(problems)
         if on_tick is not None:
-            on_tick(rt, cell)
-        if step.state[tray_slot] >= spec.parts and cell.tray_count >= spec.parts:
+            on_tick(rt, world)
+        if step.state[tray_slot] >= spec.parts and binding.tray_count() >= spec.parts:
             break
-        cell.step(steps_per_tick)
-    detected = {pid: t for pid, t in cell.detections}
-    reactions = [t - detected[pid] for t, pid, src, dst in cell.events
-                 if src == BELT and dst == GRIPPER and pid in detected]
-    lost = sum(1 for pid in cell.lost_parts if pid in detected)
-    return TrialResult(spec.variant, spec.k, spec.seed, cell.tray_count >= spec.parts, round(cell.time, 6),
-                       cell.tray_count, starts, halts, len(detected), len(reactions), lost,
+        world.step(steps_per_tick)
+    return trial_result(spec, world, binding, starts, halts, ticks, error)
+
+
+def trial_result(spec, world, binding, starts, halts, ticks, error) -> TrialResult:
+    """The figures of a finished trial: reactions run from a belt part's detection to the
+    step it leaves the belt in the gripper; lost parts are detected parts that were lost."""
+    detected = dict(binding.detections)
+    reactions = [t - detected[pid] for t, pid, src, dst in world.log
+                 if src is not None and src.kind == "BELT" and dst.kind == "GRIPPER" and pid in detected]
+    lost = sum(1 for pid in world.parts_in(LOST) if pid in detected)
+    tray = binding.tray_count()
+    return TrialResult(spec.variant, spec.k, spec.seed, tray >= spec.parts, round(world.time, 6),
+                       tray, starts, halts, len(detected), len(reactions), lost,
                        [round(r, 4) for r in reactions], ticks, error)
+

@@ -80,11 +80,40 @@ def test_every_reaction_of_the_80_trials_is_within_the_proved_worst_case(proved)
     assert sum(r[3] for r in results if r[0] == "preemptive") == 0  # the paper's headline, with time declared
 
 
-def test_the_cell_replay_says_whether_it_shows_the_late_response(proved):
+def test_the_cell_replay_paced_to_the_counterexample_loses_the_part(proved):
+    """Paced to the worst-case witness (each FSM state lasts at least as long as in the
+    counterexample: the arm waits where its move ended), the cell loses the belt part
+    for both variants; unpaced, the cell's own (faster) motions pick it in time."""
     from btfsm.sim.replay import replay_in_cell
 
-    ce = proved["preemptive"][1].counterexample.to_json()
-    r = replay_in_cell(load_builtin("ariac-preemptive-timed"), ce)
-    # measured: the cell's arm is faster than the declared per-state maxima, so it picks the part
-    assert r.kind == "response" and r.lost == []
-    assert "the cell does not show the late response" in r.text()
+    for v in ("preemptive", "baseline"):
+        ce = proved[v][1].counterexample.to_json()
+        r = replay_in_cell(load_builtin(f"ariac-{v}-timed"), ce)
+        assert r.kind == "response" and r.paced > 160 and r.held > 0
+        assert [pid for _, pid in r.lost] == [pid for _, _, pid in r.injected], (v, r.text())
+        assert "the cell shows the late response" in r.text()
+        t_lost, t_in = r.lost[0][0], r.injected[0][0]
+        assert 15.9 <= t_lost - t_in <= 16.3  # lost at the end of the pick window
+    r = replay_in_cell(load_builtin("ariac-preemptive-timed"), proved["preemptive"][1].counterexample.to_json(),
+                       pace=False)
+    assert r.lost == [] and r.paced == 0 and "does not show the late response" in r.text()
+
+
+def test_pacing_holds_each_visit_at_least_as_long_as_the_counterexample():
+    from btfsm.sim.replay import _Pacer
+
+    p = _Pacer(["a", "a", "a", "b", "c", "c"])
+    assert p.visits == [["a", 3], ["b", 1], ["c", 2]] and p.ticks == 5
+    assert p.position(1) == (0, 0) and p.position(3) == (0, 2) and p.position(4) == (1, 0) and p.position(5) == (2, 0)
+    p.now = "a"
+    assert p.hold()  # the cell would leave 'a' on its first tick there: held
+    p.after("a")
+    assert p.hold()
+    p.after("a")
+    assert not p.hold()  # the third tick may leave 'a'
+    p.after("a")  # the cell is slower: it stays a fourth tick, nothing to hold
+    assert not p.hold()
+    p.after("b")
+    assert (p.v, p.c) == (1, 0) and not p.hold()
+    p.after("x")  # the counterexample goes to 'c': pacing stops there
+    assert p.diverged == (5, "c", "x") and not p.active() and not p.hold()

@@ -29,9 +29,9 @@ def _run(argv, capsys):
     return code, got.out, got.err
 
 
-def _missing_pymunk():
-    exc = ModuleNotFoundError("No module named 'pymunk'")
-    exc.name = "pymunk"
+def _missing_matplotlib():
+    exc = ModuleNotFoundError("No module named 'matplotlib'")
+    exc.name = "matplotlib"
     return exc
 
 
@@ -48,7 +48,7 @@ TABLE = [
      ["btfsm validate: violation: fsms.arm.edges[0]: writes n = 9, outside its domain"]),
     (ConformanceError("the implementation replied SUCCESS"), 1, "violation", ["replied SUCCESS"]),
     (MemoryError(), 3, "budget", ["btfsm validate: incomplete: out of memory", "--max-states"]),
-    (_missing_pymunk(), 2, "usage", ["needs the Python package 'pymunk'", "btfsm[sim]"]),
+    (_missing_matplotlib(), 2, "usage", ["needs the Python package 'matplotlib'", "btfsm[sim]"]),
     (KeyboardInterrupt(), 130, "interrupted", ["btfsm validate: interrupted"]),
     (Terminated(), 143, "terminated", ["btfsm validate: terminated"]),
     (ZeroDivisionError("division by zero"), 70, "internal",

@@ -2,6 +2,7 @@
 with the same ``--out`` finishes it with the results of an uninterrupted run."""
 from __future__ import annotations
 
+import dataclasses
 import json
 import os
 import signal
@@ -81,7 +82,8 @@ def test_load_finished_ignores_foreign_files(tmp_path):
     other = experiment.trial_specs([3], ("baseline",), time_limit=6.0)
     assert experiment.load_finished(other, str(tmp_path)) == {}
     path = experiment.trial_file(str(tmp_path), specs[0])
-    for text in ("", "[]", "null", '{"format": 2}', json.dumps({"format": 1, "spec": {}, "result": {}})):
+    old = json.dumps({"format": 1, "spec": dataclasses.asdict(specs[0]), "result": dataclasses.asdict(res[0])})
+    for text in ("", "[]", "null", '{"format": 2}', json.dumps({"format": 2, "spec": {}, "result": {}}), old):
         with open(path, "w") as fh:
             fh.write(text)
         assert experiment.load_finished(specs, str(tmp_path)) == {}

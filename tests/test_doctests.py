@@ -39,7 +39,7 @@ MODULES = _modules()
 
 
 def test_every_package_is_walked():
-    for sub in ("btfsm.verify.explore", "btfsm.verify.properties.dead", "btfsm.models.ariac", "btfsm.sim.cell"):
+    for sub in ("btfsm.verify.explore", "btfsm.verify.properties.dead", "btfsm.models.ariac", "btfsm.sim.scene"):
         assert sub in MODULES
 
 

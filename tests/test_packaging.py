@@ -36,7 +36,7 @@ def test_one_top_level_package(wheel):
     names, _ = wheel
     tops = {n.split("/")[0] for n in names}
     assert tops == {"btfsm", "btfsm-0.1.0.dist-info"}
-    for sub in ("btfsm/verify/explore.py", "btfsm/models/ariac.py", "btfsm/sim/cell.py",
+    for sub in ("btfsm/verify/explore.py", "btfsm/models/ariac.py", "btfsm/sim/scene.py", "btfsm/models/scenes/ariac.yaml",
                 "btfsm/schema/model.schema.json", "btfsm/models/examples/two_area.yaml"):
         assert sub in names
 
@@ -74,10 +74,10 @@ def test_only_btfsm_is_importable(wheel):
 
 def test_checker_imports_no_simulator(wheel):
     """``pip install btfsm`` (no [sim] extra) is enough to check: checking never imports
-    pymunk, matplotlib or Pillow."""
+    matplotlib, Pillow or the simulator."""
     _, unpacked = wheel
     r = _run_isolated(unpacked, "from btfsm.verify import check; from btfsm.files import load_model\n"
                                 "check(load_model('ariac-preemptive'))\n"
-                                "print(sorted(m for m in ('pymunk', 'matplotlib', 'PIL') if m in sys.modules))")
+                                "print(sorted(m for m in ('matplotlib', 'PIL', 'btfsm.sim.scene') if m in sys.modules))")
     assert r.returncode == 0, r.stderr
     assert r.stdout.strip() == "[]"

@@ -101,20 +101,20 @@ def test_experiment_progress_bar(monkeypatch):
 def test_gif_rendering_progress_bar(tmp_path, monkeypatch):
     pytest.importorskip("matplotlib")
     pytest.importorskip("PIL")
-    from btfsm.sim.cell import Cell
-    from btfsm.sim.render import render_gif
+    from btfsm.sim.scene import World, builtin_scene, load_scene
+    from btfsm.sim.scene_render import write_gif
 
-    cell = Cell(seed=1, arrivals=[0.0])
-    snaps = [cell.snapshot()]
-    cell.step()
-    snaps.append(cell.snapshot())
+    world = World(load_scene(builtin_scene("ariac")), 1)
+    snaps = [world.snapshot()]
+    world.step()
+    snaps.append(world.snapshot())
     tty = FakeTTY()
     monkeypatch.setattr(sys, "stderr", tty)
-    assert render_gif(snaps, tmp_path / "a.gif", fps=5) == 2
+    assert write_gif(world.scene, snaps, tmp_path / "a.gif", fps=5) == 2
     assert "GIF frames" in tty.getvalue() and "/2 " in tty.getvalue()  # the total is known
     quiet = io.StringIO()
     monkeypatch.setattr(sys, "stderr", quiet)
-    assert render_gif(iter(snaps), tmp_path / "b.gif", fps=5) == 2
+    assert write_gif(world.scene, iter(snaps), tmp_path / "b.gif", fps=5) == 2
     assert quiet.getvalue() == ""
     assert (tmp_path / "b.gif").read_bytes()[:6] in (b"GIF87a", b"GIF89a")
     assert sorted(p.name for p in tmp_path.iterdir()) == ["a.gif", "b.gif"]  # no temporary file left
@@ -122,11 +122,12 @@ def test_gif_rendering_progress_bar(tmp_path, monkeypatch):
 
 def test_gif_into_a_folder_is_refused_before_drawing(tmp_path):
     pytest.importorskip("matplotlib")
-    from btfsm.sim.render import render_gif
+    from btfsm.sim.scene import builtin_scene, load_scene
+    from btfsm.sim.scene_render import write_gif
 
     def never():
         raise AssertionError("drew frames for an output that cannot be written")
         yield
 
     with pytest.raises(IsADirectoryError):
-        render_gif(never(), tmp_path, fps=5)
+        write_gif(load_scene(builtin_scene("ariac")), never(), tmp_path, fps=5)
