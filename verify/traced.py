@@ -244,7 +244,7 @@ class _Visited:
         dt = np.int32 if self.n < 1 << 31 else np.int64
         out = targets.view(dt) if targets.dtype.itemsize == np.dtype(dt).itemsize else np.empty(len(targets), dt)
         for a in range(0, len(targets), STEP):
-            out[a:a + STEP] = self.ids(targets[a:a + STEP].astype(np.int64))
+            out[a:a + STEP] = self.ids(targets[a:a + STEP])
         return out
 
 
@@ -252,12 +252,13 @@ def _popcount(words: np.ndarray) -> np.ndarray:
     """Set bits of each uint64 (numpy >= 2: ``bitwise_count``; else a byte table)."""
     count = getattr(np, "bitwise_count", None)
     if count is not None:
-        return count(words).astype(np.int64)
-    return _BYTE_BITS[words.view(np.uint8)].reshape(-1, 8).sum(axis=1, dtype=np.int64)
+        return count(words)
+    return _BYTE_BITS[words.view(np.uint8)].reshape(-1, 8).sum(axis=1, dtype=np.uint8)
 
 
 _BYTE_BITS = np.array([bin(i).count("1") for i in range(256)], np.uint8)
-_ONE = np.uint64(1)
+_BIT = np.left_shift(np.uint64(1), np.arange(64, dtype=np.uint64))  # bit b of a word
+_BELOW = _BIT - np.uint64(1)  # the bits below bit b
 
 
 class _Bitmap(_Visited):
@@ -272,16 +273,19 @@ class _Bitmap(_Visited):
         self.ranked = None
 
     def seen(self, codes):
-        word = self.bits[codes >> 6]
-        return ((word >> (codes & 63).astype(np.uint64)) & _ONE).astype(bool)
+        return (self.bits[codes >> 6] & _BIT[codes & 63]) != 0
 
     def index(self, codes):
-        np.bitwise_or.at(self.bits, codes >> 6, np.left_shift(_ONE, (codes & 63).astype(np.uint64)))
+        if not len(codes):
+            return
+        codes = np.sort(codes)
+        word = codes >> 6
+        starts = np.flatnonzero(np.concatenate(([True], word[1:] != word[:-1])))
+        self.bits[word[starts]] |= np.bitwise_or.reduceat(_BIT[codes & 63], starts)
 
     def _rank(self, codes, prefix):
-        word = self.bits[codes >> 6]
-        below = word & (np.left_shift(_ONE, (codes & 63).astype(np.uint64)) - _ONE)
-        return prefix[codes >> 6] + _popcount(below)
+        word = codes >> 6
+        return prefix[word] + _popcount(self.bits[word] & _BELOW[codes & 63])
 
     def ids(self, codes):
         if self.ranked is None:
@@ -295,10 +299,10 @@ class _Bitmap(_Visited):
             by_rank = np.empty(self.n, dt)
             for a in range(0, self.n, STEP):
                 b = min(a + STEP, self.n)
-                by_rank[self._rank(self.codes[a:b].astype(np.int64), exclusive)] = np.arange(a, b, dtype=dt)
+                by_rank[self._rank(self.codes[a:b], exclusive)] = np.arange(a, b, dtype=dt)
             self.ranked = (exclusive, by_rank)
         exclusive, by_rank = self.ranked
-        return by_rank[self._rank(codes, exclusive)].astype(np.int64)
+        return by_rank[self._rank(codes, exclusive)]
 
 
 _GOLDEN = np.uint64(0x9E3779B97F4A7C15)
@@ -313,11 +317,12 @@ class _Hashed(_Visited):
     the others move one slot on."""
 
     LOAD = 0.7
+    FIRST = 1 << 16  # slots of the first table
 
     def __init__(self, total, c0):
         super().__init__(total, c0)
         self.table = None
-        self._resize(1 << 16)
+        self._resize(self.FIRST)
 
     def _resize(self, size):
         self.bits = size.bit_length() - 1
@@ -336,6 +341,7 @@ class _Hashed(_Visited):
         return self.ids(codes) >= 0
 
     def ids(self, codes):
+        codes = codes.astype(np.int64)
         out = np.full(len(codes), -1, np.int64)
         idx = np.arange(len(codes), dtype=np.int64)
         h = self._home(codes)
@@ -688,10 +694,11 @@ def search(model, kind, fsm, kept, run, s0, budget, progress, op, fallback: bool
         chunk = min(CHUNK, chunk * 2)
         ords = eng.ordinals()
         # transitions of the batch, ordered as the generic engine makes them
-        ok = [(leaf, rows) for leaf, rows in out if leaf.kind == "ok"]
+        ok = sorted(((leaf, rows) for leaf, rows in out if leaf.kind == "ok"), key=lambda x: ords[x[0].id])
         rows, lid, dst = _transitions(ok, batch, ev)
-        # each leaf's rows are ascending: a stable sort merges the runs
-        order = np.argsort(rows * len(ords) + ords[lid], kind="stable")
+        # each leaf's rows are ascending and the leaves are in order: a stable sort by row
+        # (a radix sort on 16 bits) gives the (source, script) order
+        order = np.argsort(rows.astype(np.uint16) if k <= 1 << 16 else rows, kind="stable")
         rows, lid, dst = rows[order], lid[order], dst[order]
         # new targets, numbered in order of first discovery
         cut = len(dst)
@@ -806,29 +813,21 @@ def _view(buf, dtype) -> np.ndarray:
 
 
 def _transitions(ok, codes, ev):
-    """(source rows, leaf ids, target codes) of the leaves ``ok`` reached by a batch: all
-    at once, each leaf's changes read from one matrix of its terms' values."""
+    """(source rows, leaf ids, target codes) of the leaves ``ok`` reached by a batch, leaf
+    after leaf: the input code plus the leaf's constant shift plus its terms' values on
+    the leaf's rows."""
     if not ok:
         return np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0, np.int64)
     rows = np.concatenate([r for _, r in ok])
     sizes = [len(r) for _, r in ok]
     lid = np.repeat(np.array([leaf.id for leaf, _ in ok], np.int64), sizes)
     dst = codes[rows] + np.repeat(np.array([leaf.code[0] for leaf, _ in ok], np.int64), sizes)
-    width = max(len(leaf.code[1]) for leaf, _ in ok)
-    if width:
-        local: dict = {}
-        for leaf, _ in ok:
-            for term in leaf.code[1]:
-                local.setdefault(term, len(local) + 1)
-        mat = np.zeros((len(local) + 1, len(codes)), np.int64)  # row 0: no term
-        for term, i in local.items():
-            mat[i] = ev(term)
-        idx = np.zeros((len(ok), width), np.int64)
-        for j, (leaf, _) in enumerate(ok):
-            idx[j, :len(leaf.code[1])] = [local[term] for term in leaf.code[1]]
-        per = np.repeat(idx, sizes, axis=0)
-        for j in range(width):
-            dst += mat[per[:, j], rows]
+    a = 0
+    for (leaf, r), m in zip(ok, sizes):  # each leaf's terms, on its rows only
+        for term in leaf.code[1]:
+            v = ev(term)
+            dst[a:a + m] += v[r] if isinstance(v, np.ndarray) else v
+        a += m
     return rows, lid, dst
 
 
