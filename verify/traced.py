@@ -707,9 +707,8 @@ def search(model, kind, fsm, kept, run, s0, budget, progress, op, fallback: bool
             complete, budget.hit = False, "transitions"
         fresh = np.flatnonzero(~visited.seen(dst[:cut]))
         if len(fresh):
-            uniq, first = np.unique(dst[fresh], return_index=True)
-            by_first = np.argsort(first, kind="stable")
-            firstpos, newcodes = fresh[first[by_first]], uniq[by_first]
+            firstpos = _first_positions(dst, fresh, total)
+            newcodes = dst[firstpos]
             room = smax - n
             if len(newcodes) > room:
                 complete, budget.hit = False, "states"
@@ -776,6 +775,25 @@ def search(model, kind, fsm, kept, run, s0, budget, progress, op, fallback: bool
                             parent=parent.view(), complete=complete, seconds=seconds,
                             expanded=expanded, errors=tuple(errors), violations=tuple(violations), open=op,
                             stopped=None if complete else budget.hit)
+
+
+def _first_positions(dst: np.ndarray, at: np.ndarray, total: int) -> np.ndarray:
+    """The positions in ``at`` (ascending) where a code of ``dst`` occurs for the first
+    time, ascending: one sort of (code, position) keys (numpy's fast integer sort) when they
+    fit 63 bits, else ``np.unique``.
+
+    >>> d, at = np.array([5, 3, 5, 7, 3, 9]), np.array([0, 2, 3, 4, 5])
+    >>> _first_positions(d, at, 10).tolist(), _first_positions(d, at, 1 << 62).tolist()
+    ([0, 3, 4, 5], [0, 3, 4, 5])
+    """
+    if total * len(dst) < 1 << 62:
+        key = dst[at] * len(dst) + at
+        key.sort()
+        code = key // len(dst)
+        first = np.concatenate(([True], code[1:] != code[:-1]))
+        return np.sort(key[first] - code[first] * len(dst))
+    _, first = np.unique(dst[at], return_index=True)
+    return np.sort(at[first])
 
 
 def _small(n: int):
