@@ -25,6 +25,8 @@ from functools import cached_property
 
 import numpy as np
 
+from .codec import codec, decode_codes
+
 __all__ = ["TransitionSystem", "DomainViolation", "shortest_path", "reverse_reach", "forward_reach",
            "strong_components", "bottom_sccs", "cyclic_states", "shortest_cycle"]
 
@@ -87,8 +89,6 @@ class TransitionSystem:
     @cached_property
     def states(self) -> np.ndarray:
         """Rows of small ints, one column per kept slot (decoded from ``codes``)."""
-        from .codec import codec, decode_codes
-
         prog = self.model.program
         mults = codec(prog, tuple(self.slots))[0]
         return decode_codes(prog, tuple(self.slots), self.codes, mults)

@@ -607,8 +607,11 @@ class _Engine:
                     stack.append((kids, c, rows, script + (c,)))
                 continue
             vals = ev(what)
-            vals = vals[rows] if isinstance(vals, np.ndarray) else np.full(len(rows), vals)
-            if kind == "b":
+            if not isinstance(vals, np.ndarray):  # a constant: every row goes one way
+                groups = ((bool(vals) if kind == "b" else int(vals), rows),)
+            elif kind == "b":
+                if len(rows) != len(codes):  # (all rows: ``rows`` is 0..len-1)
+                    vals = vals[rows]
                 if vals.dtype != np.bool_:
                     vals = vals != 0
                 hits = int(np.count_nonzero(vals))
@@ -617,8 +620,10 @@ class _Engine:
                 else:
                     groups = ((True, rows[vals]), (False, rows[~vals]))
             else:
+                if len(rows) != len(codes):
+                    vals = vals[rows]
                 first = int(vals[0])
-                if np.count_nonzero(vals != first) == 0:
+                if len(rows) == 1 or not (vals != first).any():
                     groups = ((first, rows),)
                 else:
                     order = np.argsort(vals, kind="stable")
