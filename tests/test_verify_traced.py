@@ -78,7 +78,7 @@ def test_compact_storage_derives_the_same_arrays():
     assert ts.codes is not None and ts.edge is not None  # stored compactly ...
     assert ts.dst.dtype == np.int32 and ts.edge.dtype == np.int8 and ts.parent.dtype == np.int32
     assert "src" not in ts.__dict__ and "states" not in ts.__dict__
-    assert ts.nbytes <= 16 * ts.n_states + 8 * ts.n_transitions
+    assert ts.offsets.dtype == np.int32 and ts.nbytes <= 12 * ts.n_states + 5 * ts.n_transitions + 64
     ref = explore(load_builtin("pickplace3"), engine="scalar")
     assert_same(ts, ref)  # ... and derives the scalar engine's arrays on first use
     assert np.array_equal(ts.offsets, np.searchsorted(ref.src, np.arange(ref.n_states + 1)))

@@ -381,7 +381,13 @@ class _Hashed(_Visited):
 class _Column:
     """A growing column of ints in an ``array`` buffer of the smallest signed type that
     holds every value so far (``b``, ``h``, ``i``, ``q``; widened in place when a larger
-    value comes). Growing reallocates the buffer (no second copy stays)."""
+    value comes). Growing reallocates the buffer (no second copy stays).
+
+    >>> c = _Column("b")
+    >>> c.extend(np.array([1, -1]), 1); c.extend(np.array([300]), 300)
+    >>> c.view().tolist(), c.view().dtype.name
+    ([1, -1, 300], 'int16')
+    """
 
     TYPES = ("b", "h", "i", "q")
 
@@ -669,9 +675,9 @@ def search(model, kind, fsm, kept, run, s0, budget, progress, op, fallback: bool
     n, head, nt, complete, expanded = 1, 0, 0, True, None
     # the system in compact columns (see TransitionSystem): CSR row pointer, targets (their
     # codes until the end, then ids), edge codes (one per distinct label and status), BFS parents
-    offsets = array("q", [0])
+    offsets, edge_c, parent = _Column("i"), _Column("b"), _Column("i")
     targets = array("I" if visited.codes.dtype == np.uint32 else "q")
-    edge_c, parent = _Column("b"), _Column("i")
+    offsets.extend(np.array([0]), 0)
     parent.extend(np.array([-1]), 0)
     labels: list = []
     label_goal: list = []
@@ -741,8 +747,7 @@ def search(model, kind, fsm, kept, run, s0, budget, progress, op, fallback: bool
                         labels.append(leaf.label)
                         label_goal.append(leaf.goal)
                     leaf_kind[li] = kinds.setdefault((lab, leaf.status or 0), len(kinds))
-        ends = np.cumsum(np.bincount(rows, minlength=k)) + nt
-        offsets.frombytes(ends.astype(np.int64).tobytes())
+        offsets.extend(np.cumsum(np.bincount(rows, minlength=k)) + nt, nt + cut)
         targets.frombytes(dst[:cut].astype(visited.codes.dtype).tobytes())
         edge_c.extend(leaf_kind[lid], len(kinds))
         for t in np.flatnonzero(leaf_viol[lid]).tolist():
@@ -764,8 +769,8 @@ def search(model, kind, fsm, kept, run, s0, budget, progress, op, fallback: bool
     codes = visited.codes[:n]
     dst = visited.number(np.frombuffer(targets, visited.codes.dtype) if nt else np.zeros(0, np.int64))
     del visited  # the index goes; the codes stay
-    if len(offsets) < n + 1:  # states not expanded have no transitions
-        offsets.frombytes(np.full(n + 1 - len(offsets), nt, np.int64).tobytes())
+    if len(offsets.buf) < n + 1:  # states not expanded have no transitions
+        offsets.extend(np.full(n + 1 - len(offsets.buf), nt, np.int64), nt)
     seconds = time.perf_counter() - t0
     if progress is not None:
         progress(n, nt, seconds)
@@ -775,7 +780,7 @@ def search(model, kind, fsm, kept, run, s0, budget, progress, op, fallback: bool
         edge_label[e], edge_status[e] = lab, st
     goals = np.asarray(label_goal, dtype=np.int64) if kind == "fsm" else None
     return TransitionSystem(model=model, kind=kind, fsm=fsm, slots=tuple(kept), codes=codes,
-                            offsets=np.frombuffer(offsets, np.int64), dst=dst, edge=edge_c.view(),
+                            offsets=offsets.view(), dst=dst, edge=edge_c.view(),
                             edge_label=edge_label, edge_status=edge_status, label_goal=goals, labels=tuple(labels),
                             parent=parent.view(), complete=complete, seconds=seconds,
                             expanded=expanded, errors=tuple(errors), violations=tuple(violations), open=op,
