@@ -60,6 +60,7 @@ def test_small_batches_and_hashed_visited_set(monkeypatch):
     monkeypatch.setattr(traced, "DENSE_LIMIT", 0)  # a hash table, not a bitmap
     monkeypatch.setattr(traced._Hashed, "FIRST", 4)  # grown many times
     monkeypatch.setattr(traced, "STEP", 5)  # re-hashing and numbering in many slices
+    monkeypatch.setattr(traced, "TERMS_LIMIT", 0)  # target codes summed leaf by leaf
     for name in ("pickplace3-dead", "defect-domain", "two-area", "original"):
         m = load_builtin(name)
         assert_same(*both(m))

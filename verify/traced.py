@@ -51,6 +51,7 @@ __all__ = ["search", "BatchSuccessors", "Untraceable", "TooManyPaths", "CHUNK", 
 
 CHUNK = 1 << 15  # states expanded per batch
 DENSE_LIMIT = 1 << 31  # code space up to which the visited set is a bitmap (256 MB at most), else a hash table
+TERMS_LIMIT = 1 << 22  # values of (term tuple, state) sums a batch may hold, else leaf by leaf
 STEP = 1 << 20  # codes numbered, hashed or ranked at a time (bounds the temporaries)
 PATHS_MIN = 1 << 13  # paths traced before the trie must pay off (see ``search``)
 PATHS_RATIO = 4  # ... then at most one path per this many transitions found
@@ -841,15 +842,27 @@ def _view(buf, dtype) -> np.ndarray:
 
 
 def _transitions(ok, codes, ev):
-    """(source rows, leaf ids, target codes) of the leaves ``ok`` reached by a batch, leaf
-    after leaf: the input code plus the leaf's constant shift plus its terms' values on
-    the leaf's rows."""
+    """(source rows, leaf ids, target codes) of the leaves ``ok`` reached by a batch: the
+    input code plus the leaf's constant shift plus the sum of its terms' values, summed
+    once per distinct tuple of terms over the batch and gathered at once (leaf by leaf,
+    on each leaf's rows, when those sums would pass ``TERMS_LIMIT`` values)."""
     if not ok:
         return np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0, np.int64)
     rows = np.concatenate([r for _, r in ok])
     sizes = [len(r) for _, r in ok]
     lid = np.repeat(np.array([leaf.id for leaf, _ in ok], np.int64), sizes)
     dst = codes[rows] + np.repeat(np.array([leaf.code[0] for leaf, _ in ok], np.int64), sizes)
+    groups: dict = {}  # the distinct term tuples of the leaves (1, 2, ...; 0: no terms)
+    which = [groups.setdefault(leaf.code[1], len(groups) + 1) if leaf.code[1] else 0 for leaf, _ in ok]
+    if not groups:
+        return rows, lid, dst
+    if len(groups) * len(codes) <= TERMS_LIMIT:  # each tuple's sum over the batch, one gather
+        sums = np.zeros((len(groups) + 1, len(codes)), np.int64)
+        for terms, g in groups.items():
+            for term in terms:
+                sums[g] += ev(term)
+        dst += sums[np.repeat(np.array(which, np.int64), sizes), rows]
+        return rows, lid, dst
     a = 0
     for (leaf, r), m in zip(ok, sizes):  # each leaf's terms, on its rows only
         for term in leaf.code[1]:
