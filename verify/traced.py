@@ -592,14 +592,16 @@ class _Engine:
         ev = _Values(codes, self.g.nodes, self.mults, self.sizes, self.los)
         out = []
         emitted, wide = 0, len(codes) > 1
-        stack = [(self.root, None, np.arange(len(codes)), ())]
+        every = len(codes)
+        stack = [(self.root, None, np.arange(every), ())]
+        pop, push = stack.pop, stack.append
         while stack:
-            holder, key, rows, script = stack.pop()
+            holder, key, rows, script = pop()
             node = holder[key]
             if node is None:
                 self.trace(self.state_of(int(codes[rows[0]])), script)
                 node = holder[key]
-            if isinstance(node, _Leaf):
+            if node.__class__ is _Leaf:
                 out.append((node, rows))
                 if node.kind == "ok":
                     emitted += len(rows)
@@ -611,13 +613,13 @@ class _Engine:
                 for c in range(what):
                     if c not in kids:
                         kids[c] = None
-                    stack.append((kids, c, rows, script + (c,)))
+                    push((kids, c, rows, script + (c,)))
                 continue
             vals = ev(what)
             if not isinstance(vals, np.ndarray):  # a constant: every row goes one way
                 groups = ((bool(vals) if kind == "b" else int(vals), rows),)
             elif kind == "b":
-                if len(rows) != len(codes):  # (all rows: ``rows`` is 0..len-1)
+                if len(rows) != every:  # (all rows: ``rows`` is 0..len-1)
                     vals = vals[rows]
                 if vals.dtype != np.bool_:
                     vals = vals != 0
@@ -627,7 +629,7 @@ class _Engine:
                 else:
                     groups = ((True, rows[vals]), (False, rows[~vals]))
             else:
-                if len(rows) != len(codes):
+                if len(rows) != every:
                     vals = vals[rows]
                 first = int(vals[0])
                 if len(rows) == 1 or not (vals != first).any():
@@ -641,7 +643,7 @@ class _Engine:
             for val, sub in groups:
                 if val not in kids:
                     kids[val] = None
-                stack.append((kids, val, sub, script))
+                push((kids, val, sub, script))
         return out, ev
 
 
