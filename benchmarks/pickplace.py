@@ -57,18 +57,17 @@ def _rss_mb() -> float:
 
 def worker(engine: str, n: int) -> dict:
     """Explore pickplace(n) with one engine in this process; the measurements."""
+    from btfsm.verify.explore import explore  # imports (numpy among them) before the clock starts
+    from btfsm.verify.vector import reach
+
     m = pickplace(n)
     m.program  # compile before timing
     base = _rss_mb()
     t0, c0 = time.perf_counter(), time.process_time()
     if engine == "vector":
-        from btfsm.verify.vector import reach
-
         r = reach(m)
         states, trans, dead, complete = r.n_states, r.n_transitions, len(r.dead), r.complete
     else:
-        from btfsm.verify.explore import explore
-
         ts = explore(m, engine="scalar" if engine == "scalar" else "auto")
         states, trans, dead, complete = ts.n_states, ts.n_transitions, len(ts.dead), ts.complete
     wall, cpu = time.perf_counter() - t0, time.process_time() - c0

@@ -142,8 +142,8 @@ def test_progress_line_on_stderr_for_long_explorations(tmp_path):
     from btfsm.files import dump_model
     from btfsm.models.pickplace import pickplace
 
-    path = tmp_path / "pp12.json"
-    dump_model(pickplace(12), str(path))  # about 3 s of exploration
+    path = tmp_path / "pp18.json"
+    dump_model(pickplace(18), str(path))  # about 4 s of exploration (the bar shows after 1 s)
     master, slave = pty.openpty()
     chunks = []
 
@@ -159,9 +159,9 @@ def test_progress_line_on_stderr_for_long_explorations(tmp_path):
 
     reader = threading.Thread(target=drain, daemon=True)
     reader.start()
+    cmd = [sys.executable, "-m", "btfsm.cli", "check", str(path), "--property", "invariants", "--max-states", "7000000"]
     try:
-        out = subprocess.run([sys.executable, "-m", "btfsm.cli", "check", str(path), "--property", "invariants"],
-                             stdout=subprocess.PIPE, stderr=slave, text=True, timeout=300)
+        out = subprocess.run(cmd, stdout=subprocess.PIPE, stderr=slave, text=True, timeout=300)
     finally:
         os.close(slave)
         reader.join(10)
@@ -169,9 +169,8 @@ def test_progress_line_on_stderr_for_long_explorations(tmp_path):
     assert out.returncode == 0
     shown = b"".join(chunks).decode("utf-8", "replace")
     assert "states/s" in shown and "model" in shown and "transitions" in shown  # the tqdm bar
-    assert "1305694 states" in out.stdout.replace(",", "")
-    piped = subprocess.run([sys.executable, "-m", "btfsm.cli", "check", str(path), "--property", "invariants"],
-                           capture_output=True, text=True, timeout=300)
+    assert "6053248 states" in out.stdout.replace(",", "")
+    piped = subprocess.run(cmd, capture_output=True, text=True, timeout=300)
     assert piped.returncode == 0 and piped.stderr == ""  # not a terminal: no bar
 
 

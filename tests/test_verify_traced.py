@@ -55,14 +55,34 @@ def test_budget_cut_is_the_generic_engines(budget):
         assert_same(a, b)
 
 
-def test_small_batches_and_sorted_visited_set(monkeypatch):
+def test_small_batches_and_hashed_visited_set(monkeypatch):
     monkeypatch.setattr(traced, "CHUNK", 7)
-    monkeypatch.setattr(traced, "DENSE_LIMIT", 0)
+    monkeypatch.setattr(traced, "DENSE_LIMIT", 0)  # a hash table, not a bitmap
+    monkeypatch.setattr(traced._Hashed, "FIRST", 4)  # grown many times
+    monkeypatch.setattr(traced, "STEP", 5)  # re-hashing and numbering in many slices
+    monkeypatch.setattr(traced, "TERMS_LIMIT", 0)  # target codes summed leaf by leaf
     for name in ("pickplace3-dead", "defect-domain", "two-area", "original"):
         m = load_builtin(name)
         assert_same(*both(m))
         f = m.fsms[0].name
         assert_same(explore_fsm(m, f, engine="scalar", max_states=900), explore_fsm(m, f, engine="traced", max_states=900))
+
+
+def test_bitmap_numbering_in_slices(monkeypatch):
+    monkeypatch.setattr(traced, "STEP", 3)  # ranks and target ids computed a few at a time
+    for name in ("pickplace3", "two-area"):
+        assert_same(*both(load_builtin(name)))
+
+
+def test_compact_storage_derives_the_same_arrays():
+    ts = explore(load_builtin("pickplace3"), engine="traced")
+    assert ts.codes is not None and ts.edge is not None  # stored compactly ...
+    assert ts.dst.dtype == np.int32 and ts.edge.dtype == np.int8 and ts.parent.dtype == np.int32
+    assert "src" not in ts.__dict__ and "states" not in ts.__dict__
+    assert ts.offsets.dtype == np.int32 and ts.nbytes <= 12 * ts.n_states + 5 * ts.n_transitions + 64
+    ref = explore(load_builtin("pickplace3"), engine="scalar")
+    assert_same(ts, ref)  # ... and derives the scalar engine's arrays on first use
+    assert np.array_equal(ts.offsets, np.searchsorted(ref.src, np.arange(ref.n_states + 1)))
 
 
 def test_start_state_and_progress():

@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["codec", "decode", "rows", "dtype"]
+__all__ = ["codec", "decode", "decode_codes", "code_dtype", "rows", "dtype"]
 
 
 def codec(prog, kept):
@@ -47,6 +47,22 @@ def decode(prog, kept, codes, offset, mults) -> np.ndarray:
         info = prog.slots[k]
         out[:, col] = (c // mults[k]) % max(info.size, 1) + info.lo
     return out
+
+
+def decode_codes(prog, kept, codes: np.ndarray, mults) -> np.ndarray:
+    """Rows of slot values (one column per ``kept`` slot) of an array of codes as ``codec``
+    makes them (the offset already subtracted), one column at a time."""
+    out = np.empty((len(codes), len(kept)), dtype=dtype(prog, kept))
+    wide = codes.astype(np.int64, copy=False)
+    for col, k in enumerate(kept):
+        info = prog.slots[k]
+        out[:, col] = (wide // mults[k]) % max(info.size, 1) + info.lo
+    return out
+
+
+def code_dtype(total: int):
+    """The smallest numpy type that holds every code below ``total``: uint32 or int64."""
+    return np.uint32 if total <= 1 << 32 else np.int64
 
 
 def rows(prog, kept, tuples) -> np.ndarray:

@@ -20,10 +20,12 @@ environment, the goal, its parameters and free inputs chosen every possible way)
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from functools import cached_property
 
 import numpy as np
+
+from .codec import codec, decode_codes
 
 __all__ = ["TransitionSystem", "DomainViolation", "shortest_path", "reverse_reach", "forward_reach",
            "strong_components", "bottom_sccs", "cyclic_states", "shortest_cycle"]
@@ -42,7 +44,6 @@ class DomainViolation:
     message: str
 
 
-@dataclass(frozen=True, eq=False)
 class TransitionSystem:
     """An explored model or FSM. Fields beyond the contract: ``status`` (root status or FSM
     reply per transition), ``goal`` (requested goal index per transition, FSM level),
@@ -50,36 +51,93 @@ class TransitionSystem:
     (``DomainViolation``s), ``violations`` (``(transition, violations)`` contract breaches),
     ``open`` (FSM level: the open system's description, see ``btfsm.verify.explore.OpenFSM``),
     ``stopped`` (an incomplete system: the budget that was hit, ``"states"``,
-    ``"transitions"``, ``"seconds"`` or ``"paths"``; see ``btfsm.verify.search.Budget``)."""
+    ``"transitions"``, ``"seconds"`` or ``"paths"``; see ``btfsm.verify.search.Budget``).
 
-    model: object
-    kind: str  # "model" | "fsm"
-    fsm: "str | None"
-    slots: tuple
-    states: np.ndarray
-    src: np.ndarray
-    dst: np.ndarray
-    label: np.ndarray
-    labels: tuple
-    parent: np.ndarray
-    complete: bool
-    seconds: float
-    status: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int8))
-    goal: "np.ndarray | None" = None
-    expanded: int = 0
-    errors: tuple = ()
-    violations: tuple = ()
-    open: object = None
-    stopped: "str | None" = None
+    Compact storage (the traced engine's): instead of ``states``, ``src``, ``label``,
+    ``status`` (and ``goal``) an engine may give ``codes`` (one int code per state,
+    ``btfsm.verify.codec``), ``offsets`` (the CSR row pointer: the transitions of state i
+    are ``offsets[i]:offsets[i+1]``), ``edge`` (a small code per transition) with
+    ``edge_label``/``edge_status`` (the label index and status of each edge code) and
+    ``label_goal`` (the requested goal of each label, FSM level). The other arrays are then
+    derived on first use and kept (``states`` decoded from the codes, ``src`` repeated from
+    the offsets, ``label``/``status``/``goal`` looked up from the edge codes): the same values
+    as an engine that stores them, in the smallest integer types that hold them."""
+
+    def __init__(self, model, kind, fsm, slots, states=None, src=None, dst=None, label=None, labels=(), parent=None,
+                 complete=True, seconds=0.0, status=None, goal=None, expanded=0, errors=(), violations=(), open=None,
+                 stopped=None, *, codes=None, offsets=None, edge=None, edge_label=None, edge_status=None,
+                 label_goal=None):
+        self.model, self.kind, self.fsm, self.slots = model, kind, fsm, slots
+        self.dst, self.labels, self.parent = dst, labels, parent
+        self.complete, self.seconds, self.expanded = complete, seconds, expanded
+        self.errors, self.violations, self.open, self.stopped = errors, violations, open, stopped
+        self.codes, self.edge, self.edge_label, self.edge_status = codes, edge, edge_label, edge_status
+        self.label_goal = label_goal
+        given = {"states": states, "src": src, "label": label, "offsets": offsets}
+        if edge is None:
+            given["status"] = np.zeros(0, np.int8) if status is None else status
+            given["goal"] = goal
+        for name, value in given.items():
+            if value is not None or name == "goal":
+                self.__dict__[name] = value  # a derived attribute (below) given by the engine
+        if states is None and codes is None:
+            raise ValueError("a TransitionSystem needs states or codes")
+        if src is None and offsets is None:
+            raise ValueError("a TransitionSystem needs src or offsets")
+
+    # ------------------------------------------------------------------ derived arrays
+    @cached_property
+    def states(self) -> np.ndarray:
+        """Rows of small ints, one column per kept slot (decoded from ``codes``)."""
+        prog = self.model.program
+        mults = codec(prog, tuple(self.slots))[0]
+        return decode_codes(prog, tuple(self.slots), self.codes, mults)
+
+    @cached_property
+    def src(self) -> np.ndarray:
+        """Source state of every transition (repeated from ``offsets``)."""
+        n = self.n_states
+        dt = np.int32 if n < 1 << 31 else np.int64
+        return np.repeat(np.arange(n, dtype=dt), np.diff(self.offsets))
+
+    @cached_property
+    def label(self) -> np.ndarray:
+        """Label index (into ``labels``) of every transition."""
+        return self.edge_label[self.edge]
+
+    @cached_property
+    def status(self) -> np.ndarray:
+        """Root status (FSM level: the FSM's reply) of every transition, int8."""
+        return self.edge_status[self.edge]
+
+    @cached_property
+    def goal(self) -> "np.ndarray | None":
+        """Requested goal index of every transition (FSM level), else None."""
+        if self.kind != "fsm" or self.label_goal is None:
+            return None
+        return self.label_goal[self.label]
 
     # ------------------------------------------------------------------ sizes
     @property
     def n_states(self) -> int:
+        if self.codes is not None:
+            return int(self.codes.shape[0])
         return int(self.states.shape[0])
 
     @property
     def n_transitions(self) -> int:
-        return int(self.src.shape[0])
+        return int(self.dst.shape[0])
+
+    @property
+    def nbytes(self) -> int:
+        """Bytes held by the arrays stored or derived so far."""
+        names = ("codes", "states", "src", "dst", "label", "status", "goal", "edge", "offsets", "parent", "reverse")
+        total = 0
+        for name in names:
+            value = self.__dict__.get(name)
+            for a in (value if isinstance(value, tuple) else (value,)):
+                total += a.nbytes if isinstance(a, np.ndarray) else 0
+        return total
 
     def __repr__(self) -> str:
         what = self.kind if self.fsm is None else f"fsm {self.fsm}"

@@ -42,7 +42,7 @@ import numpy as np
 
 from btfsm.errors import DomainError
 
-from .codec import codec, decode
+from .codec import code_dtype, codec
 from .labels import readable
 from .search import DEFAULT_MAX_STATES, Budget, EnumOracle
 from .system import DomainViolation, TransitionSystem
@@ -50,7 +50,9 @@ from .system import DomainViolation, TransitionSystem
 __all__ = ["search", "BatchSuccessors", "Untraceable", "TooManyPaths", "CHUNK", "DENSE_LIMIT", "PATHS_MIN", "ROWS_LIMIT"]
 
 CHUNK = 1 << 15  # states expanded per batch
-DENSE_LIMIT = 1 << 24  # code space up to which the visited set is a flat id table (64 MB)
+DENSE_LIMIT = 1 << 31  # code space up to which the visited set is a bitmap (256 MB at most), else a hash table
+TERMS_LIMIT = 1 << 22  # values of (term tuple, state) sums a batch may hold, else leaf by leaf
+STEP = 1 << 20  # codes numbered, hashed or ranked at a time (bounds the temporaries)
 PATHS_MIN = 1 << 13  # paths traced before the trie must pay off (see ``search``)
 PATHS_RATIO = 4  # ... then at most one path per this many transitions found
 ROWS_LIMIT = 1 << 21  # (state, path) rows of one batch before it is split
@@ -212,48 +214,233 @@ class _Leaf:
 # ---------------------------------------------------------------------- visited states
 
 
-class _Dense:
-    """Visited codes as a flat id table over the whole code space."""
+class _Visited:
+    """The states found so far: their codes in discovery order (``codes[i]`` is state i's
+    code, in the smallest type that holds the code space) and a set of codes. During the
+    search the set only answers "seen or not" (``seen``); transitions keep their targets'
+    codes, and ``number`` turns those into state ids once, at the end."""
 
     def __init__(self, total, c0):
-        self.table = np.full(total, -1, np.int64 if total >= 1 << 31 else np.int32)
-        self.table[c0] = 0
+        self.codes = np.zeros(1024, code_dtype(total))
+        self.codes[0] = c0
+        self.n = 1
 
-    def ids(self, codes):
-        return self.table[codes].astype(np.int64)
+    def batch(self, head: int, k: int) -> np.ndarray:
+        return self.codes[head:head + k].astype(np.int64)
 
-    def add(self, codes, ids):
-        self.table[codes] = ids
+    def add(self, codes):
+        """Number the new (distinct, unseen) ``codes`` ``n, n+1, ...``."""
+        m = len(codes)
+        if self.n + m > len(self.codes):
+            grown = np.zeros(max(2 * len(self.codes), self.n + m), self.codes.dtype)
+            grown[:self.n] = self.codes[:self.n]
+            self.codes = grown
+        self.codes[self.n:self.n + m] = codes
+        self.n += m
+        self.index(codes)
 
-
-class _Sorted:
-    """Visited codes as a large sorted array and a small one merged into it when it
-    grows past an eighth of it (amortised O(log) per state); ids alongside."""
-
-    def __init__(self, total, c0):
-        self.keys = [np.array([c0], np.int64), np.zeros(0, np.int64)]
-        self.vals = [np.zeros(1, np.int64), np.zeros(0, np.int64)]
-
-    def ids(self, codes):
-        out = np.full(len(codes), -1, np.int64)
-        for keys, vals in zip(self.keys, self.vals):
-            if len(keys):
-                pos = np.minimum(np.searchsorted(keys, codes), len(keys) - 1)
-                hit = keys[pos] == codes
-                out[hit] = vals[pos[hit]]
+    def number(self, targets: np.ndarray) -> np.ndarray:
+        """The state ids of the codes ``targets`` (all seen), converted in place when the
+        types allow (uint32 codes to int32 ids), in slices."""
+        dt = np.int32 if self.n < 1 << 31 else np.int64
+        out = targets.view(dt) if targets.dtype.itemsize == np.dtype(dt).itemsize else np.empty(len(targets), dt)
+        for a in range(0, len(targets), STEP):
+            out[a:a + STEP] = self.ids(targets[a:a + STEP])
         return out
 
-    def add(self, codes, ids):
-        small_k = np.concatenate([self.keys[1], codes])
-        small_v = np.concatenate([self.vals[1], ids])
-        if len(small_k) * 8 > len(self.keys[0]):
-            small_k = np.concatenate([self.keys[0], small_k])
-            small_v = np.concatenate([self.vals[0], small_v])
-            order = np.argsort(small_k, kind="stable")
-            self.keys, self.vals = [small_k[order], np.zeros(0, np.int64)], [small_v[order], np.zeros(0, np.int64)]
+
+def _popcount(words: np.ndarray) -> np.ndarray:
+    """Set bits of each uint64 (numpy >= 2: ``bitwise_count``; else a byte table)."""
+    count = getattr(np, "bitwise_count", None)
+    if count is not None:
+        return count(words)
+    return _BYTE_BITS[words.view(np.uint8)].reshape(-1, 8).sum(axis=1, dtype=np.uint8)
+
+
+_BYTE_BITS = np.array([bin(i).count("1") for i in range(256)], np.uint8)
+_BIT = np.left_shift(np.uint64(1), np.arange(64, dtype=np.uint64))  # bit b of a word
+_BELOW = _BIT - np.uint64(1)  # the bits below bit b
+
+
+class _Bitmap(_Visited):
+    """Visited codes as one bit per code of the code space (``total / 8`` bytes, pages
+    touched only where states are). Ids at the end: a code's rank among the visited codes
+    (a prefix count per 64-bit word plus a popcount) indexes a rank-to-id table."""
+
+    def __init__(self, total, c0):
+        super().__init__(total, c0)
+        self.bits = np.zeros((total + 63) // 64, np.uint64)
+        self.index(np.array([c0], np.int64))
+        self.ranked = None
+
+    def seen(self, codes):
+        return (self.bits[codes >> 6] & _BIT[codes & 63]) != 0
+
+    def index(self, codes):
+        if not len(codes):
+            return
+        codes = np.sort(codes)
+        word = codes >> 6
+        starts = np.flatnonzero(np.concatenate(([True], word[1:] != word[:-1])))
+        self.bits[word[starts]] |= np.bitwise_or.reduceat(_BIT[codes & 63], starts)
+
+    def _rank(self, codes, prefix):
+        word = codes >> 6
+        return prefix[word] + _popcount(self.bits[word] & _BELOW[codes & 63])
+
+    def ids(self, codes):
+        if self.ranked is None:
+            dt = np.int32 if self.n < 1 << 31 else np.int64
+            counts = np.zeros(len(self.bits), dt)
+            for a in range(0, len(self.bits), STEP):
+                counts[a:a + STEP] = _popcount(self.bits[a:a + STEP])
+            exclusive = np.zeros(len(self.bits), dt)  # visited codes in the words before
+            np.cumsum(counts[:-1], out=exclusive[1:])
+            del counts
+            by_rank = np.empty(self.n, dt)
+            for a in range(0, self.n, STEP):
+                b = min(a + STEP, self.n)
+                by_rank[self._rank(self.codes[a:b], exclusive)] = np.arange(a, b, dtype=dt)
+            self.ranked = (exclusive, by_rank)
+        exclusive, by_rank = self.ranked
+        return by_rank[self._rank(codes, exclusive)]
+
+
+_GOLDEN = np.uint64(0x9E3779B97F4A7C15)
+
+
+class _Hashed(_Visited):
+    """Visited codes as an open-addressing hash table of state ids (linear probing,
+    multiplicative hashing, at most ``LOAD`` full, doubled when fuller); a slot holds an id
+    and the code is read from ``codes``, so the table costs 4 bytes per slot (about 6-11
+    bytes per state). For code spaces too large for a bitmap. Lookups and insertions are
+    vectorised: each round settles every query whose probe hit its code or an empty slot,
+    the others move one slot on."""
+
+    LOAD = 0.7
+    FIRST = 1 << 16  # slots of the first table
+
+    def __init__(self, total, c0):
+        super().__init__(total, c0)
+        self.table = None
+        self._resize(self.FIRST)
+
+    def _resize(self, size):
+        self.bits = size.bit_length() - 1
+        self.mask = size - 1
+        self.table = None  # the old table goes before the new one is made
+        self.table = np.full(size, -1, np.int32 if size < 1 << 31 else np.int64)
+        for a in range(0, self.n, STEP):  # in slices: few temporaries
+            b = min(a + STEP, self.n)
+            self._insert(self.codes[a:b].astype(np.int64), np.arange(a, b, dtype=np.int64))
+
+    def _home(self, codes):
+        h = codes.astype(np.uint64) * _GOLDEN
+        return (h >> np.uint64(64 - self.bits)).astype(np.int64)
+
+    def seen(self, codes):
+        return self.ids(codes) >= 0
+
+    def ids(self, codes):
+        codes = codes.astype(np.int64)
+        out = np.full(len(codes), -1, np.int64)
+        idx = np.arange(len(codes), dtype=np.int64)
+        h = self._home(codes)
+        table, stored, mask = self.table, self.codes, self.mask
+        while idx.size:
+            got = table[h]
+            live = got >= 0
+            idx, h, got = idx[live], h[live], got[live]
+            hit = stored[got] == codes[idx]
+            out[idx[hit]] = got[hit]
+            miss = ~hit
+            idx, h = idx[miss], (h[miss] + 1) & mask
+        return out
+
+    def _insert(self, codes, ids):
+        h = self._home(codes)
+        idx = np.arange(len(codes), dtype=np.int64)
+        table, mask = self.table, self.mask
+        while idx.size:
+            free = table[h] < 0
+            fi, fh = idx[free], h[free]
+            table[fh] = ids[fi]  # rivals for one slot: one of them gets it
+            won = table[fh] == ids[fi]
+            idx = np.concatenate([idx[~free], fi[~won]])
+            h = (np.concatenate([h[~free], fh[~won]]) + 1) & mask
+
+    def index(self, codes):
+        if self.n > self.LOAD * len(self.table):
+            size = len(self.table)
+            while self.n > self.LOAD * size:
+                size *= 2
+            self._resize(size)  # re-inserts every stored code, the new ones included
         else:
-            order = np.argsort(small_k, kind="stable")
-            self.keys[1], self.vals[1] = small_k[order], small_v[order]
+            self._insert(codes.astype(np.int64), np.arange(self.n - len(codes), self.n, dtype=np.int64))
+
+
+class _Column:
+    """A growing column of ints in an ``array`` buffer of the smallest signed type that
+    holds every value so far (``b``, ``h``, ``i``, ``q``; widened in place when a larger
+    value comes). Growing reallocates the buffer (no second copy stays).
+
+    >>> c = _Column("b")
+    >>> c.extend(np.array([1, -1]), 1); c.extend(np.array([300]), 300)
+    >>> c.view().tolist(), c.view().dtype.name
+    ([1, -1, 300], 'int16')
+    """
+
+    TYPES = ("b", "h", "i", "q")
+
+    def __init__(self, first: str = "b"):
+        self.k = self.TYPES.index(first)
+        self.buf = array(first)
+
+    def extend(self, values: np.ndarray, hi: int):
+        """Append ``values`` (all in ``-1..hi``)."""
+        while hi > (1 << (8 * self.buf.itemsize - 1)) - 1:
+            self.k += 1
+            wider = array(self.TYPES[self.k])
+            wider.frombytes(self.view().astype(np.dtype(self.TYPES[self.k])).tobytes())
+            self.buf = wider
+        self.buf.frombytes(np.ascontiguousarray(values, dtype=np.dtype(self.buf.typecode)).tobytes())
+
+    def view(self) -> np.ndarray:
+        dt = np.dtype(self.buf.typecode)
+        return np.frombuffer(self.buf, dtype=dt) if len(self.buf) else np.zeros(0, dt)
+
+
+class _Values:
+    """The values of expression nodes over a batch of codes, each computed once (a class,
+    not a recursive closure: a closure that calls itself is a reference cycle, and each
+    batch's values would wait for the cyclic garbage collector)."""
+
+    __slots__ = ("codes", "nodes", "mults", "sizes", "los", "memo")
+
+    def __init__(self, codes, nodes, mults, sizes, los):
+        self.codes, self.nodes, self.mults, self.sizes, self.los = codes, nodes, mults, sizes, los
+        self.memo: dict = {}
+
+    def __call__(self, n):
+        v = self.memo.get(n)
+        if v is not None:
+            return v
+        key = self.nodes[n]
+        op = key[0]
+        if op == "col":
+            k, codes, sizes = key[1], self.codes, self.sizes
+            v = ((codes // self.mults[k]) % sizes[k] + self.los[k] if sizes[k] > 1
+                 else np.full(len(codes), self.los[k], np.int64))
+        elif op == "code":
+            v = self.codes
+        elif op == "k":
+            v = key[1]
+        elif op == "abs":
+            v = np.abs(self(key[1]))
+        else:
+            v = _OPS[op](self(key[1]), self(key[2]))
+        self.memo[n] = v
+        return v
 
 
 class _TracingOracle(EnumOracle):
@@ -402,39 +589,19 @@ class _Engine:
     def expand(self, codes: np.ndarray, cap: int = ROWS_LIMIT):
         """Walk the trie with the batch ``codes``: ``[(leaf, rows)]``. Raises ``_Wide`` when
         a batch of more than one state reaches more than ``cap`` rows of ok leaves."""
-        memo: dict = {}
-        nodes, mults, sizes, los = self.g.nodes, self.mults, self.sizes, self.los
-
-        def ev(n):
-            v = memo.get(n)
-            if v is not None:
-                return v
-            key = nodes[n]
-            op = key[0]
-            if op == "col":
-                k = key[1]
-                v = (codes // mults[k]) % sizes[k] + los[k] if sizes[k] > 1 else np.full(len(codes), los[k], np.int64)
-            elif op == "code":
-                v = codes
-            elif op == "k":
-                v = key[1]
-            elif op == "abs":
-                v = np.abs(ev(key[1]))
-            else:
-                v = _OPS[op](ev(key[1]), ev(key[2]))
-            memo[n] = v
-            return v
-
+        ev = _Values(codes, self.g.nodes, self.mults, self.sizes, self.los)
         out = []
         emitted, wide = 0, len(codes) > 1
-        stack = [(self.root, None, np.arange(len(codes)), ())]
+        every = len(codes)
+        stack = [(self.root, None, np.arange(every), ())]
+        pop, push = stack.pop, stack.append
         while stack:
-            holder, key, rows, script = stack.pop()
+            holder, key, rows, script = pop()
             node = holder[key]
             if node is None:
                 self.trace(self.state_of(int(codes[rows[0]])), script)
                 node = holder[key]
-            if isinstance(node, _Leaf):
+            if node.__class__ is _Leaf:
                 out.append((node, rows))
                 if node.kind == "ok":
                     emitted += len(rows)
@@ -446,11 +613,14 @@ class _Engine:
                 for c in range(what):
                     if c not in kids:
                         kids[c] = None
-                    stack.append((kids, c, rows, script + (c,)))
+                    push((kids, c, rows, script + (c,)))
                 continue
             vals = ev(what)
-            vals = vals[rows] if isinstance(vals, np.ndarray) else np.full(len(rows), vals)
-            if kind == "b":
+            if not isinstance(vals, np.ndarray):  # a constant: every row goes one way
+                groups = ((bool(vals) if kind == "b" else int(vals), rows),)
+            elif kind == "b":
+                if len(rows) != every:  # (all rows: ``rows`` is 0..len-1)
+                    vals = vals[rows]
                 if vals.dtype != np.bool_:
                     vals = vals != 0
                 hits = int(np.count_nonzero(vals))
@@ -459,8 +629,10 @@ class _Engine:
                 else:
                     groups = ((True, rows[vals]), (False, rows[~vals]))
             else:
+                if len(rows) != every:
+                    vals = vals[rows]
                 first = int(vals[0])
-                if np.count_nonzero(vals != first) == 0:
+                if len(rows) == 1 or not (vals != first).any():
                     groups = ((first, rows),)
                 else:
                     order = np.argsort(vals, kind="stable")
@@ -471,7 +643,7 @@ class _Engine:
             for val, sub in groups:
                 if val not in kids:
                     kids[val] = None
-                stack.append((kids, val, sub, script))
+                push((kids, val, sub, script))
         return out, ev
 
 
@@ -502,26 +674,27 @@ def search(model, kind, fsm, kept, run, s0, budget, progress, op, fallback: bool
     chunk = CHUNK
     c0 = sum(v * m for v, m in zip(s0, mults)) - offset
 
-    visited = (_Dense if total <= DENSE_LIMIT else _Sorted)(total, c0)
-    codes = np.zeros(1024, np.int64)
-    codes[0] = c0
+    visited = (_Bitmap if total <= DENSE_LIMIT else _Hashed)(total, c0)
     n, head, nt, complete, expanded = 1, 0, 0, True, None
-    parent = [np.array([-1], np.int64)]
-    # transitions in growing buffers (no second copy at the end)
-    src_a, dst_a, lab_a, stat_a = array("q"), array("q"), array("q"), array("b")
+    # the system in compact columns (see TransitionSystem): CSR row pointer, targets (their
+    # codes until the end, then ids), edge codes (one per distinct label and status), BFS parents
+    offsets, edge_c, parent = _Column("i"), _Column("b"), _Column("i")
+    targets = array("I" if visited.codes.dtype == np.uint32 else "q")
+    offsets.extend(np.array([0]), 0)
+    parent.extend(np.array([-1]), 0)
     labels: list = []
     label_goal: list = []
     label_ids: dict = {}
+    kinds: dict = {}  # (label index, status) -> edge code
     errors, violations = [], []
-    leaf_label = np.zeros(0, np.int64)
-    leaf_status = np.zeros(0, np.int8)
+    leaf_kind = np.zeros(0, np.int64)
     leaf_viol = np.zeros(0, bool)
     while head < n:
         if budget.out_of_time():
             complete, budget.hit, expanded = False, "seconds", head
             break
         k = min(n - head, chunk)
-        batch = codes[head:head + k]
+        batch = visited.batch(head, k)
         try:
             out, ev = eng.expand(batch, min(ROWS_LIMIT, tmax - nt + 1))
         except _Wide:  # split the batch: transitions are ordered by source state first
@@ -535,67 +708,58 @@ def search(model, kind, fsm, kept, run, s0, budget, progress, op, fallback: bool
         chunk = min(CHUNK, chunk * 2)
         ords = eng.ordinals()
         # transitions of the batch, ordered as the generic engine makes them
-        ok = [(leaf, rows) for leaf, rows in out if leaf.kind == "ok"]
+        ok = sorted(((leaf, rows) for leaf, rows in out if leaf.kind == "ok"), key=lambda x: ords[x[0].id])
         rows, lid, dst = _transitions(ok, batch, ev)
-        # each leaf's rows are ascending: a stable sort merges the runs
-        order = np.argsort(rows * len(ords) + ords[lid], kind="stable")
+        # each leaf's rows are ascending and the leaves are in order: a stable sort by row
+        # (a radix sort on 16 bits) gives the (source, script) order
+        order = np.argsort(rows.astype(np.uint16) if k <= 1 << 16 else rows, kind="stable")
         rows, lid, dst = rows[order], lid[order], dst[order]
-        # ids of the targets; new states numbered in order of first discovery
-        ids = visited.ids(dst)
+        # new targets, numbered in order of first discovery
         cut = len(dst)
         if cut > tmax - nt:  # the transition budget ends within this batch
             cut = tmax - nt
             complete, budget.hit = False, "transitions"
-        fresh = np.flatnonzero(ids[:cut] < 0)
+        fresh = np.flatnonzero(~visited.seen(dst[:cut]))
         if len(fresh):
-            _, first = np.unique(dst[fresh], return_index=True)
-            firstpos = np.sort(fresh[first])
+            firstpos = _first_positions(dst, fresh, total)
             newcodes = dst[firstpos]
             room = smax - n
             if len(newcodes) > room:
                 complete, budget.hit = False, "states"
-                cut = int(firstpos[room])
+                cut = int(firstpos[room])  # the targets kept are all among the first ``room``
                 firstpos, newcodes = firstpos[:room], newcodes[:room]
-            newids = np.arange(n, n + len(newcodes), dtype=np.int64)
-            visited.add(newcodes, newids)
-            ids = visited.ids(dst[:cut])
-            parent.append(firstpos + nt)
-            if n + len(newcodes) > len(codes):
-                codes = np.concatenate([codes, np.zeros(max(len(codes), len(newcodes)), np.int64)])
-            codes[n:n + len(newcodes)] = newcodes
+            visited.add(newcodes)
+            parent.extend(firstpos + nt, nt + cut)
             n += len(newcodes)
-        ids = ids[:cut]
         stop = None if complete else (int(rows[cut]), int(ords[lid[cut]]))
         named = lid[:cut + 1]  # the generic engine names the cut transition's label too
         rows, lid = rows[:cut], lid[:cut]
         # labels numbered in order of first use, as the generic engine does
-        if len(leaf_label) < len(eng.leaves):
-            grow = len(eng.leaves) - len(leaf_label)
-            leaf_label = np.concatenate([leaf_label, np.full(grow, -1, np.int64)])
-            leaf_status = np.array([leaf.status or 0 for leaf in eng.leaves], np.int8)
+        if len(leaf_kind) < len(eng.leaves):
+            grow = len(eng.leaves) - len(leaf_kind)
+            leaf_kind = np.concatenate([leaf_kind, np.full(grow, -1, np.int64)])
             leaf_viol = np.array([leaf.violations is not None for leaf in eng.leaves], bool)
-        if len(named) and (leaf_label[named] < 0).any():
+        if len(named) and (leaf_kind[named] < 0).any():
             u, first = np.unique(named, return_index=True)
             for li in u[np.argsort(first)]:
-                if leaf_label[li] < 0:
-                    name = eng.leaves[li].label
-                    lab = label_ids.get(name)
+                if leaf_kind[li] < 0:
+                    leaf = eng.leaves[li]
+                    lab = label_ids.get(leaf.label)
                     if lab is None:
-                        lab = label_ids[name] = len(labels)
-                        labels.append(name)
-                        label_goal.append(eng.leaves[li].goal)
-                    leaf_label[li] = lab
-        src_a.frombytes((rows + head).astype(np.int64, copy=False).tobytes())
-        dst_a.frombytes(ids.astype(np.int64, copy=False).tobytes())
-        lab_a.frombytes(leaf_label[lid].tobytes())
-        stat_a.frombytes(leaf_status[lid].tobytes())
+                        lab = label_ids[leaf.label] = len(labels)
+                        labels.append(leaf.label)
+                        label_goal.append(leaf.goal)
+                    leaf_kind[li] = kinds.setdefault((lab, leaf.status or 0), len(kinds))
+        offsets.extend(np.cumsum(np.bincount(rows, minlength=k)) + nt, nt + cut)
+        targets.frombytes(dst[:cut].astype(visited.codes.dtype).tobytes())
+        edge_c.extend(leaf_kind[lid], len(kinds))
         for t in np.flatnonzero(leaf_viol[lid]).tolist():
             violations.append((nt + t, eng.leaves[int(lid[t])].violations))
         # domain errors, re-run on concrete states (reported exactly as the generic engine does)
         bad = [(leaf, r) for leaf, r in out if leaf.kind == "error"]
         if bad:
             errors.extend(_errors(eng, prog, bad, batch, head, ords, stop))
-        nt += len(ids)
+        nt += cut
         if not complete:
             expanded = head + stop[0]
             break
@@ -605,19 +769,52 @@ def search(model, kind, fsm, kept, run, s0, budget, progress, op, fallback: bool
             progress(n, nt, time.perf_counter() - t0)
     if expanded is None:
         expanded = head
-    states = decode(prog, tuple(kept), codes[:n] + offset, offset, mults)
+    codes = visited.codes[:n]
+    dst = visited.number(np.frombuffer(targets, visited.codes.dtype) if nt else np.zeros(0, np.int64))
+    del visited  # the index goes; the codes stay
+    if len(offsets.buf) < n + 1:  # states not expanded have no transitions
+        offsets.extend(np.full(n + 1 - len(offsets.buf), nt, np.int64), nt)
     seconds = time.perf_counter() - t0
     if progress is not None:
         progress(n, nt, seconds)
-    lab = _view(lab_a, np.int64)
-    goal = np.asarray(label_goal, dtype=np.int64)[lab] if kind == "fsm" else None
-    return TransitionSystem(model=model, kind=kind, fsm=fsm, slots=tuple(kept), states=states,
-                            src=_view(src_a, np.int64), dst=_view(dst_a, np.int64),
-                            label=lab, labels=tuple(labels),
-                            parent=np.concatenate(parent), complete=complete, seconds=seconds,
-                            status=_view(stat_a, np.int8), goal=goal,
+    edge_label = np.zeros(len(kinds), _small(len(labels)))
+    edge_status = np.zeros(len(kinds), np.int8)
+    for (lab, st), e in kinds.items():
+        edge_label[e], edge_status[e] = lab, st
+    goals = np.asarray(label_goal, dtype=np.int64) if kind == "fsm" else None
+    return TransitionSystem(model=model, kind=kind, fsm=fsm, slots=tuple(kept), codes=codes,
+                            offsets=offsets.view(), dst=dst, edge=edge_c.view(),
+                            edge_label=edge_label, edge_status=edge_status, label_goal=goals, labels=tuple(labels),
+                            parent=parent.view(), complete=complete, seconds=seconds,
                             expanded=expanded, errors=tuple(errors), violations=tuple(violations), open=op,
                             stopped=None if complete else budget.hit)
+
+
+def _first_positions(dst: np.ndarray, at: np.ndarray, total: int) -> np.ndarray:
+    """The positions in ``at`` (ascending) where a code of ``dst`` occurs for the first
+    time, ascending: one sort of (code, position) keys (numpy's fast integer sort) when they
+    fit 63 bits, else ``np.unique``.
+
+    >>> d, at = np.array([5, 3, 5, 7, 3, 9]), np.array([0, 2, 3, 4, 5])
+    >>> _first_positions(d, at, 10).tolist(), _first_positions(d, at, 1 << 62).tolist()
+    ([0, 3, 4, 5], [0, 3, 4, 5])
+    """
+    if total * len(dst) < 1 << 62:
+        key = dst[at] * len(dst) + at
+        key.sort()
+        code = key // len(dst)
+        first = np.concatenate(([True], code[1:] != code[:-1]))
+        return np.sort(key[first] - code[first] * len(dst))
+    _, first = np.unique(dst[at], return_index=True)
+    return np.sort(at[first])
+
+
+def _small(n: int):
+    """The smallest signed numpy type holding ``0..n``."""
+    for dt in (np.int8, np.int16, np.int32):
+        if n <= np.iinfo(dt).max:
+            return dt
+    return np.int64
 
 
 class BatchSuccessors:
@@ -647,29 +844,33 @@ def _view(buf, dtype) -> np.ndarray:
 
 
 def _transitions(ok, codes, ev):
-    """(source rows, leaf ids, target codes) of the leaves ``ok`` reached by a batch: all
-    at once, each leaf's changes read from one matrix of its terms' values."""
+    """(source rows, leaf ids, target codes) of the leaves ``ok`` reached by a batch: the
+    input code plus the leaf's constant shift plus the sum of its terms' values, summed
+    once per distinct tuple of terms over the batch and gathered at once (leaf by leaf,
+    on each leaf's rows, when those sums would pass ``TERMS_LIMIT`` values)."""
     if not ok:
         return np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0, np.int64)
     rows = np.concatenate([r for _, r in ok])
     sizes = [len(r) for _, r in ok]
     lid = np.repeat(np.array([leaf.id for leaf, _ in ok], np.int64), sizes)
     dst = codes[rows] + np.repeat(np.array([leaf.code[0] for leaf, _ in ok], np.int64), sizes)
-    width = max(len(leaf.code[1]) for leaf, _ in ok)
-    if width:
-        local: dict = {}
-        for leaf, _ in ok:
-            for term in leaf.code[1]:
-                local.setdefault(term, len(local) + 1)
-        mat = np.zeros((len(local) + 1, len(codes)), np.int64)  # row 0: no term
-        for term, i in local.items():
-            mat[i] = ev(term)
-        idx = np.zeros((len(ok), width), np.int64)
-        for j, (leaf, _) in enumerate(ok):
-            idx[j, :len(leaf.code[1])] = [local[term] for term in leaf.code[1]]
-        per = np.repeat(idx, sizes, axis=0)
-        for j in range(width):
-            dst += mat[per[:, j], rows]
+    groups: dict = {}  # the distinct term tuples of the leaves (1, 2, ...; 0: no terms)
+    which = [groups.setdefault(leaf.code[1], len(groups) + 1) if leaf.code[1] else 0 for leaf, _ in ok]
+    if not groups:
+        return rows, lid, dst
+    if len(groups) * len(codes) <= TERMS_LIMIT:  # each tuple's sum over the batch, one gather
+        sums = np.zeros((len(groups) + 1, len(codes)), np.int64)
+        for terms, g in groups.items():
+            for term in terms:
+                sums[g] += ev(term)
+        dst += sums[np.repeat(np.array(which, np.int64), sizes), rows]
+        return rows, lid, dst
+    a = 0
+    for (leaf, r), m in zip(ok, sizes):  # each leaf's terms, on its rows only
+        for term in leaf.code[1]:
+            v = ev(term)
+            dst[a:a + m] += v[r] if isinstance(v, np.ndarray) else v
+        a += m
     return rows, lid, dst
 
 
