@@ -335,17 +335,30 @@ def explore_fsm(model, fsm, *, goals=None, max_states=None, max_transitions=None
 AUTO_SCALAR_STATES = 4096
 
 
+def _long_timers(prog, kept) -> bool:
+    """Whether the kept timers' domains (docs/semantics.md 6.1) multiply past
+    ``AUTO_SCALAR_STATES``: timers count one tick at a time, so such a system is
+    expected to be large and ``auto`` goes to the traced engine without the scalar probe
+    (a guess about speed only: both engines give the same system)."""
+    span = 1
+    for k in kept:
+        if prog.slots[k].kind == "timer":
+            span *= max(prog.slots[k].size, 1)
+    return span > AUTO_SCALAR_STATES
+
+
 def _explore_with(engine, model, kind, fsm, kept, run, init, budget, progress, op) -> TransitionSystem:
     """One system, explored by the engine asked for (see ``explore``). With ``auto``, the
     scalar engine first explores up to ``AUTO_SCALAR_STATES`` states (tracing does not pay
     off on small systems); a system that is larger is explored again, from the start, by
-    the traced engine under the same budget (its clock included). A traced search whose
+    the traced engine under the same budget (its clock included); a model whose timers
+    alone span more values than that skips the probe (``_long_timers``). A traced search whose
     paths multiply (``TooManyPaths``) goes on with the scalar engine; ``traced`` then stops
     at a "paths" budget."""
     if engine not in ("auto", "traced", "scalar"):
         raise ValueError(f"engine must be auto, traced or scalar, not {engine!r}")
     split = scalar.TreeCache(model) if kind == "model" and model.environment and model.tree is not None else None
-    if engine == "auto":
+    if engine == "auto" and not _long_timers(model.program, kept):
         small = AUTO_SCALAR_STATES if budget.max_states is None else min(budget.max_states, AUTO_SCALAR_STATES)
         probe = Budget(small, budget.max_transitions, budget.max_seconds)
         probe.start = budget.start

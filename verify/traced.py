@@ -226,34 +226,62 @@ class _Dense:
         self.table[codes] = ids
 
 
-class _Sorted:
-    """Visited codes as a large sorted array and a small one merged into it when it
-    grows past an eighth of it (amortised O(log) per state); ids alongside."""
+class _Hashed:
+    """Visited codes in an open-addressing hash table (linear probing, at most half
+    full), probed for a whole batch at once: a few numpy steps per batch, whatever the
+    number of states visited."""
 
-    def __init__(self, total, c0):
-        self.keys = [np.array([c0], np.int64), np.zeros(0, np.int64)]
-        self.vals = [np.zeros(1, np.int64), np.zeros(0, np.int64)]
+    _MUL = np.uint64(0x9E3779B97F4A7C15)  # Fibonacci hashing
+
+    def __init__(self, total, c0, bits=16):
+        self.bits, self.count = bits, 0
+        self.keys = np.full(1 << bits, -1, np.int64)  # codes are >= 0; -1: empty
+        self.vals = np.zeros(1 << bits, np.int64)
+        self.add(np.array([c0], np.int64), np.zeros(1, np.int64))
+
+    def _slot(self, codes):
+        h = codes.astype(np.uint64) * self._MUL  # wraps modulo 2**64
+        return (h >> np.uint64(64 - self.bits)).astype(np.int64)
 
     def ids(self, codes):
+        codes = np.asarray(codes, np.int64)
         out = np.full(len(codes), -1, np.int64)
-        for keys, vals in zip(self.keys, self.vals):
-            if len(keys):
-                pos = np.minimum(np.searchsorted(keys, codes), len(keys) - 1)
-                hit = keys[pos] == codes
-                out[hit] = vals[pos[hit]]
+        keys, vals, mask = self.keys, self.vals, (1 << self.bits) - 1
+        live, pos = np.arange(len(codes)), self._slot(codes)
+        while len(live):
+            k = keys[pos]
+            hit = k == codes[live]
+            out[live[hit]] = vals[pos[hit]]
+            go = ~hit & (k >= 0)
+            live, pos = live[go], (pos[go] + 1) & mask
         return out
 
     def add(self, codes, ids):
-        small_k = np.concatenate([self.keys[1], codes])
-        small_v = np.concatenate([self.vals[1], ids])
-        if len(small_k) * 8 > len(self.keys[0]):
-            small_k = np.concatenate([self.keys[0], small_k])
-            small_v = np.concatenate([self.vals[0], small_v])
-            order = np.argsort(small_k, kind="stable")
-            self.keys, self.vals = [small_k[order], np.zeros(0, np.int64)], [small_v[order], np.zeros(0, np.int64)]
-        else:
-            order = np.argsort(small_k, kind="stable")
-            self.keys[1], self.vals[1] = small_k[order], small_v[order]
+        """Insert codes not in the table yet (distinct) with their ids."""
+        if 2 * (self.count + len(codes)) > len(self.keys):
+            old = self.keys >= 0
+            keep_k, keep_v = self.keys[old], self.vals[old]
+            while 2 * (self.count + len(codes)) > (1 << self.bits):
+                self.bits += 1
+            self.keys = np.full(1 << self.bits, -1, np.int64)
+            self.vals = np.zeros(1 << self.bits, np.int64)
+            self.count = 0
+            self._put(keep_k, keep_v)
+        self._put(np.asarray(codes, np.int64), np.asarray(ids, np.int64))
+
+    def _put(self, codes, ids):
+        keys, vals, mask = self.keys, self.vals, (1 << self.bits) - 1
+        live, pos = np.arange(len(codes)), self._slot(codes)
+        while len(live):
+            free = keys[pos] < 0
+            p, c = pos[free], live[free]
+            keys[p] = codes[c]  # rows that share a free slot: one of them gets it
+            won = keys[p] == codes[c]
+            vals[p[won]] = ids[c[won]]
+            placed = np.zeros(len(live), bool)
+            placed[np.flatnonzero(free)[won]] = True
+            live, pos = live[~placed], (pos[~placed] + 1) & mask
+        self.count += len(codes)
 
 
 class _TracingOracle(EnumOracle):
@@ -475,6 +503,186 @@ class _Engine:
         return out, ev
 
 
+# ---------------------------------------------------------------------- timed models: closure, then numbering
+
+#: ``search`` explores a model with timers (docs/semantics.md 6.1) in two phases when no
+#: time or transition budget is set: the reachable code graph first, in large batches that
+#: include the timers' runs guessed ahead, then the breadth-first numbering.
+CLOSURE_BATCH = CHUNK  # states per batch of the first phase
+RUN_GUESS = 8  # ticks guessed ahead of a timer's run
+
+
+def _timer_slots(prog, kept, mults) -> tuple:
+    return tuple(k for k in kept if prog.slots[k].kind == "timer" and mults[k] and prog.slots[k].size > 1)
+
+
+def _timer_runs(eng, timers, src, dst) -> np.ndarray:
+    """Codes guessed ahead of the transitions ``src -> dst`` that change timers only, each
+    by 0 or 1 (a tick of time): ``dst + j * (dst - src)`` for every ``j >= 1`` that keeps
+    the counting timers in their domains. Guesses may be unreachable: they are expanded,
+    never numbered unless reached."""
+    step = dst - src
+    timed = np.zeros(len(src), np.int64)
+    room = np.full(len(src), np.iinfo(np.int64).max, np.int64)
+    counts = np.zeros(len(src), bool)
+    ok = np.ones(len(src), bool)
+    for k in timers:
+        m, size = eng.mults[k], eng.sizes[k]
+        a, b = (src // m) % size, (dst // m) % size
+        d = b - a
+        ok &= (d == 0) | (d == 1)
+        timed += d * m
+        up = d == 1
+        counts |= up
+        room = np.where(up, np.minimum(room, size - 1 - b), room)
+    room = np.minimum(room, RUN_GUESS)
+    keep = ok & counts & (timed == step) & (room > 0)
+    if not keep.any():
+        return np.zeros(0, np.int64)
+    base, step, room = dst[keep], step[keep], room[keep]
+    j = np.arange(int(room.sum())) - np.repeat(np.cumsum(room) - room, room) + 1
+    return np.repeat(base, room) + j * np.repeat(step, room)
+
+
+def _closure(eng, c0, timers, smax):
+    """Phase one: every code reachable from ``c0`` expanded once (with guessed timer runs):
+    ``(codes, src, lid, dst, errors)``, transitions as (source entry, leaf id, target
+    code), ``errors`` as (entry, leaf) pairs; None when it does not pay off or the tracer
+    cannot follow (the caller then runs the ordinary search)."""
+    seen = (_Dense if eng.total <= DENSE_LIMIT else _Hashed)(eng.total, c0)
+    codes, srcs, lids, dsts, errs = [np.array([c0], np.int64)], [], [], [], []
+    todo, count, limit = codes[0], 1, 4 * smax + CLOSURE_BATCH
+    eng.max_paths = PATHS_MIN  # more paths than the ordinary search may trace: give up
+    head = 0  # entry of todo[0]: entries are numbered in the order they are expanded
+    while len(todo):
+        nxt = []
+        for lo in range(0, len(todo), CLOSURE_BATCH):
+            batch = todo[lo:lo + CLOSURE_BATCH]
+            first = head + lo
+            try:
+                out, ev = eng.expand(batch, ROWS_LIMIT)
+            except (_Wide, _Stop):
+                return None
+            ok = [(leaf, rows) for leaf, rows in out if leaf.kind == "ok"]
+            rows, lid, dst = _transitions(ok, batch, ev)
+            srcs.append(rows + first)
+            lids.append(lid)
+            dsts.append(dst)
+            errs.extend((first + r, leaf) for leaf, rs in out if leaf.kind == "error" for r in rs.tolist())
+            fresh = seen.ids(dst) < 0
+            new = np.unique(dst[fresh])
+            guess = _timer_runs(eng, timers, batch[rows[fresh]], dst[fresh]) if timers else new[:0]
+            if len(guess):
+                guess = np.unique(np.concatenate([new, guess]))
+                new = guess[seen.ids(guess) < 0]
+            if count + len(new) > limit:
+                return None
+            seen.add(new, np.arange(count, count + len(new), dtype=np.int64))
+            count += len(new)
+            codes.append(new)
+            nxt.append(new)
+        head += len(todo)
+        todo = np.concatenate(nxt) if nxt else np.zeros(0, np.int64)
+    return np.concatenate(codes), seen, np.concatenate(srcs), np.concatenate(lids), np.concatenate(dsts), errs
+
+
+def _number(n_entries, e0, t_src, t_dst, order_key):
+    """Phase two: the breadth-first numbering of the entries reachable from ``e0``, states
+    numbered in order of first discovery, each state's transitions in ``order_key`` order:
+    ``(entry of each state id, transition positions in the system's order)``."""
+    order = np.lexsort((order_key, t_src))
+    offs = np.zeros(n_entries + 1, np.int64)
+    np.cumsum(np.bincount(t_src, minlength=n_entries), out=offs[1:])
+    tgt_sorted = t_dst[order]
+    id_of = np.full(n_entries, -1, np.int64)
+    id_of[e0] = 0
+    big = np.iinfo(np.int64).max
+    first = np.full(n_entries, big, np.int64)
+    level, n, states, picks = np.array([e0], np.int64), 1, [np.array([e0], np.int64)], []
+    while len(level):
+        starts = offs[level]
+        counts = offs[level + 1] - starts
+        total = int(counts.sum())
+        if not total:
+            break
+        idx = np.repeat(starts - (np.cumsum(counts) - counts), counts) + np.arange(total)
+        picks.append(idx)
+        tgt = tgt_sorted[idx]
+        cand = tgt[id_of[tgt] < 0]
+        pos = np.arange(len(cand))
+        np.minimum.at(first, cand, pos)
+        new = cand[first[cand] == pos]  # each once, in order of first discovery
+        first[cand] = big
+        id_of[new] = np.arange(n, n + len(new))
+        n += len(new)
+        states.append(new)
+        level = new
+    pos = order[np.concatenate(picks)] if picks else np.zeros(0, np.int64)
+    return np.concatenate(states), id_of, pos
+
+
+def _search_closure(model, kind, fsm, kept, eng, c0, smax, progress, t0, op):
+    """The system of a model with timers by ``_closure`` then ``_number``: the same system
+    as the ordinary search (states, numbering, transitions, labels, parents, violations,
+    domain errors), or None when the first phase gives up or the state budget is hit."""
+    prog = model.program
+    timers = _timer_slots(prog, kept, eng.mults)
+    got = _closure(eng, c0, timers, smax)
+    if got is None:
+        return None
+    codes, _seen, t_src, t_lid, t_dst_code, errs = got
+    t_dst = _seen.ids(t_dst_code)
+    ords = eng.ordinals()
+    entries, id_of, pos = _number(len(codes), 0, t_src, t_dst, ords[t_lid])
+    n = len(entries)
+    if n > smax:
+        return None
+    lid = t_lid[pos]
+    src, dst = id_of[t_src[pos]], id_of[t_dst[pos]]
+    nt = len(pos)
+    # labels numbered in order of first use, as the generic engine does
+    labels, label_goal, label_ids = [], [], {}
+    leaf_label = np.full(len(eng.leaves), -1, np.int64)
+    u, first = np.unique(lid, return_index=True)
+    for li in u[np.argsort(first)].tolist():
+        name = eng.leaves[li].label
+        lab = label_ids.get(name)
+        if lab is None:
+            lab = label_ids[name] = len(labels)
+            labels.append(name)
+            label_goal.append(eng.leaves[li].goal)
+        leaf_label[li] = lab
+    leaf_status = np.array([leaf.status or 0 for leaf in eng.leaves], np.int8)
+    leaf_viol = np.array([leaf.violations is not None for leaf in eng.leaves], bool)
+    violations = [(t, eng.leaves[int(lid[t])].violations) for t in np.flatnonzero(leaf_viol[lid]).tolist()]
+    parent = np.full(n, -1, np.int64)
+    if nt:
+        first_in = np.unique(dst, return_index=True)
+        parent[first_in[0][first_in[0] > 0]] = first_in[1][first_in[0] > 0]
+    state_codes = codes[entries]
+    errors = []
+    if errs:
+        by_id = {}
+        for e, leaf in errs:
+            i = int(id_of[e])
+            if i >= 0:
+                by_id.setdefault(leaf, []).append(i)
+        bad = [(leaf, np.array(sorted(rows), np.int64)) for leaf, rows in by_id.items()]
+        errors = _errors(eng, prog, bad, state_codes, 0, ords, None)
+    states = decode(prog, tuple(kept), state_codes + eng.offset, eng.offset, eng.mults)
+    seconds = time.perf_counter() - t0
+    if progress is not None:
+        progress(n, nt, seconds)
+    lab = leaf_label[lid]
+    goal = np.asarray(label_goal, dtype=np.int64)[lab] if kind == "fsm" else None
+    return TransitionSystem(model=model, kind=kind, fsm=fsm, slots=tuple(kept), states=states,
+                            src=src, dst=dst, label=lab, labels=tuple(labels),
+                            parent=parent, complete=True, seconds=seconds,
+                            status=leaf_status[lid], goal=goal,
+                            expanded=n, errors=tuple(errors), violations=tuple(violations), open=op,
+                            stopped=None)
+
+
 def search(model, kind, fsm, kept, run, s0, budget, progress, op, fallback: bool = True) -> TransitionSystem:
     """Explore one system breadth-first from ``s0`` with path-compiled batches: ``run(state,
     oracle)`` is one transition (``Program.step``, or ``OpenFSM.run`` with ``op`` at FSM
@@ -501,8 +709,13 @@ def search(model, kind, fsm, kept, run, s0, budget, progress, op, fallback: bool
     tmax = (1 << 62) if budget.max_transitions is None else budget.max_transitions
     chunk = CHUNK
     c0 = sum(v * m for v, m in zip(s0, mults)) - offset
+    if budget.max_seconds is None and budget.max_transitions is None and _timer_slots(prog, kept, mults):
+        ts = _search_closure(model, kind, fsm, kept, eng, c0, smax, progress, t0, op)
+        if ts is not None:
+            return ts
+        eng = _Engine(model, run, kept, s0, op)  # the ordinary search, with a trie of its own
 
-    visited = (_Dense if total <= DENSE_LIMIT else _Sorted)(total, c0)
+    visited = (_Dense if total <= DENSE_LIMIT else _Hashed)(total, c0)
     codes = np.zeros(1024, np.int64)
     codes[0] = c0
     n, head, nt, complete, expanded = 1, 0, 0, True, None
@@ -548,8 +761,12 @@ def search(model, kind, fsm, kept, run, s0, budget, progress, op, fallback: bool
             complete, budget.hit = False, "transitions"
         fresh = np.flatnonzero(ids[:cut] < 0)
         if len(fresh):
-            _, first = np.unique(dst[fresh], return_index=True)
-            firstpos = np.sort(fresh[first])
+            _, first, inv = np.unique(dst[fresh], return_index=True, return_inverse=True)
+            by_pos = np.argsort(first)
+            rank = np.empty(len(first), np.int64)
+            rank[by_pos] = np.arange(len(first))
+            ids[fresh] = n + rank[inv.reshape(-1)]  # new states numbered in order of first discovery
+            firstpos = fresh[first[by_pos]]
             newcodes = dst[firstpos]
             room = smax - n
             if len(newcodes) > room:
@@ -558,7 +775,6 @@ def search(model, kind, fsm, kept, run, s0, budget, progress, op, fallback: bool
                 firstpos, newcodes = firstpos[:room], newcodes[:room]
             newids = np.arange(n, n + len(newcodes), dtype=np.int64)
             visited.add(newcodes, newids)
-            ids = visited.ids(dst[:cut])
             parent.append(firstpos + nt)
             if n + len(newcodes) > len(codes):
                 codes = np.concatenate([codes, np.zeros(max(len(codes), len(newcodes)), np.int64)])

@@ -70,8 +70,9 @@ def _preds(offs, pred, nodes) -> np.ndarray:
 
 
 def _once(u, mark) -> np.ndarray:
-    """``u`` without repeats (first occurrences kept, no sort); ``mark``: a scratch array
-    of -1 over the nodes, left as it was found."""
+    """``u`` with each node once (one of its occurrences, no sort: the order does not
+    matter to the sweeps); ``mark``: a scratch array of -1 over the nodes, left as it
+    was found."""
     pos = np.arange(len(u))
     mark[u] = pos
     keep = mark[u] == pos
