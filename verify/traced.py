@@ -509,7 +509,7 @@ class _Engine:
 #: time or transition budget is set: the reachable code graph first, in large batches that
 #: include the timers' runs guessed ahead, then the breadth-first numbering.
 CLOSURE_BATCH = CHUNK  # states per batch of the first phase
-RUN_GUESS = 8  # ticks guessed ahead of a timer's run
+RUN_GUESS = 16  # ticks guessed ahead of a timer's run
 
 
 def _timer_slots(prog, kept, mults) -> tuple:
@@ -544,14 +544,14 @@ def _timer_runs(eng, timers, src, dst) -> np.ndarray:
     return np.repeat(base, room) + j * np.repeat(step, room)
 
 
-def _closure(eng, c0, timers, smax):
+def _closure(eng, c0, timers, smax, tmax):
     """Phase one: every code reachable from ``c0`` expanded once (with guessed timer runs):
-    ``(codes, src, lid, dst, errors)``, transitions as (source entry, leaf id, target
-    code), ``errors`` as (entry, leaf) pairs; None when it does not pay off or the tracer
+    ``(codes, src, lid, dst, errors)``: the code of each entry, the transitions as
+    (source entry, leaf id, target entry), ``errors`` as (entry, leaf) pairs; None when it does not pay off or the tracer
     cannot follow (the caller then runs the ordinary search)."""
     seen = (_Dense if eng.total <= DENSE_LIMIT else _Hashed)(eng.total, c0)
     codes, srcs, lids, dsts, errs = [np.array([c0], np.int64)], [], [], [], []
-    todo, count, limit = codes[0], 1, 4 * smax + CLOSURE_BATCH
+    todo, count, limit, nt = codes[0], 1, 4 * smax + CLOSURE_BATCH, 0
     eng.max_paths = PATHS_MIN  # more paths than the ordinary search may trace: give up
     head = 0  # entry of todo[0]: entries are numbered in the order they are expanded
     while len(todo):
@@ -565,32 +565,39 @@ def _closure(eng, c0, timers, smax):
                 return None
             ok = [(leaf, rows) for leaf, rows in out if leaf.kind == "ok"]
             rows, lid, dst = _transitions(ok, batch, ev)
+            errs.extend((first + r, leaf) for leaf, rs in out if leaf.kind == "error" for r in rs.tolist())
+            ids = seen.ids(dst)
+            fresh = np.flatnonzero(ids < 0)
+            guess = _timer_runs(eng, timers, batch[rows[fresh]], dst[fresh]) if timers and len(fresh) else dst[:0]
+            if len(guess):
+                guess = guess[seen.ids(guess) < 0]
+            new, inv = np.unique(np.concatenate([dst[fresh], guess]), return_inverse=True)
+            nt += len(dst)
+            if count + len(new) > limit or nt > 4 * tmax + ROWS_LIMIT:
+                return None  # far past a budget: the ordinary search cuts there
+            ids[fresh] = count + inv.reshape(-1)[:len(fresh)]
             srcs.append(rows + first)
             lids.append(lid)
-            dsts.append(dst)
-            errs.extend((first + r, leaf) for leaf, rs in out if leaf.kind == "error" for r in rs.tolist())
-            fresh = seen.ids(dst) < 0
-            new = np.unique(dst[fresh])
-            guess = _timer_runs(eng, timers, batch[rows[fresh]], dst[fresh]) if timers else new[:0]
-            if len(guess):
-                guess = np.unique(np.concatenate([new, guess]))
-                new = guess[seen.ids(guess) < 0]
-            if count + len(new) > limit:
-                return None
+            dsts.append(ids)
             seen.add(new, np.arange(count, count + len(new), dtype=np.int64))
             count += len(new)
             codes.append(new)
             nxt.append(new)
         head += len(todo)
         todo = np.concatenate(nxt) if nxt else np.zeros(0, np.int64)
-    return np.concatenate(codes), seen, np.concatenate(srcs), np.concatenate(lids), np.concatenate(dsts), errs
+    cat = (lambda xs: np.concatenate(xs) if xs else np.zeros(0, np.int64))
+    return np.concatenate(codes), cat(srcs), cat(lids), cat(dsts), errs
 
 
 def _number(n_entries, e0, t_src, t_dst, order_key):
     """Phase two: the breadth-first numbering of the entries reachable from ``e0``, states
     numbered in order of first discovery, each state's transitions in ``order_key`` order:
     ``(entry of each state id, transition positions in the system's order)``."""
-    order = np.lexsort((order_key, t_src))
+    span = int(order_key.max()) + 1 if len(order_key) else 1
+    if n_entries * span < 1 << 62:  # one int64 key: a stable sort of a nearly sorted array
+        order = np.argsort(t_src * span + order_key, kind="stable")
+    else:
+        order = np.lexsort((order_key, t_src))
     offs = np.zeros(n_entries + 1, np.int64)
     np.cumsum(np.bincount(t_src, minlength=n_entries), out=offs[1:])
     tgt_sorted = t_dst[order]
@@ -621,25 +628,23 @@ def _number(n_entries, e0, t_src, t_dst, order_key):
     return np.concatenate(states), id_of, pos
 
 
-def _search_closure(model, kind, fsm, kept, eng, c0, smax, progress, t0, op):
+def _search_closure(model, kind, fsm, kept, eng, c0, smax, tmax, progress, t0, op):
     """The system of a model with timers by ``_closure`` then ``_number``: the same system
     as the ordinary search (states, numbering, transitions, labels, parents, violations,
     domain errors), or None when the first phase gives up or the state budget is hit."""
     prog = model.program
     timers = _timer_slots(prog, kept, eng.mults)
-    got = _closure(eng, c0, timers, smax)
+    got = _closure(eng, c0, timers, smax, tmax)
     if got is None:
         return None
-    codes, _seen, t_src, t_lid, t_dst_code, errs = got
-    t_dst = _seen.ids(t_dst_code)
+    codes, t_src, t_lid, t_dst, errs = got
     ords = eng.ordinals()
     entries, id_of, pos = _number(len(codes), 0, t_src, t_dst, ords[t_lid])
-    n = len(entries)
-    if n > smax:
-        return None
+    n, nt = len(entries), len(pos)
+    if n > smax or nt > tmax:
+        return None  # a budget cuts the system: the ordinary search cuts it exactly
     lid = t_lid[pos]
     src, dst = id_of[t_src[pos]], id_of[t_dst[pos]]
-    nt = len(pos)
     # labels numbered in order of first use, as the generic engine does
     labels, label_goal, label_ids = [], [], {}
     leaf_label = np.full(len(eng.leaves), -1, np.int64)
@@ -709,8 +714,8 @@ def search(model, kind, fsm, kept, run, s0, budget, progress, op, fallback: bool
     tmax = (1 << 62) if budget.max_transitions is None else budget.max_transitions
     chunk = CHUNK
     c0 = sum(v * m for v, m in zip(s0, mults)) - offset
-    if budget.max_seconds is None and budget.max_transitions is None and _timer_slots(prog, kept, mults):
-        ts = _search_closure(model, kind, fsm, kept, eng, c0, smax, progress, t0, op)
+    if budget.max_seconds is None and _timer_slots(prog, kept, mults):
+        ts = _search_closure(model, kind, fsm, kept, eng, c0, smax, tmax, progress, t0, op)
         if ts is not None:
             return ts
         eng = _Engine(model, run, kept, s0, op)  # the ordinary search, with a trie of its own
