@@ -225,6 +225,19 @@ class _Dense:
     def add(self, codes, ids):
         self.table[codes] = ids
 
+    def intern(self, codes, start):
+        """``(ids, new)``: the id of every code, codes not seen before numbered from
+        ``start`` (each once) and returned as ``new`` in the order of their ids."""
+        codes = np.asarray(codes, np.int64)
+        table = self.table
+        miss = np.flatnonzero(table[codes] < 0)
+        c = codes[miss]
+        table[c] = miss  # one row per new code wins
+        win = miss[table[c] == miss]
+        new = codes[win]
+        table[new] = np.arange(start, start + len(new))
+        return table[codes].astype(np.int64), new
+
 
 class _Hashed:
     """Visited codes in an open-addressing hash table (linear probing, at most half
@@ -256,18 +269,49 @@ class _Hashed:
             live, pos = live[go], (pos[go] + 1) & mask
         return out
 
-    def add(self, codes, ids):
-        """Insert codes not in the table yet (distinct) with their ids."""
-        if 2 * (self.count + len(codes)) > len(self.keys):
+    def _room(self, more):
+        """Grow (and rehash) so that ``more`` codes fit at most half full."""
+        if 2 * (self.count + more) > len(self.keys):
             old = self.keys >= 0
             keep_k, keep_v = self.keys[old], self.vals[old]
-            while 2 * (self.count + len(codes)) > (1 << self.bits):
+            while 2 * (self.count + more) > (1 << self.bits):
                 self.bits += 1
             self.keys = np.full(1 << self.bits, -1, np.int64)
             self.vals = np.zeros(1 << self.bits, np.int64)
             self.count = 0
             self._put(keep_k, keep_v)
+
+    def add(self, codes, ids):
+        """Insert codes not in the table yet (distinct) with their ids."""
+        self._room(len(codes))
         self._put(np.asarray(codes, np.int64), np.asarray(ids, np.int64))
+
+    def intern(self, codes, start):
+        """``(ids, new)``: the id of every code, codes not seen before numbered from
+        ``start`` (each once) and returned as ``new`` in the order of their ids; one
+        probe sequence for the batch (no sort)."""
+        codes = np.asarray(codes, np.int64)
+        self._room(len(codes))
+        keys, vals, mask = self.keys, self.vals, (1 << self.bits) - 1
+        slot = np.empty(len(codes), np.int64)
+        claimed = np.zeros(len(codes), bool)
+        live, pos = np.arange(len(codes)), self._slot(codes)
+        while len(live):
+            k, c = keys[pos], codes[live]
+            free = k < 0
+            if free.any():
+                keys[pos[free]] = c[free]  # equal codes probe in step: they claim one slot
+                k = keys[pos]
+                claimed[live[free & (k == c)]] = True
+            hit = k == c
+            slot[live[hit]] = pos[hit]
+            live, pos = live[~hit], (pos[~hit] + 1) & mask
+        rows = np.flatnonzero(claimed)
+        vals[slot[rows]] = rows  # one row per new code wins
+        win = rows[vals[slot[rows]] == rows]
+        vals[slot[win]] = np.arange(start, start + len(win))
+        self.count += len(win)
+        return vals[slot], codes[win]
 
     def _put(self, codes, ids):
         keys, vals, mask = self.keys, self.vals, (1 << self.bits) - 1
@@ -547,8 +591,9 @@ def _timer_runs(eng, timers, src, dst) -> np.ndarray:
 def _closure(eng, c0, timers, smax, tmax):
     """Phase one: every code reachable from ``c0`` expanded once (with guessed timer runs):
     ``(codes, src, lid, dst, errors)``: the code of each entry, the transitions as
-    (source entry, leaf id, target entry), ``errors`` as (entry, leaf) pairs; None when it does not pay off or the tracer
-    cannot follow (the caller then runs the ordinary search)."""
+    (source entry, leaf id, target entry), ``errors`` as (entry, leaf) pairs. None when
+    it does not pay off (far past a budget, more paths than ``PATHS_MIN``) or the tracer
+    cannot follow: the caller then runs the ordinary search."""
     seen = (_Dense if eng.total <= DENSE_LIMIT else _Hashed)(eng.total, c0)
     codes, srcs, lids, dsts, errs = [np.array([c0], np.int64)], [], [], [], []
     todo, count, limit, nt = codes[0], 1, 4 * smax + CLOSURE_BATCH, 0
@@ -566,21 +611,20 @@ def _closure(eng, c0, timers, smax, tmax):
             ok = [(leaf, rows) for leaf, rows in out if leaf.kind == "ok"]
             rows, lid, dst = _transitions(ok, batch, ev)
             errs.extend((first + r, leaf) for leaf, rs in out if leaf.kind == "error" for r in rs.tolist())
-            ids = seen.ids(dst)
-            fresh = np.flatnonzero(ids < 0)
-            guess = _timer_runs(eng, timers, batch[rows[fresh]], dst[fresh]) if timers and len(fresh) else dst[:0]
-            if len(guess):
-                guess = guess[seen.ids(guess) < 0]
-            new, inv = np.unique(np.concatenate([dst[fresh], guess]), return_inverse=True)
+            ids, new = seen.intern(dst, count)
+            fresh = ids >= count
             nt += len(dst)
-            if count + len(new) > limit or nt > 4 * tmax + ROWS_LIMIT:
+            count += len(new)
+            if timers and len(new):
+                guess = _timer_runs(eng, timers, batch[rows[fresh]], dst[fresh])
+                _, more = seen.intern(guess, count)
+                count += len(more)
+                new = np.concatenate([new, more])
+            if count > limit or nt > 4 * tmax + ROWS_LIMIT:
                 return None  # far past a budget: the ordinary search cuts there
-            ids[fresh] = count + inv.reshape(-1)[:len(fresh)]
             srcs.append(rows + first)
             lids.append(lid)
             dsts.append(ids)
-            seen.add(new, np.arange(count, count + len(new), dtype=np.int64))
-            count += len(new)
             codes.append(new)
             nxt.append(new)
         head += len(todo)
