@@ -636,7 +636,8 @@ def _closure(eng, c0, timers, smax, tmax):
 def _number(n_entries, e0, t_src, t_dst, order_key):
     """Phase two: the breadth-first numbering of the entries reachable from ``e0``, states
     numbered in order of first discovery, each state's transitions in ``order_key`` order:
-    ``(entry of each state id, transition positions in the system's order)``."""
+    ``(entry of each state id, id of each entry (-1: unreached), positions of the
+    transitions in the system's order, parent transition of each state)``."""
     span = int(order_key.max()) + 1 if len(order_key) else 1
     if n_entries * span < 1 << 62:  # one int64 key: a stable sort of a nearly sorted array
         order = np.argsort(t_src * span + order_key, kind="stable")
@@ -650,6 +651,7 @@ def _number(n_entries, e0, t_src, t_dst, order_key):
     big = np.iinfo(np.int64).max
     first = np.full(n_entries, big, np.int64)
     level, n, states, picks = np.array([e0], np.int64), 1, [np.array([e0], np.int64)], []
+    parents, done = [np.array([-1], np.int64)], 0  # parents: the transition that discovered each state
     while len(level):
         starts = offs[level]
         counts = offs[level + 1] - starts
@@ -659,17 +661,21 @@ def _number(n_entries, e0, t_src, t_dst, order_key):
         idx = np.repeat(starts - (np.cumsum(counts) - counts), counts) + np.arange(total)
         picks.append(idx)
         tgt = tgt_sorted[idx]
-        cand = tgt[id_of[tgt] < 0]
+        at = np.flatnonzero(id_of[tgt] < 0)
+        cand = tgt[at]
         pos = np.arange(len(cand))
         np.minimum.at(first, cand, pos)
-        new = cand[first[cand] == pos]  # each once, in order of first discovery
+        win = pos[first[cand] == pos]  # each new entry once, in order of first discovery
+        new = cand[win]
         first[cand] = big
         id_of[new] = np.arange(n, n + len(new))
+        parents.append(done + at[win])
         n += len(new)
+        done += total
         states.append(new)
         level = new
     pos = order[np.concatenate(picks)] if picks else np.zeros(0, np.int64)
-    return np.concatenate(states), id_of, pos
+    return np.concatenate(states), id_of, pos, np.concatenate(parents)
 
 
 def _search_closure(model, kind, fsm, kept, eng, c0, smax, tmax, progress, t0, op):
@@ -683,7 +689,7 @@ def _search_closure(model, kind, fsm, kept, eng, c0, smax, tmax, progress, t0, o
         return None
     codes, t_src, t_lid, t_dst, errs = got
     ords = eng.ordinals()
-    entries, id_of, pos = _number(len(codes), 0, t_src, t_dst, ords[t_lid])
+    entries, id_of, pos, parent = _number(len(codes), 0, t_src, t_dst, ords[t_lid])
     n, nt = len(entries), len(pos)
     if n > smax or nt > tmax:
         return None  # a budget cuts the system: the ordinary search cuts it exactly
@@ -692,7 +698,9 @@ def _search_closure(model, kind, fsm, kept, eng, c0, smax, tmax, progress, t0, o
     # labels numbered in order of first use, as the generic engine does
     labels, label_goal, label_ids = [], [], {}
     leaf_label = np.full(len(eng.leaves), -1, np.int64)
-    u, first = np.unique(lid, return_index=True)
+    by_leaf = np.argsort(lid.astype(np.int16) if len(eng.leaves) < 1 << 15 else lid, kind="stable")  # radix sort
+    cut = np.flatnonzero(np.diff(lid[by_leaf], prepend=-1))
+    u, first = lid[by_leaf[cut]], by_leaf[cut]  # each leaf used and its first transition
     for li in u[np.argsort(first)].tolist():
         name = eng.leaves[li].label
         lab = label_ids.get(name)
@@ -704,10 +712,6 @@ def _search_closure(model, kind, fsm, kept, eng, c0, smax, tmax, progress, t0, o
     leaf_status = np.array([leaf.status or 0 for leaf in eng.leaves], np.int8)
     leaf_viol = np.array([leaf.violations is not None for leaf in eng.leaves], bool)
     violations = [(t, eng.leaves[int(lid[t])].violations) for t in np.flatnonzero(leaf_viol[lid]).tolist()]
-    parent = np.full(n, -1, np.int64)
-    if nt:
-        first_in = np.unique(dst, return_index=True)
-        parent[first_in[0][first_in[0] > 0]] = first_in[1][first_in[0] > 0]
     state_codes = codes[entries]
     errors = []
     if errs:
