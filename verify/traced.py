@@ -195,6 +195,18 @@ class _Graph:
         return self.node(("k", int(v)))
 
 
+def _offset(nodes, new, old):
+    """c when expression ``new`` is ``old + c``, ``c + old`` or ``old - c`` (c a constant), else None."""
+    key = nodes[new]
+    if key[0] == "+" and key[1] == old and nodes[key[2]][0] == "k":
+        return nodes[key[2]][1]
+    if key[0] == "+" and key[2] == old and nodes[key[1]][0] == "k":
+        return nodes[key[1]][1]
+    if key[0] == "-" and key[1] == old and nodes[key[2]][0] == "k":
+        return -nodes[key[2]][1]
+    return None
+
+
 class _Leaf:
     """The end of a path: ``kind`` ok | blocked | error, the next state's code change,
     status, readable label, requested goal (FSM level), violations, the full choice
@@ -427,8 +439,9 @@ class _Engine:
 
     def code_change(self, t, entries) -> tuple:
         """The next state's code as ``(shift, terms)``: input code + ``shift`` (changes of
-        slots whose old and new values the path fixed) + the sum of the ``terms``, one
-        expression ``mult * (new - old)`` per other changed slot."""
+        slots whose old and new values the path fixed, and of counters: new = old + c)
+        + the sum of the ``terms``, one expression ``mult * (new - old)`` per other
+        changed slot."""
         g, mults = self.g, self.mults
         shift, terms = 0, []
         for k, e in enumerate(entries):
@@ -439,6 +452,10 @@ class _Engine:
             old_known, old = (True, t.known[col]) if col in t.known else (False, col)
             if new_known and old_known:
                 shift += mults[k] * (new - old)
+                continue
+            step = None if new_known or old_known else _offset(g.nodes, new, old)
+            if step is not None:  # new = old + constant (a counter): a constant change
+                shift += mults[k] * step
                 continue
             diff = g.node(("-", g.const(new) if new_known else new, g.const(old) if old_known else old))
             terms.append(g.node(("*", diff, g.const(mults[k]))))
