@@ -107,6 +107,24 @@ def test_many_paths_give_way_to_the_ordinary_search(monkeypatch):
         assert_same(a, explore(m, engine="traced"))
 
 
+def test_a_tracer_failure_in_the_first_phase_gives_way(monkeypatch):
+    """The tracer may fail on a guessed state no run reaches: the ordinary search runs."""
+    m = _model()
+    calls, real = [], traced._Engine.expand
+
+    def expand(self, codes, cap=traced.ROWS_LIMIT):
+        calls.append(len(codes))
+        if len(calls) == 2:
+            raise traced.Untraceable("on a guessed state")
+        return real(self, codes, cap)
+
+    monkeypatch.setattr(traced._Engine, "expand", expand)
+    got = _spy(monkeypatch)
+    a = explore(m, engine="traced")
+    assert got == [None] and len(calls) > 2
+    assert_same(a, explore(m, engine="scalar"))
+
+
 def test_guessed_unreachable_states_are_never_numbered(monkeypatch):
     """Guessing far ahead expands states no run reaches; the system stays the same."""
     m = _model()

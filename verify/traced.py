@@ -625,6 +625,8 @@ def _closure(eng, c0, timers, smax, tmax):
                 out, ev = eng.expand(batch, ROWS_LIMIT)
             except (_Wide, _Stop):
                 return None
+            except Exception:  # e.g. Untraceable, maybe on a guessed state no run reaches
+                return None
             ok = [(leaf, rows) for leaf, rows in out if leaf.kind == "ok"]
             rows, lid, dst = _transitions(ok, batch, ev)
             errs.extend((first + r, leaf) for leaf, rs in out if leaf.kind == "error" for r in rs.tolist())
