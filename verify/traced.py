@@ -260,9 +260,13 @@ class _Hashed:
 
     def __init__(self, total, c0, bits=16):
         self.bits, self.count = bits, 0
-        self.keys = np.full(1 << bits, -1, np.int64)  # codes are >= 0; -1: empty
-        self.vals = np.zeros(1 << bits, np.int64)
+        self._alloc()
         self.add(np.array([c0], np.int64), np.zeros(1, np.int64))
+
+    def _alloc(self):
+        # a code and its id side by side: one cache line per probe
+        kv = np.full((1 << self.bits, 2), -1, np.int64)  # codes are >= 0; -1: empty
+        self.keys, self.vals = kv[:, 0], kv[:, 1]
 
     def _slot(self, codes):
         h = codes.astype(np.uint64) * self._MUL  # wraps modulo 2**64
@@ -288,8 +292,7 @@ class _Hashed:
             keep_k, keep_v = self.keys[old], self.vals[old]
             while 2 * (self.count + more) > (1 << self.bits):
                 self.bits += 1
-            self.keys = np.full(1 << self.bits, -1, np.int64)
-            self.vals = np.zeros(1 << self.bits, np.int64)
+            self._alloc()
             self.count = 0
             self._put(keep_k, keep_v)
 
@@ -949,15 +952,16 @@ def _transitions(ok, codes, ev):
         for leaf, _ in ok:
             for term in leaf.code[1]:
                 local.setdefault(term, len(local) + 1)
-        mat = np.zeros((len(local) + 1, len(codes)), np.int64)  # row 0: no term
+        w1 = len(local) + 1
+        mat = np.zeros((len(codes), w1), np.int64)  # a state's terms side by side; column 0: no term
         for term, i in local.items():
-            mat[i] = ev(term)
+            mat[:, i] = ev(term)
         idx = np.zeros((len(ok), width), np.int64)
         for j, (leaf, _) in enumerate(ok):
             idx[j, :len(leaf.code[1])] = [local[term] for term in leaf.code[1]]
-        per = np.repeat(idx, sizes, axis=0)
-        for j in range(width):
-            dst += mat[per[:, j], rows]
+        flat = np.repeat(idx, sizes, axis=0)
+        flat += (rows * w1)[:, None]
+        dst += mat.ravel().take(flat).sum(axis=1)  # one gather, each row's terms in a few cache lines
     return rows, lid, dst
 
 
