@@ -717,6 +717,7 @@ def _search_closure(model, kind, fsm, kept, eng, c0, smax, tmax, progress, t0, o
         return None  # a budget cuts the system: the ordinary search cuts it exactly
     lid = t_lid[pos]
     src, dst = id_of[t_src[pos]], id_of[t_dst[pos]]
+    del t_src, t_dst, t_lid, pos, got  # the code graph: its memory back before the system's arrays
     # labels numbered in order of first use, as the generic engine does
     labels, label_goal, label_ids = [], [], {}
     leaf_label = np.full(len(eng.leaves), -1, np.int64)
