@@ -67,7 +67,7 @@ def decode(prog, kept, codes, offset, mults) -> np.ndarray:
     if not kept:
         return out
     for a, b, m, prod in _groups(prog, kept, mults):
-        if prod > _DIGITS:  # one slot alone past the table size
+        if prod > _DIGITS or 4 * len(c) < prod:  # one slot alone past the table size, or few codes
             for col in range(a, b):
                 info = prog.slots[kept[col]]
                 out[:, col] = (c // mults[kept[col]]) % max(info.size, 1) + info.lo

@@ -837,11 +837,13 @@ def search(model, kind, fsm, kept, run, s0, budget, progress, op, fallback: bool
             complete, budget.hit = False, "transitions"
         fresh = np.flatnonzero(ids[:cut] < 0)
         if len(fresh):
-            _, first, inv = np.unique(dst[fresh], return_index=True, return_inverse=True)
+            dense = isinstance(visited, _Dense)  # a second lookup is one gather there
+            _, first, *inv = np.unique(dst[fresh], return_index=True, return_inverse=not dense)
             by_pos = np.argsort(first)
-            rank = np.empty(len(first), np.int64)
-            rank[by_pos] = np.arange(len(first))
-            ids[fresh] = n + rank[inv.reshape(-1)]  # new states numbered in order of first discovery
+            if not dense:
+                rank = np.empty(len(first), np.int64)
+                rank[by_pos] = np.arange(len(first))
+                ids[fresh] = n + rank[inv[0].reshape(-1)]  # new states numbered in order of first discovery
             firstpos = fresh[first[by_pos]]
             newcodes = dst[firstpos]
             room = smax - n
@@ -851,6 +853,8 @@ def search(model, kind, fsm, kept, run, s0, budget, progress, op, fallback: bool
                 firstpos, newcodes = firstpos[:room], newcodes[:room]
             newids = np.arange(n, n + len(newcodes), dtype=np.int64)
             visited.add(newcodes, newids)
+            if dense:
+                ids = visited.ids(dst[:cut])
             parent.append(firstpos + nt)
             if n + len(newcodes) > len(codes):
                 codes = np.concatenate([codes, np.zeros(max(len(codes), len(newcodes)), np.int64)])
