@@ -253,8 +253,9 @@ class _Dense:
 
 class _Hashed:
     """Visited codes in an open-addressing hash table (linear probing, at most half
-    full), probed for a whole batch at once: a few numpy steps per batch, whatever the
-    number of states visited."""
+    full, growing fourfold), probed for a whole batch at once: a few numpy steps per
+    batch, whatever the number of states visited. A slot holds code + 1 (0: empty, so a
+    new table is calloc'd zeros) beside its id: one cache line per probe."""
 
     _MUL = np.uint64(0x9E3779B97F4A7C15)  # Fibonacci hashing
 
@@ -264,8 +265,7 @@ class _Hashed:
         self.add(np.array([c0], np.int64), np.zeros(1, np.int64))
 
     def _alloc(self):
-        # a code and its id side by side: one cache line per probe
-        kv = np.full((1 << self.bits, 2), -1, np.int64)  # codes are >= 0; -1: empty
+        kv = np.zeros((1 << self.bits, 2), np.int64)
         self.keys, self.vals = kv[:, 0], kv[:, 1]
 
     def _slot(self, codes):
@@ -276,22 +276,23 @@ class _Hashed:
         codes = np.asarray(codes, np.int64)
         out = np.full(len(codes), -1, np.int64)
         keys, vals, mask = self.keys, self.vals, (1 << self.bits) - 1
+        c1 = codes + 1
         live, pos = np.arange(len(codes)), self._slot(codes)
         while len(live):
             k = keys[pos]
-            hit = k == codes[live]
+            hit = k == c1[live]
             out[live[hit]] = vals[pos[hit]]
-            go = ~hit & (k >= 0)
+            go = ~hit & (k > 0)
             live, pos = live[go], (pos[go] + 1) & mask
         return out
 
     def _room(self, more):
         """Grow (and rehash) so that ``more`` codes fit at most half full."""
         if 2 * (self.count + more) > len(self.keys):
-            old = self.keys >= 0
-            keep_k, keep_v = self.keys[old], self.vals[old]
+            old = self.keys > 0
+            keep_k, keep_v = self.keys[old] - 1, self.vals[old]
             while 2 * (self.count + more) > (1 << self.bits):
-                self.bits += 1
+                self.bits += 2
             self._alloc()
             self.count = 0
             self._put(keep_k, keep_v)
@@ -308,12 +309,13 @@ class _Hashed:
         codes = np.asarray(codes, np.int64)
         self._room(len(codes))
         keys, vals, mask = self.keys, self.vals, (1 << self.bits) - 1
+        c1 = codes + 1
         slot = np.empty(len(codes), np.int64)
         claimed = np.zeros(len(codes), bool)
         live, pos = np.arange(len(codes)), self._slot(codes)
         while len(live):
-            k, c = keys[pos], codes[live]
-            free = k < 0
+            k, c = keys[pos], c1[live]
+            free = k == 0
             if free.any():
                 keys[pos[free]] = c[free]  # equal codes probe in step: they claim one slot
                 k = keys[pos]
@@ -330,12 +332,13 @@ class _Hashed:
 
     def _put(self, codes, ids):
         keys, vals, mask = self.keys, self.vals, (1 << self.bits) - 1
+        c1 = codes + 1
         live, pos = np.arange(len(codes)), self._slot(codes)
         while len(live):
-            free = keys[pos] < 0
+            free = keys[pos] == 0
             p, c = pos[free], live[free]
-            keys[p] = codes[c]  # rows that share a free slot: one of them gets it
-            won = keys[p] == codes[c]
+            keys[p] = c1[c]  # rows that share a free slot: one of them gets it
+            won = keys[p] == c1[c]
             vals[p[won]] = ids[c[won]]
             placed = np.zeros(len(live), bool)
             placed[np.flatnonzero(free)[won]] = True
