@@ -463,6 +463,10 @@ class _Engine:
             if step is not None:  # new = old + constant (a counter): a constant change
                 shift += mults[k] * step
                 continue
+            if new_known:  # set to a constant from an unread value: mult * new - mult * old
+                shift += mults[k] * new
+                terms.append(g.node(("*", old, g.const(-mults[k]))))  # one term per slot, whatever the constant
+                continue
             diff = g.node(("-", g.const(new) if new_known else new, g.const(old) if old_known else old))
             terms.append(g.node(("*", diff, g.const(mults[k]))))
         return shift, tuple(terms)
