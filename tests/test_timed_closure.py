@@ -125,6 +125,13 @@ def test_a_tracer_failure_in_the_first_phase_gives_way(monkeypatch):
     assert_same(a, explore(m, engine="scalar"))
 
 
+def test_progress_during_both_phases():
+    m = _model()
+    calls = []
+    a = explore(m, engine="traced", progress=lambda *x: calls.append(x))
+    assert len(calls) >= 2 and calls[-1][:2] == (a.n_states, a.n_transitions)
+
+
 def test_guessed_unreachable_states_are_never_numbered(monkeypatch):
     """Guessing far ahead expands states no run reaches; the system stays the same."""
     m = _model()
@@ -135,7 +142,7 @@ def test_guessed_unreachable_states_are_never_numbered(monkeypatch):
 @settings(max_examples=120, deadline=None, derandomize=True, database=None,
           suppress_health_check=[HealthCheck.too_slow, HealthCheck.filter_too_much])
 @given(timed_models(), st.sampled_from([None, 60, 3000]), st.sampled_from([1, 3, 16]))
-def test_random_timed_models_explore_as_the_ordinary_search(model, budget, guess):
+def test_random_timed_models_explore_as_the_scalar_engine(model, budget, guess):
     try:
         model.program
     except ModelError:

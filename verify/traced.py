@@ -615,7 +615,7 @@ def _timer_runs(eng, timers, src, dst) -> np.ndarray:
     return np.repeat(base, room) + j * np.repeat(step, room)
 
 
-def _closure(eng, c0, timers, smax, tmax):
+def _closure(eng, c0, timers, smax, tmax, progress=None, t0=0.0):
     """Phase one: every code reachable from ``c0`` expanded once (with guessed timer runs):
     ``(codes, src, lid, dst, errors)``: the code of each entry, the transitions as
     (source entry, leaf id, target entry), ``errors`` as (entry, leaf) pairs. None when
@@ -623,7 +623,8 @@ def _closure(eng, c0, timers, smax, tmax):
     cannot follow: the caller then runs the ordinary search."""
     seen = (_Dense if eng.total <= DENSE_LIMIT else _Hashed)(eng.total, c0)
     codes, srcs, lids, dsts, errs = [np.array([c0], np.int64)], [], [], [], []
-    todo, count, limit, nt = codes[0], 1, 4 * smax + CLOSURE_BATCH, 0
+    # past 1.5 times a budget (the guesses included) the ordinary search takes over
+    todo, count, limit, nt = codes[0], 1, smax + smax // 2 + CLOSURE_BATCH, 0
     eng.max_paths = PATHS_MIN  # more paths than the ordinary search may trace: give up
     head = 0  # entry of todo[0]: entries are numbered in the order they are expanded
     while len(todo):
@@ -649,11 +650,13 @@ def _closure(eng, c0, timers, smax, tmax):
                 _, more = seen.intern(guess, count)
                 count += len(more)
                 new = np.concatenate([new, more])
-            if count > limit or nt > 4 * tmax + ROWS_LIMIT:
+            if count > limit or nt > tmax + tmax // 2 + ROWS_LIMIT:
                 return None  # far past a budget: the ordinary search cuts there
             srcs.append(rows + first)
             lids.append(lid)
             dsts.append(ids)
+            if progress is not None:  # codes expanded so far (guesses included), then the exact figures
+                progress(first + len(batch), nt, time.perf_counter() - t0)
             codes.append(new)
             nxt.append(new)
         head += len(todo)
@@ -713,7 +716,7 @@ def _search_closure(model, kind, fsm, kept, eng, c0, smax, tmax, progress, t0, o
     domain errors), or None when the first phase gives up or the state budget is hit."""
     prog = model.program
     timers = _timer_slots(prog, kept, eng.mults)
-    got = _closure(eng, c0, timers, smax, tmax)
+    got = _closure(eng, c0, timers, smax, tmax, progress, t0)
     if got is None:
         return None
     codes, t_src, t_lid, t_dst, errs = got
