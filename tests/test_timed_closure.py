@@ -70,6 +70,18 @@ def test_the_two_phase_search_gives_the_ordinary_system(monkeypatch):
         assert_same(a, explore(m, engine="traced"))
 
 
+def test_domain_errors_are_reported_as_the_ordinary_search_reports_them(monkeypatch):
+    import copy
+
+    data = copy.deepcopy(SLOW_TIMERS)
+    data["primitives"]["work"]["outcomes"][1] = {"success": {"q": "q - 1", "done": "done + 1"}}  # past 3: an error
+    m = model_from_data(data)
+    got = _spy(monkeypatch)
+    a = explore(m, engine="traced")
+    assert got and got[0] is not None and a.errors
+    assert_same(a, explore(m, engine="scalar"))
+
+
 @pytest.mark.parametrize("budget", [{"max_states": 7}, {"max_states": 150}, {"max_transitions": 40},
                                     {"max_transitions": 333}, {"max_seconds": 600}])
 def test_budgets_cut_where_the_ordinary_search_cuts(monkeypatch, budget):
