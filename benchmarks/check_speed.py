@@ -1,6 +1,6 @@
 """Speed of the explicit checker (``verify``): exploration, AG EF, determinism, full checks.
 
-Usage: ``python3 benchmarks/check_speed.py [--big] [--repeats N] [--json]``
+Usage: ``python3 benchmarks/check_speed.py [--big] [--full18] [--repeats N] [--json]``
 
 Measures, with both wall time and CPU time of this process (the CPU figure is the one to
 compare on a shared machine):
@@ -13,7 +13,9 @@ compare on a shared machine):
   environment: about 10^5 states) and on the paper's ARIAC kitting models;
 * AG EF workable (backward reachability over the CSR) on the explored pick/place systems;
 * determinism of a synthetic 200-state x 4-goal x 10-edge skill (36 k guard pairs);
-* the full ``btfsm check`` (all properties) of the paper-sized models.
+* the full ``btfsm check`` (all properties) of the paper-sized models, and with
+  ``--full18`` of pick/place Q=D=B=18 (6 M states and 47 M transitions at the model level
+  and again at the FSM level; about 15 s), with the process's peak RSS.
 
 Timing is read only here and in the ``seconds`` fields of the checker's results.
 """
@@ -104,6 +106,7 @@ def skill(n_states: int = 200, goals: int = 4, edges: int = 10) -> Model:
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--big", action="store_true", help="also pick/place Q=D=B=12 (1.3 M states, about a minute)")
+    ap.add_argument("--full18", action="store_true", help="also the full check of pick/place Q=D=B=18 (about 15 s)")
     ap.add_argument("--repeats", type=int, default=1)
     ap.add_argument("--json", action="store_true")
     args = ap.parse_args(argv)
@@ -151,6 +154,13 @@ def main(argv=None) -> int:
         r, w, c = timed(lambda: check(m), args.repeats)
         row(f"full check {name}", states=r.states, verdicts="".join("+" if x.holds else ("-" if x.holds is False else "?")
                                                                    for x in r.results), wall_s=round(w, 2), cpu_s=round(c, 2))
+    if args.full18:
+        m = pickplace(18)
+        m.program
+        r, w, c = timed(lambda: check(m, max_states=7_000_000, max_transitions=60_000_000), args.repeats)
+        row("full check pickplace 18", states=r.states, verdicts="".join(
+            "+" if x.holds else ("-" if x.holds is False else "?") for x in r.results), wall_s=round(w, 2),
+            cpu_s=round(c, 2), maxrss_mb=resource.getrusage(resource.RUSAGE_SELF).ru_maxrss // 1024)
     if args.json:
         print(json.dumps(rows, indent=1))
     return 0

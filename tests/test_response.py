@@ -223,3 +223,16 @@ def test_both_engines_explore_a_model_with_an_event_requirement(timed_file):
 
     m = load_model(str(timed_file))
     assert_same(explore(m, engine="scalar"), explore(m, engine="traced"))
+
+
+def test_a_budget_cut_system_leaves_the_response_undecided_without_a_crash():
+    """A state budget that cuts the timed baseline: the unexpanded states give an unbounded
+    figure, no run of the explored part shows it, so the property is undecided (exit 3)
+    instead of an internal error (it raised AssertionError in _lasso before)."""
+    from btfsm.models import ariac
+    from btfsm.verify.report import check
+
+    r = check(ariac.baseline_timed(), ["response"], max_states=2000)
+    (res,) = r.results
+    assert r.exit_code == 3 and res.holds is None and res.counterexample is None
+    assert any("left unexpanded" in n for n in res.notes)

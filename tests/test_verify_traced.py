@@ -192,3 +192,20 @@ def test_auto_explores_small_systems_with_the_scalar_engine(monkeypatch):
     assert called == [1]
     # a state budget within the probe is the user's cut, as the engines agree on it
     assert_same(explore(big, max_states=100), explore(big, engine="traced", max_states=100))
+
+
+def test_auto_keeps_the_scalar_engine_for_narrow_levels(monkeypatch):
+    """A system larger than the probe whose breadth-first levels average fewer than
+    AUTO_NARROW_LEVEL states (ARIAC with 40 tray parts and a queue of 8: 11,319 states in
+    levels of about 18) is explored by the scalar engine; the same system either way."""
+    from btfsm.models.ariac import preemptive
+    from btfsm.verify import explore as explore_mod
+
+    m = preemptive(n_tray=40, queue_max=8)
+    ref = explore(m, engine="traced")
+    assert ref.n_states > explore_mod.AUTO_SCALAR_STATES
+    assert ref.n_states < explore_mod.AUTO_NARROW_LEVEL * (int(ref.depth().max()) + 1)
+    called = []
+    monkeypatch.setattr(traced, "search", lambda *a, **k: called.append(1))
+    assert_same(explore(m), ref)
+    assert called == []

@@ -40,12 +40,44 @@ def dtype(prog, kept):
     return np.int64
 
 
+_DIGITS = 1 << 16  # values of one group of slots decoded by one table lookup
+
+
+def _groups(prog, kept, mults) -> list:
+    """Runs of consecutive kept columns whose domains multiply to at most ``_DIGITS``:
+    ``(first column, end column, multiplier of the run's last slot, values)``."""
+    out, end, prod = [], len(kept), 1
+    for col in range(len(kept) - 1, -1, -1):
+        size = max(prog.slots[kept[col]].size, 1)
+        if prod * size > _DIGITS and end > col + 1:
+            out.append((col + 1, end, mults[kept[end - 1]], prod))
+            end, prod = col + 1, 1
+        prod *= size
+    out.append((0, end, mults[kept[end - 1]] if end else 1, prod))
+    return out
+
+
 def decode(prog, kept, codes, offset, mults) -> np.ndarray:
+    """Rows of slot values of the codes (``codes + offset`` as stored): each run of
+    slots (``_groups``) is one digit of the code, read by one division and turned into
+    the run's columns by one lookup in the table of all its values."""
     c = np.frombuffer(codes, dtype=np.int64) - offset
-    out = np.empty((len(c), len(kept)), dtype=dtype(prog, kept))
-    for col, k in enumerate(kept):
-        info = prog.slots[k]
-        out[:, col] = (c // mults[k]) % max(info.size, 1) + info.lo
+    dt = dtype(prog, kept)
+    out = np.empty((len(c), len(kept)), dtype=dt)
+    if not kept:
+        return out
+    for a, b, m, prod in _groups(prog, kept, mults):
+        if prod > _DIGITS or 4 * len(c) < prod:  # one slot alone past the table size, or few codes
+            for col in range(a, b):
+                info = prog.slots[kept[col]]
+                out[:, col] = (c // mults[kept[col]]) % max(info.size, 1) + info.lo
+            continue
+        digit = np.arange(prod, dtype=np.int64)
+        table = np.empty((prod, b - a), dtype=dt)
+        for col in range(a, b):
+            info = prog.slots[kept[col]]
+            table[:, col - a] = (digit // (mults[kept[col]] // m)) % max(info.size, 1) + info.lo
+        out[:, a:b] = table[(c // m) % prod if m != 1 else c % prod]
     return out
 
 

@@ -31,7 +31,7 @@ from .labels import readable
 from .search import DEFAULT_MAX_STATES, DEFAULT_MAX_TRANSITIONS, Budget, EnumOracle, run_environment
 from .system import TransitionSystem
 
-__all__ = ["AUTO_SCALAR_STATES", "explore", "explore_fsm", "OpenFSM", "open_fsm", "requests_of", "EnumOracle", "run_environment",
+__all__ = ["AUTO_SCALAR_STATES", "AUTO_NARROW_LEVEL", "explore", "explore_fsm", "OpenFSM", "open_fsm", "requests_of", "EnumOracle", "run_environment",
            "successor_scripts", "run_script", "script_of", "DEFAULT_MAX_STATES",
            "DEFAULT_MAX_TRANSITIONS", "Budget"]
 
@@ -333,19 +333,39 @@ def explore_fsm(model, fsm, *, goals=None, max_states=None, max_transitions=None
 #: more than it saves (ARIAC, 1,605 states: scalar 0.04 s, traced 0.14 s; pick/place at 3,
 #: 10,288 states: scalar 0.32 s, traced 0.06 s).
 AUTO_SCALAR_STATES = 4096
+#: ... and past the probe, systems whose breadth-first levels hold fewer states than this on
+#: average (over the probe) stay with the scalar engine: the traced engine pays numpy's
+#: per-call costs once per level (ARIAC with 40 tray parts and a queue of 8, 11,319 states
+#: in levels of about 18: scalar 0.22 s, traced 0.38 s; pick/place at 3, levels of about 93:
+#: traced 5x faster).
+AUTO_NARROW_LEVEL = 32
+
+
+def _long_timers(prog, kept) -> bool:
+    """Whether the kept timers' domains (docs/semantics.md 6.1) multiply past
+    ``AUTO_SCALAR_STATES``: timers count one tick at a time, so such a system is
+    expected to be large and ``auto`` goes to the traced engine without the scalar probe
+    (a guess about speed only: both engines give the same system)."""
+    span = 1
+    for k in kept:
+        if prog.slots[k].kind == "timer":
+            span *= max(prog.slots[k].size, 1)
+    return span > AUTO_SCALAR_STATES
 
 
 def _explore_with(engine, model, kind, fsm, kept, run, init, budget, progress, op) -> TransitionSystem:
     """One system, explored by the engine asked for (see ``explore``). With ``auto``, the
     scalar engine first explores up to ``AUTO_SCALAR_STATES`` states (tracing does not pay
     off on small systems); a system that is larger is explored again, from the start, by
-    the traced engine under the same budget (its clock included). A traced search whose
+    the traced engine under the same budget (its clock included), or by the scalar engine
+    when the probe's breadth-first levels averaged fewer than ``AUTO_NARROW_LEVEL`` states; a model whose timers
+    alone span more values than that skips the probe (``_long_timers``). A traced search whose
     paths multiply (``TooManyPaths``) goes on with the scalar engine; ``traced`` then stops
     at a "paths" budget."""
     if engine not in ("auto", "traced", "scalar"):
         raise ValueError(f"engine must be auto, traced or scalar, not {engine!r}")
     split = scalar.TreeCache(model) if kind == "model" and model.environment and model.tree is not None else None
-    if engine == "auto":
+    if engine == "auto" and not _long_timers(model.program, kept):
         small = AUTO_SCALAR_STATES if budget.max_states is None else min(budget.max_states, AUTO_SCALAR_STATES)
         probe = Budget(small, budget.max_transitions, budget.max_seconds)
         probe.start = budget.start
@@ -353,6 +373,8 @@ def _explore_with(engine, model, kind, fsm, kept, run, init, budget, progress, o
         if ts.complete or probe.hit != "states" or small == budget.max_states:
             budget.hit = probe.hit  # the whole system, or the cut the user's budget makes (the same in both engines)
             return ts
+        if ts.n_states < AUTO_NARROW_LEVEL * (int(ts.depth().max()) + 1):
+            engine = "scalar"  # narrow levels: tracing would not pay off
     if engine != "scalar":
         try:
             return traced.search(model, kind, fsm, kept, run, init, budget, progress, op, fallback=engine == "auto")

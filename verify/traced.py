@@ -42,7 +42,7 @@ import numpy as np
 
 from btfsm.errors import DomainError
 
-from .codec import code_dtype, codec
+from .codec import code_dtype, codec, decode
 from .labels import readable
 from .search import DEFAULT_MAX_STATES, Budget, EnumOracle
 from .system import DomainViolation, TransitionSystem
@@ -197,6 +197,18 @@ class _Graph:
         return self.node(("k", int(v)))
 
 
+def _offset(nodes, new, old):
+    """c when expression ``new`` is ``old + c``, ``c + old`` or ``old - c`` (c a constant), else None."""
+    key = nodes[new]
+    if key[0] == "+" and key[1] == old and nodes[key[2]][0] == "k":
+        return nodes[key[2]][1]
+    if key[0] == "+" and key[2] == old and nodes[key[1]][0] == "k":
+        return nodes[key[1]][1]
+    if key[0] == "-" and key[1] == old and nodes[key[2]][0] == "k":
+        return -nodes[key[2]][1]
+    return None
+
+
 class _Leaf:
     """The end of a path: ``kind`` ok | blocked | error, the next state's code change,
     status, readable label, requested goal (FSM level), violations, the full choice
@@ -312,12 +324,12 @@ _GOLDEN = np.uint64(0x9E3779B97F4A7C15)
 class _Hashed(_Visited):
     """Visited codes as an open-addressing hash table of state ids (linear probing,
     multiplicative hashing, at most ``LOAD`` full, doubled when fuller); a slot holds an id
-    and the code is read from ``codes``, so the table costs 4 bytes per slot (about 6-11
+    and the code is read from ``codes``, so the table costs 4 bytes per slot (8 to 16
     bytes per state). For code spaces too large for a bitmap. Lookups and insertions are
     vectorised: each round settles every query whose probe hit its code or an empty slot,
     the others move one slot on."""
 
-    LOAD = 0.7
+    LOAD = 0.5
     FIRST = 1 << 16  # slots of the first table
 
     def __init__(self, total, c0):
@@ -542,8 +554,9 @@ class _Engine:
 
     def code_change(self, t, entries) -> tuple:
         """The next state's code as ``(shift, terms)``: input code + ``shift`` (changes of
-        slots whose old and new values the path fixed) + the sum of the ``terms``, one
-        expression ``mult * (new - old)`` per other changed slot."""
+        slots whose old and new values the path fixed, and of counters: new = old + c)
+        + the sum of the ``terms``, one expression ``mult * (new - old)`` per other
+        changed slot."""
         g, mults = self.g, self.mults
         shift, terms = 0, []
         for k, e in enumerate(entries):
@@ -554,6 +567,14 @@ class _Engine:
             old_known, old = (True, t.known[col]) if col in t.known else (False, col)
             if new_known and old_known:
                 shift += mults[k] * (new - old)
+                continue
+            step = None if new_known or old_known else _offset(g.nodes, new, old)
+            if step is not None:  # new = old + constant (a counter): a constant change
+                shift += mults[k] * step
+                continue
+            if new_known:  # set to a constant from an unread value: mult * new - mult * old
+                shift += mults[k] * new
+                terms.append(g.node(("*", old, g.const(-mults[k]))))  # one term per slot, whatever the constant
                 continue
             diff = g.node(("-", g.const(new) if new_known else new, g.const(old) if old_known else old))
             terms.append(g.node(("*", diff, g.const(mults[k]))))
@@ -647,6 +668,205 @@ class _Engine:
         return out, ev
 
 
+# ---------------------------------------------------------------------- timed models: closure, then numbering
+
+#: ``search`` explores a model with timers (docs/semantics.md 6.1) in two phases when no
+#: time or transition budget is set: the reachable code graph first, in large batches that
+#: include the timers' runs guessed ahead, then the breadth-first numbering.
+CLOSURE_BATCH = CHUNK  # states per batch of the first phase
+RUN_GUESS = 16  # ticks guessed ahead of a timer's run
+
+
+def _timer_slots(prog, kept, mults) -> tuple:
+    return tuple(k for k in kept if prog.slots[k].kind == "timer" and mults[k] and prog.slots[k].size > 1)
+
+
+def _timer_runs(eng, timers, src, dst) -> np.ndarray:
+    """Codes guessed ahead of the transitions ``src -> dst`` that change timers only, each
+    by 0 or 1 (a tick of time): ``dst + j * (dst - src)`` for every ``j >= 1`` that keeps
+    the counting timers in their domains. Guesses may be unreachable: they are expanded,
+    never numbered unless reached."""
+    step = dst - src
+    timed = np.zeros(len(src), np.int64)
+    room = np.full(len(src), np.iinfo(np.int64).max, np.int64)
+    counts = np.zeros(len(src), bool)
+    ok = np.ones(len(src), bool)
+    for k in timers:
+        m, size = eng.mults[k], eng.sizes[k]
+        a, b = (src // m) % size, (dst // m) % size
+        d = b - a
+        ok &= (d == 0) | (d == 1)
+        timed += d * m
+        up = d == 1
+        counts |= up
+        room = np.where(up, np.minimum(room, size - 1 - b), room)
+    room = np.minimum(room, RUN_GUESS)
+    keep = ok & counts & (timed == step) & (room > 0)
+    if not keep.any():
+        return np.zeros(0, np.int64)
+    base, step, room = dst[keep], step[keep], room[keep]
+    j = np.arange(int(room.sum())) - np.repeat(np.cumsum(room) - room, room) + 1
+    return np.repeat(base, room) + j * np.repeat(step, room)
+
+
+def _closure(eng, c0, timers, smax, tmax, progress=None, t0=0.0):
+    """Phase one: every code reachable from ``c0`` expanded once (with guessed timer runs):
+    ``(codes, src, lid, dst, errors)``: the code of each entry, the transitions as
+    (source entry, leaf id, target entry), ``errors`` as (entry, leaf) pairs. Entries are
+    numbered in the order their codes are first met (the visited set of the ordinary
+    search: ``_Bitmap`` or ``_Hashed``; targets become entries once, at the end). None
+    when it does not pay off (far past a budget, more paths than ``PATHS_MIN``) or the
+    tracer cannot follow: the caller then runs the ordinary search."""
+    seen = (_Bitmap if eng.total <= DENSE_LIMIT else _Hashed)(eng.total, c0)
+    srcs, lids, dsts, errs = [], [], [], []
+    # past 1.5 times a budget (the guesses included) the ordinary search takes over
+    limit, nt = smax + smax // 2 + CLOSURE_BATCH, 0
+    eng.max_paths = PATHS_MIN  # more paths than the ordinary search may trace: give up
+    head = 0  # entries are expanded in the order they are numbered
+    while head < seen.n:
+        batch = seen.batch(head, min(CLOSURE_BATCH, seen.n - head))
+        try:
+            out, ev = eng.expand(batch, ROWS_LIMIT)
+        except (_Wide, _Stop):
+            return None
+        except Exception:  # e.g. Untraceable, maybe on a guessed state no run reaches
+            return None
+        ok = [(leaf, rows) for leaf, rows in out if leaf.kind == "ok"]
+        rows, lid, dst = _transitions(ok, batch, ev)
+        errs.extend((head + r, leaf) for leaf, rs in out if leaf.kind == "error" for r in rs.tolist())
+        fresh = ~seen.seen(dst)
+        nt += len(dst)
+        new = _first_met(dst[fresh])
+        seen.add(new)
+        if timers and len(new):
+            guess = _timer_runs(eng, timers, batch[rows[fresh]], dst[fresh])
+            if len(guess):
+                seen.add(_first_met(guess[~seen.seen(guess)]))
+        if seen.n > limit or nt > tmax + tmax // 2 + ROWS_LIMIT:
+            return None  # far past a budget: the ordinary search cuts there
+        srcs.append(rows + head)
+        lids.append(lid)
+        dsts.append(dst)
+        head += len(batch)
+        if progress is not None:  # codes expanded so far (guesses included), then the exact figures
+            progress(head, nt, time.perf_counter() - t0)
+    cat = (lambda xs: np.concatenate(xs) if xs else np.zeros(0, np.int64))
+    return (seen.codes[:seen.n].astype(np.int64), cat(srcs), cat(lids),
+            seen.number(cat(dsts)).astype(np.int64), errs)
+
+
+def _first_met(codes: np.ndarray) -> np.ndarray:
+    """The distinct ``codes`` in the order they first occur."""
+    if not len(codes):
+        return codes
+    _, first = np.unique(codes, return_index=True)
+    return codes[np.sort(first)]
+
+
+def _number(n_entries, e0, t_src, t_dst, order_key):
+    """Phase two: the breadth-first numbering of the entries reachable from ``e0``, states
+    numbered in order of first discovery, each state's transitions in ``order_key`` order:
+    ``(entry of each state id, id of each entry (-1: unreached), positions of the
+    transitions in the system's order, parent transition of each state)``."""
+    span = int(order_key.max()) + 1 if len(order_key) else 1
+    if n_entries * span < 1 << 62:  # one int64 key: a stable sort of a nearly sorted array
+        order = np.argsort(t_src * span + order_key, kind="stable")
+    else:
+        order = np.lexsort((order_key, t_src))
+    offs = np.zeros(n_entries + 1, np.int64)
+    np.cumsum(np.bincount(t_src, minlength=n_entries), out=offs[1:])
+    tgt_sorted = t_dst[order]
+    id_of = np.full(n_entries, -1, np.int64)
+    id_of[e0] = 0
+    big = np.iinfo(np.int64).max
+    first = np.full(n_entries, big, np.int64)
+    level, n, states, picks = np.array([e0], np.int64), 1, [np.array([e0], np.int64)], []
+    parents, done = [np.array([-1], np.int64)], 0  # parents: the transition that discovered each state
+    while len(level):
+        starts = offs[level]
+        counts = offs[level + 1] - starts
+        total = int(counts.sum())
+        if not total:
+            break
+        idx = np.repeat(starts - (np.cumsum(counts) - counts), counts) + np.arange(total)
+        picks.append(idx)
+        tgt = tgt_sorted[idx]
+        at = np.flatnonzero(id_of[tgt] < 0)
+        cand = tgt[at]
+        pos = np.arange(len(cand))
+        np.minimum.at(first, cand, pos)
+        win = pos[first[cand] == pos]  # each new entry once, in order of first discovery
+        new = cand[win]
+        first[cand] = big
+        id_of[new] = np.arange(n, n + len(new))
+        parents.append(done + at[win])
+        n += len(new)
+        done += total
+        states.append(new)
+        level = new
+    pos = order[np.concatenate(picks)] if picks else np.zeros(0, np.int64)
+    return np.concatenate(states), id_of, pos, np.concatenate(parents)
+
+
+def _search_closure(model, kind, fsm, kept, eng, c0, smax, tmax, progress, t0, op):
+    """The system of a model with timers by ``_closure`` then ``_number``: the same system
+    as the ordinary search (states, numbering, transitions, labels, parents, violations,
+    domain errors), or None when the first phase gives up or the state budget is hit."""
+    prog = model.program
+    timers = _timer_slots(prog, kept, eng.mults)
+    got = _closure(eng, c0, timers, smax, tmax, progress, t0)
+    if got is None:
+        return None
+    codes, t_src, t_lid, t_dst, errs = got
+    ords = eng.ordinals()
+    entries, id_of, pos, parent = _number(len(codes), 0, t_src, t_dst, ords[t_lid])
+    n, nt = len(entries), len(pos)
+    if n > smax or nt > tmax:
+        return None  # a budget cuts the system: the ordinary search cuts it exactly
+    lid = t_lid[pos]
+    src, dst = id_of[t_src[pos]], id_of[t_dst[pos]]
+    del t_src, t_dst, t_lid, pos, got  # the code graph: its memory back before the system's arrays
+    # labels numbered in order of first use, as the generic engine does
+    labels, label_goal, label_ids = [], [], {}
+    leaf_label = np.full(len(eng.leaves), -1, np.int64)
+    by_leaf = np.argsort(lid.astype(np.int16) if len(eng.leaves) < 1 << 15 else lid, kind="stable")  # radix sort
+    cut = np.flatnonzero(np.diff(lid[by_leaf], prepend=-1))
+    u, first = lid[by_leaf[cut]], by_leaf[cut]  # each leaf used and its first transition
+    for li in u[np.argsort(first)].tolist():
+        name = eng.leaves[li].label
+        lab = label_ids.get(name)
+        if lab is None:
+            lab = label_ids[name] = len(labels)
+            labels.append(name)
+            label_goal.append(eng.leaves[li].goal)
+        leaf_label[li] = lab
+    leaf_status = np.array([leaf.status or 0 for leaf in eng.leaves], np.int8)
+    leaf_viol = np.array([leaf.violations is not None for leaf in eng.leaves], bool)
+    violations = [(t, eng.leaves[int(lid[t])].violations) for t in np.flatnonzero(leaf_viol[lid]).tolist()]
+    state_codes = codes[entries]
+    errors = []
+    if errs:
+        by_id = {}
+        for e, leaf in errs:
+            i = int(id_of[e])
+            if i >= 0:
+                by_id.setdefault(leaf, []).append(i)
+        bad = [(leaf, np.array(sorted(rows), np.int64)) for leaf, rows in by_id.items()]
+        errors = _errors(eng, prog, bad, state_codes, 0, ords, None)
+    states = decode(prog, tuple(kept), state_codes + eng.offset, eng.offset, eng.mults)
+    seconds = time.perf_counter() - t0
+    if progress is not None:
+        progress(n, nt, seconds)
+    lab = leaf_label[lid]
+    goal = np.asarray(label_goal, dtype=np.int64)[lab] if kind == "fsm" else None
+    return TransitionSystem(model=model, kind=kind, fsm=fsm, slots=tuple(kept), states=states,
+                            src=src, dst=dst, label=lab, labels=tuple(labels),
+                            parent=parent, complete=True, seconds=seconds,
+                            status=leaf_status[lid], goal=goal,
+                            expanded=n, errors=tuple(errors), violations=tuple(violations), open=op,
+                            stopped=None)
+
+
 def search(model, kind, fsm, kept, run, s0, budget, progress, op, fallback: bool = True) -> TransitionSystem:
     """Explore one system breadth-first from ``s0`` with path-compiled batches: ``run(state,
     oracle)`` is one transition (``Program.step``, or ``OpenFSM.run`` with ``op`` at FSM
@@ -673,6 +893,11 @@ def search(model, kind, fsm, kept, run, s0, budget, progress, op, fallback: bool
     tmax = (1 << 62) if budget.max_transitions is None else budget.max_transitions
     chunk = CHUNK
     c0 = sum(v * m for v, m in zip(s0, mults)) - offset
+    if budget.max_seconds is None and _timer_slots(prog, kept, mults):
+        ts = _search_closure(model, kind, fsm, kept, eng, c0, smax, tmax, progress, t0, op)
+        if ts is not None:
+            return ts
+        eng = _Engine(model, run, kept, s0, op)  # the ordinary search, with a trie of its own
 
     visited = (_Bitmap if total <= DENSE_LIMIT else _Hashed)(total, c0)
     n, head, nt, complete, expanded = 1, 0, 0, True, None

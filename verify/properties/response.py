@@ -42,73 +42,87 @@ from ..counterexample import path_counterexample
 from ..system import cyclic_states, shortest_cycle, shortest_path
 from .base import Result, budget_hit, evaluate
 
-__all__ = ["check", "NAME", "INF", "worst_until", "best_until", "analyse", "ResponseBound"]
+__all__ = ["check", "NAME", "INF", "worst_until", "best_until", "reverse_csr", "analyse", "ResponseBound"]
 
 NAME = "response"
 INF = np.iinfo(np.int64).max  # no response on some behaviour
 
 
-def _in_csr(n, src, dst):
+def reverse_csr(n: int, src, dst) -> tuple:
+    """``(offs, pred)``: the sources of the edges into node ``v`` are
+    ``pred[offs[v]:offs[v + 1]]``, in edge order."""
+    src, dst = np.asarray(src, np.int64), np.asarray(dst, np.int64)
     order = np.argsort(dst, kind="stable")
     offs = np.zeros(n + 1, np.int64)
     np.cumsum(np.bincount(dst, minlength=n), out=offs[1:])
-    return offs, order
+    return offs, src[order]
 
 
-def _incoming(offs, order, nodes) -> np.ndarray:
-    """Positions of the edges into ``nodes`` (``offs``/``order``: the CSR by destination)."""
+def _preds(offs, pred, nodes) -> np.ndarray:
+    """The sources of the edges into ``nodes`` (with repeats), one gather."""
     starts = offs[nodes]
     counts = offs[nodes + 1] - starts
     total = int(counts.sum())
+    if not total:
+        return np.zeros(0, np.int64)
     first = np.repeat(starts - (np.cumsum(counts) - counts), counts)
-    return order[first + np.arange(total)]
+    return pred[first + np.arange(total)]
 
 
-def worst_until(n: int, src, dst, stop) -> np.ndarray:
+def _once(u, mark) -> np.ndarray:
+    """``u`` with each node once (one of its occurrences, no sort: the order does not
+    matter to the sweeps); ``mark``: a scratch array of -1 over the nodes, left as it
+    was found."""
+    pos = np.arange(len(u))
+    mark[u] = pos
+    keep = mark[u] == pos
+    mark[u] = -1
+    return u[keep]
+
+
+def worst_until(n: int, src, dst, stop, rev=None) -> np.ndarray:
     """Per node, the longest path (in edges) to a ``stop`` node that visits no other stop
     node before; ``INF`` when a path from it avoids stop nodes for ever (a cycle, or a
-    node without successors, reachable outside the stop nodes)."""
+    node without successors, reachable outside the stop nodes). ``rev``: the
+    ``reverse_csr`` of the edges, if already built.
+
+    Kahn's algorithm backwards from the stop nodes, one numpy step per round: a node
+    leaves ``pending`` in round k when the last of its successors left it in round k - 1,
+    so its longest path is k (stop nodes: round 0). Edges out of stop nodes do not count."""
     src, dst = np.asarray(src, np.int64), np.asarray(dst, np.int64)
     stop = np.asarray(stop, bool)
-    free = ~stop[src]  # edges leaving a non-stop node: the only ones that count
-    s, d = src[free], dst[free]
-    pending = np.bincount(s, minlength=n).astype(np.int64)
-    pending[stop] = 0
-    worst = np.zeros(n, np.int64)
-    done = stop.copy()
-    offs, order = _in_csr(n, s, d)
-    frontier = np.flatnonzero(stop)
-    while frontier.size:
-        idx = _incoming(offs, order, frontier)
-        if not idx.size:
-            break
-        u, v = s[idx], d[idx]
-        np.maximum.at(worst, u, worst[v] + 1)
-        pending -= np.bincount(u, minlength=n)
-        cand = np.unique(u)
-        frontier = cand[(pending[cand] == 0) & ~done[cand]]
-        done[frontier] = True
-    out = np.where(done, worst, INF)
-    return out
-
-
-def best_until(n: int, src, dst, stop) -> np.ndarray:
-    """Per node, the shortest path (in edges) to a ``stop`` node; ``INF`` when none."""
-    src, dst = np.asarray(src, np.int64), np.asarray(dst, np.int64)
-    best = np.full(n, INF, np.int64)
-    stop = np.asarray(stop, bool)
-    best[stop] = 0
-    offs, order = _in_csr(n, src, dst)
+    pending = np.bincount(src[~stop[src]], minlength=n).astype(np.int64)
+    offs, pred = reverse_csr(n, src, dst) if rev is None else rev
+    worst = np.full(n, INF, np.int64)
+    worst[stop] = 0
+    mark = np.full(n, -1, np.int64)
     frontier, k = np.flatnonzero(stop), 0
     while frontier.size:
         k += 1
-        idx = _incoming(offs, order, frontier)
-        if not idx.size:
+        u = _preds(offs, pred, frontier)
+        u = u[~stop[u]]
+        if not u.size:
             break
-        u = np.unique(src[idx])
-        u = u[best[u] == INF]
-        best[u] = k
-        frontier = u
+        np.subtract.at(pending, u, 1)
+        frontier = _once(u[pending[u] == 0], mark)
+        worst[frontier] = k
+    return worst
+
+
+def best_until(n: int, src, dst, stop, rev=None) -> np.ndarray:
+    """Per node, the shortest path (in edges) to a ``stop`` node; ``INF`` when none
+    (breadth-first backwards from the stop nodes; ``rev`` as for ``worst_until``)."""
+    stop = np.asarray(stop, bool)
+    best = np.full(n, INF, np.int64)
+    best[stop] = 0
+    offs, pred = reverse_csr(n, src, dst) if rev is None else rev
+    mark = np.full(n, -1, np.int64)
+    frontier, k = np.flatnonzero(stop), 0
+    while frontier.size:
+        k += 1
+        u = _preds(offs, pred, frontier)
+        frontier = _once(u[best[u] == INF], mark)
+        best[frontier] = k
     return best
 
 
@@ -142,8 +156,9 @@ class ResponseBound:
             tstates = np.flatnonzero(tmask)
         self.triggers = tstates
         n = ts.n_states
-        self.worst_at = worst_until(n, ts.src, ts.dst, self.stop)
-        self.best_at = best_until(n, ts.src, ts.dst, self.stop)
+        rev = reverse_csr(n, ts.src, ts.dst)
+        self.worst_at = worst_until(n, ts.src, ts.dst, self.stop, rev)
+        self.best_at = best_until(n, ts.src, ts.dst, self.stop, rev)
 
     @property
     def occurs(self) -> bool:
@@ -209,9 +224,11 @@ class ResponseBound:
             return prefix + self._longest_walk(t, worst), len(prefix), None
         return self._lasso(prefix, t)
 
-    def violation_witness(self, bound: int) -> tuple:
+    def violation_witness(self, bound: int) -> "tuple | None":
         """(transitions, trigger step index, loop or None) of the shortest run whose response
-        takes more than ``bound`` ticks: the lasso when the response never comes."""
+        takes more than ``bound`` ticks: the lasso when the response never comes. None on a
+        budget-cut system whose explored part holds no such run (the unbounded figure then
+        comes from states left unexpanded)."""
         bad = self.triggers[self.worst_at[self.triggers] > bound]
         prefix, t = self._entry(bad)
         if self.worst_at[t] == INF:
@@ -230,8 +247,9 @@ class ResponseBound:
         goal[on_cycle] = True
         goal[dead] = True
         walk = shortest_path(ts, t, goal, free)
-        if walk is None:
-            raise AssertionError("an unbounded response with no response-free cycle or dead end reachable")
+        if walk is None:  # only on a budget-cut system: the run goes on past the explored part
+            assert not ts.complete, "an unbounded response with no response-free cycle or dead end reachable"
+            return None
         end = int(ts.dst[walk[-1]]) if walk else t
         if end in set(dead.tolist()):
             return prefix + walk, len(prefix), None
@@ -303,9 +321,15 @@ def check(ctx) -> Result:
             text += f"; bound {req.within:g} s = {bound} ticks"
         notes.append(text)
         if bound is not None and worst > bound:
+            witness = rb.violation_witness(bound) if ce is None else None
+            if ce is None and witness is None:  # a cut system: no run of the explored part shows it
+                verdict = None if verdict is not False else False
+                notes.append(f"{req.name}: no run of the explored part exceeds the bound; the worst case "
+                             "comes from states the budget left unexpanded")
+                continue
             verdict = False
             if ce is None:
-                path, k, loop = rb.violation_witness(bound)
+                path, k, loop = witness
                 summary = (f"'{req.name}': '{req.response}' may never come after the trigger" if worst == INF else
                            f"'{req.name}': the response can take {worst / rb.rate:g} s > {req.within:g} s")
                 ce = counterexample(rb, path, k, loop, summary, bound)
