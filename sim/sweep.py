@@ -163,8 +163,10 @@ def _run_dask(specs, todo, workers, scheduler, finish):
     if scheduler:
         client, cluster = Client(scheduler), None
     else:
-        cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=":0",
-                               silence_logs=logging.ERROR)
+        # no dashboard, no memory monitor (memory_limit=0): neither is used here, and on a
+        # small machine their polling takes CPU from the trials
+        cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=None,
+                               memory_limit=0, silence_logs=logging.ERROR)
         client = Client(cluster)
     try:
         futures = client.map(run_spec, [specs[i] for i in todo], pure=False)
