@@ -236,3 +236,47 @@ def test_a_budget_cut_system_leaves_the_response_undecided_without_a_crash():
     (res,) = r.results
     assert r.exit_code == 3 and res.holds is None and res.counterexample is None
     assert any("left unexpanded" in n for n in res.notes)
+
+
+@settings(max_examples=300, deadline=None, derandomize=True, database=None)
+@given(st.integers(1, 8).flatmap(lambda n: st.tuples(
+    st.just(n), st.lists(st.tuples(st.integers(0, n - 1), st.integers(0, n - 1)), max_size=3 * n),
+    st.lists(st.booleans(), min_size=n, max_size=n), st.integers(0, 6))))
+def test_free_run_equals_a_brute_force_walk_count(case):
+    """free_run against enumerating every walk of up to cap transitions."""
+    from btfsm.verify.properties.response import free_run
+
+    n, edges, stop, cap = case
+    stop = np.array(stop, bool)
+    src = np.array([a for a, _ in edges], np.int64)
+    dst = np.array([b for _, b in edges], np.int64)
+
+    def longest(u, left):
+        if stop[u]:
+            return -1
+        best = 0
+        if left:
+            for a, b in edges:
+                if a == u and not stop[b]:
+                    best = max(best, 1 + longest(b, left - 1))
+        return best
+
+    assert free_run(n, src, dst, stop, cap).tolist() == [longest(u, cap) for u in range(n)]
+
+
+def test_a_violation_inside_a_budget_cut_system_is_reported_and_replays(tmp_path):
+    """Cut at 500,000 of its 1.2 M states, the timed baseline's explored part already holds
+    a run of 16 s without the response: a real violation (exit 1) whose counterexample
+    replays, although the unexpanded states make the worst case look unbounded."""
+    from btfsm.cli import main
+    from btfsm.models import ariac
+    from btfsm.verify.report import check
+
+    r = check(ariac.baseline_timed(), ["response"], max_states=500_000)
+    (res,) = r.results
+    assert r.exit_code == 1 and res.holds is False and res.counterexample is not None
+    assert any("the violation's run lies inside it" in n for n in res.notes)
+    assert main(["check", "ariac-baseline-timed", "--property", "response", "--max-states", "500000",
+                 "--counterexample-dir", str(tmp_path), "--quiet"]) == 1
+    (ce,) = tmp_path.glob("*.json")
+    assert main(["replay", str(ce), "ariac-baseline-timed"]) == 0
