@@ -175,7 +175,8 @@ def main(argv=None) -> int:
         if gen:
             line += f"; generic {gen['states'] / gen['seconds']:,.0f} states/s (cpu {gen['states'] / gen['cpu_seconds']:,.0f})"
             if spin:
-                line += f", SPIN/generic time {spin['seconds'] / gen['seconds']:.2f}x"
+                line += (f", SPIN/generic time {spin['seconds'] / gen['seconds']:.2f}x, memory "
+                         f"{spin['mem_total_mb'] / gen['rss_mb']:.2f}x (peak RSS {gen['rss_mb']:.0f} MB)")
         sca = next((r for r in rows if r["n"] == n and r["run"] == "btfsm generic, scalar"), None)
         if sca:
             line += f"; scalar {sca['states'] / sca['seconds']:,.0f} states/s"
