@@ -199,16 +199,9 @@ def conform(model, scenarios: int = 10, seed: int = 0, time_limit: float = 700.0
         return _conform_scene(model, scene, scenarios, seed, time_limit, path, max_states, on_explored, on_result,
                               drops)
     variant = variant_of(model)
-    monitor = checked = None
-    if path:
-        from btfsm.verify.explore import explore
-
-        ts = explore(model, max_states=max_states)
-        if not ts.complete:
-            return Conformance(model.name, [], [], None, incomplete=True)
-        monitor, checked = PathMonitor(ts), len(ts.states)
-        if on_explored is not None:
-            on_explored(checked)
+    monitor, checked, incomplete = _explore_monitor(model, path, max_states, on_explored)
+    if incomplete:
+        return Conformance(model.name, [], [], None, incomplete=True)
     from .binding import dialect_of
 
     parts = model.var(dialect_of(model).tray_var).hi
@@ -232,8 +225,8 @@ def _explore_monitor(model, path, max_states, on_explored):
     if not ts.complete:
         return None, None, True
     if on_explored is not None:
-        on_explored(len(ts.states))
-    return PathMonitor(ts), len(ts.states), False
+        on_explored(ts.n_states)
+    return PathMonitor(ts), ts.n_states, False
 
 
 def _conform_scene(model, scene, scenarios, seed, time_limit, path, max_states, on_explored, on_result,

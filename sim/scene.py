@@ -197,14 +197,14 @@ class Scene:
         r = self.robots[robot]
         return _seg_dist(p, *r["rail"]) <= r["reach"] + _EPS
 
+    def carriage(self, robot: str, p) -> tuple:
+        """Where on its rail (or at its base) the robot stands to reach ``p``: the nearest point."""
+        return _nearest_on_segment(p, *self.robots[robot]["rail"])
+
     def clamp_to_reach(self, robot: str, p) -> tuple:
         """The reachable point nearest to ``p`` (``p`` itself when it is reachable)."""
         r = self.robots[robot]
-        (ax, ay), (bx, by) = r["rail"]
-        dx, dy = bx - ax, by - ay
-        L2 = dx * dx + dy * dy
-        t = 0.0 if L2 == 0.0 else max(0.0, min(1.0, ((p[0] - ax) * dx + (p[1] - ay) * dy) / L2))
-        cx, cy = ax + t * dx, ay + t * dy
+        cx, cy = self.carriage(robot, p)
         ex, ey = p[0] - cx, p[1] - cy
         d = math.hypot(ex, ey)
         if d <= r["reach"]:
@@ -274,12 +274,18 @@ def _inside(r, p) -> bool:
     return r[0] <= p[0] <= r[2] and r[1] <= p[1] <= r[3]
 
 
-def _seg_dist(p, a, b) -> float:
+def _nearest_on_segment(p, a, b) -> tuple:
+    """The point of the segment a-b nearest to p."""
     ax, ay = a
     dx, dy = b[0] - ax, b[1] - ay
     L2 = dx * dx + dy * dy
     t = 0.0 if L2 == 0.0 else max(0.0, min(1.0, ((p[0] - ax) * dx + (p[1] - ay) * dy) / L2))
-    return math.hypot(p[0] - ax - t * dx, p[1] - ay - t * dy)
+    return (ax + t * dx, ay + t * dy)
+
+
+def _seg_dist(p, a, b) -> float:
+    cx, cy = _nearest_on_segment(p, a, b)
+    return math.hypot(p[0] - cx, p[1] - cy)
 
 
 class Profile:
@@ -715,14 +721,15 @@ class World:
         t = r.k * dt
         if r.prof.dist > 0.0:
             r.z = r.z0 + (r.z1 - r.z0) * r.prof.at(t) / r.prof.dist
-        vx, vy = self._pursuit(r, part)
+        pv = self._velocity(part)
+        px, py = part.x + pv[0] * dt, part.y + pv[1] * dt  # where the part is after this step (belts move after robots)
+        vx, vy = self._pursuit(r, (px, py), pv)
         dvx, dvy = vx - r.vel[0], vy - r.vel[1]
         dv, dv_max = math.hypot(dvx, dvy), 2.0 * r.spec["acceleration"] * dt
         if dv > dv_max:  # acceleration limit
             vx, vy = r.vel[0] + dvx * dv_max / dv, r.vel[1] + dvy * dv_max / dv
         r.vel = (vx, vy)
         r.x, r.y = r.x + vx * dt, r.y + vy * dt
-        px, py = self._ahead(part)
         r.arrived = math.hypot(px - r.x, py - r.y) <= r.spec["track_tolerance"] and t >= r.prof.total
 
     def _velocity(self, part: _Part) -> tuple:
@@ -732,16 +739,12 @@ class World:
         (ax, ay), (bx, by), L = b["from"], b["to"], b["length"]
         return ((bx - ax) / L * b["speed"], (by - ay) / L * b["speed"])
 
-    def _ahead(self, part: _Part) -> tuple:
-        """Where the part will be after this step's belt motion (belts move after robots)."""
-        vx, vy = self._velocity(part)
-        return (part.x + vx * self.dt, part.y + vy * self.dt)
-
-    def _pursuit(self, r: _Robot, part: _Part) -> tuple:
-        """The part's velocity (feed-forward) plus a braking-limited approach to it."""
-        px, py = self._ahead(part)
-        cx, cy = self.scene.clamp_to_reach(r.name, (px, py))
-        fx, fy = self._velocity(part) if (cx, cy) == (px, py) else (0.0, 0.0)
+    def _pursuit(self, r: _Robot, target, velocity) -> tuple:
+        """The target's ``velocity`` (feed-forward) plus a braking-limited approach to it
+        (to the nearest reachable point, without feed-forward, when it is out of reach)."""
+        px, py = target
+        cx, cy = self.scene.clamp_to_reach(r.name, target)
+        fx, fy = velocity if (cx, cy) == (px, py) else (0.0, 0.0)
         ex, ey = cx - r.x, cy - r.y
         dist = math.hypot(ex, ey)
         if dist == 0.0:

@@ -66,11 +66,8 @@ def draw_world(ax, scene, snap: dict, title: "str | None" = None) -> None:
         if kind != "LOST":
             ax.add_patch(Circle((x, y), rad, color=_COLOUR.get(kind, "black")))
     for name, (x, y, held) in snap["robots"].items():
-        (ax_, ay_), (bx_, by_) = scene.robots[name]["rail"]  # the arm starts at its carriage
-        dx, dy = bx_ - ax_, by_ - ay_
-        L2 = dx * dx + dy * dy
-        t = 0.0 if L2 == 0.0 else max(0.0, min(1.0, ((x - ax_) * dx + (y - ay_) * dy) / L2))
-        ax.plot([ax_ + t * dx, x], [ay_ + t * dy, y], color="0.2", lw=1.5)
+        cx, cy = scene.carriage(name, (x, y))  # the arm starts at its carriage
+        ax.plot([cx, x], [cy, y], color="0.2", lw=1.5)
         ax.add_patch(Circle((x, y), scene.robots[name]["radius"], fill=False, edgecolor="red", lw=1.5))
     lost = sum(1 for p in snap["parts"] if p[5] == "LOST")
     ax.set_title(f"{title or scene.name}\nt = {snap['time']:.1f} s, lost {lost}", fontsize=9)

@@ -202,7 +202,7 @@ def test_the_first_phase_numbers_codes_in_the_order_first_met(batches, hashed):
     ref = {c0: 0}
     for batch in batches:
         codes = np.array(batch, np.int64)
-        new = traced._first_met(codes[~seen.seen(codes)])
+        new = codes[traced._first_positions(codes, np.flatnonzero(~seen.seen(codes)), 1 << 12)]
         assert new.tolist() == [c for c in dict.fromkeys(batch) if c not in ref]
         seen.add(new)
         for c in new.tolist():

@@ -42,7 +42,7 @@ import numpy as np
 
 from btfsm.errors import DomainError
 
-from .codec import code_dtype, codec, decode
+from .codec import code_dtype, codec
 from .labels import readable
 from .search import DEFAULT_MAX_STATES, Budget, EnumOracle
 from .system import DomainViolation, TransitionSystem
@@ -734,14 +734,14 @@ def _closure(eng, c0, timers, smax, tmax, progress=None, t0=0.0):
         ok = [(leaf, rows) for leaf, rows in out if leaf.kind == "ok"]
         rows, lid, dst = _transitions(ok, batch, ev)
         errs.extend((head + r, leaf) for leaf, rs in out if leaf.kind == "error" for r in rs.tolist())
-        fresh = ~seen.seen(dst)
+        fresh = np.flatnonzero(~seen.seen(dst))
         nt += len(dst)
-        new = _first_met(dst[fresh])
+        new = dst[_first_positions(dst, fresh, eng.total)]
         seen.add(new)
         if timers and len(new):
             guess = _timer_runs(eng, timers, batch[rows[fresh]], dst[fresh])
             if len(guess):
-                seen.add(_first_met(guess[~seen.seen(guess)]))
+                seen.add(guess[_first_positions(guess, np.flatnonzero(~seen.seen(guess)), eng.total)])
         if seen.n > limit or nt > tmax + tmax // 2 + ROWS_LIMIT:
             return None  # far past a budget: the ordinary search cuts there
         srcs.append(rows + head)
@@ -753,14 +753,6 @@ def _closure(eng, c0, timers, smax, tmax, progress=None, t0=0.0):
     cat = (lambda xs: np.concatenate(xs) if xs else np.zeros(0, np.int64))
     return (seen.codes[:seen.n].astype(np.int64), cat(srcs), cat(lids),
             seen.number(cat(dsts)).astype(np.int64), errs)
-
-
-def _first_met(codes: np.ndarray) -> np.ndarray:
-    """The distinct ``codes`` in the order they first occur."""
-    if not len(codes):
-        return codes
-    _, first = np.unique(codes, return_index=True)
-    return codes[np.sort(first)]
 
 
 def _number(n_entries, e0, t_src, t_dst, order_key):
@@ -826,9 +818,9 @@ def _search_closure(model, kind, fsm, kept, eng, c0, smax, tmax, progress, t0, o
     lid = t_lid[pos]
     src, dst = id_of[t_src[pos]], id_of[t_dst[pos]]
     del t_src, t_dst, t_lid, pos, got  # the code graph: its memory back before the system's arrays
-    # labels numbered in order of first use, as the generic engine does
-    labels, label_goal, label_ids = [], [], {}
-    leaf_label = np.full(len(eng.leaves), -1, np.int64)
+    # labels and edge codes (label, status) numbered in order of first use, as the ordinary search does
+    labels, label_goal, label_ids, kinds = [], [], {}, {}
+    leaf_edge = np.zeros(len(eng.leaves), np.int64)
     by_leaf = np.argsort(lid.astype(np.int16) if len(eng.leaves) < 1 << 15 else lid, kind="stable")  # radix sort
     cut = np.flatnonzero(np.diff(lid[by_leaf], prepend=-1))
     u, first = lid[by_leaf[cut]], by_leaf[cut]  # each leaf used and its first transition
@@ -839,8 +831,7 @@ def _search_closure(model, kind, fsm, kept, eng, c0, smax, tmax, progress, t0, o
             lab = label_ids[name] = len(labels)
             labels.append(name)
             label_goal.append(eng.leaves[li].goal)
-        leaf_label[li] = lab
-    leaf_status = np.array([leaf.status or 0 for leaf in eng.leaves], np.int8)
+        leaf_edge[li] = kinds.setdefault((lab, eng.leaves[li].status or 0), len(kinds))
     leaf_viol = np.array([leaf.violations is not None for leaf in eng.leaves], bool)
     violations = [(t, eng.leaves[int(lid[t])].violations) for t in np.flatnonzero(leaf_viol[lid]).tolist()]
     state_codes = codes[entries]
@@ -853,17 +844,23 @@ def _search_closure(model, kind, fsm, kept, eng, c0, smax, tmax, progress, t0, o
                 by_id.setdefault(leaf, []).append(i)
         bad = [(leaf, np.array(sorted(rows), np.int64)) for leaf, rows in by_id.items()]
         errors = _errors(eng, prog, bad, state_codes, 0, ords, None)
-    states = decode(prog, tuple(kept), state_codes + eng.offset, eng.offset, eng.mults)
     seconds = time.perf_counter() - t0
     if progress is not None:
         progress(n, nt, seconds)
-    lab = leaf_label[lid]
-    goal = np.asarray(label_goal, dtype=np.int64)[lab] if kind == "fsm" else None
-    return TransitionSystem(model=model, kind=kind, fsm=fsm, slots=tuple(kept), states=states,
-                            src=src, dst=dst, label=lab, labels=tuple(labels),
-                            parent=parent, complete=True, seconds=seconds,
-                            status=leaf_status[lid], goal=goal,
-                            expanded=n, errors=tuple(errors), violations=tuple(violations), open=op,
+    # the compact layout of the ordinary search (src is ascending: each state's transitions in a row)
+    offsets = np.zeros(n + 1, _small(nt))
+    np.cumsum(np.bincount(src, minlength=n), out=offsets[1:])
+    edge_label = np.zeros(len(kinds), _small(len(labels)))
+    edge_status = np.zeros(len(kinds), np.int8)
+    for (lab, st), e in kinds.items():
+        edge_label[e], edge_status[e] = lab, st
+    ids = _small(n)
+    return TransitionSystem(model=model, kind=kind, fsm=fsm, slots=tuple(kept),
+                            codes=state_codes.astype(code_dtype(eng.total)), offsets=offsets, dst=dst.astype(ids),
+                            edge=leaf_edge[lid].astype(_small(len(kinds))), edge_label=edge_label,
+                            edge_status=edge_status, label_goal=np.asarray(label_goal, dtype=np.int64) if kind == "fsm"
+                            else None, labels=tuple(labels), parent=parent.astype(offsets.dtype), complete=True,
+                            seconds=seconds, expanded=n, errors=tuple(errors), violations=tuple(violations), open=op,
                             stopped=None)
 
 
@@ -1024,6 +1021,8 @@ def _first_positions(dst: np.ndarray, at: np.ndarray, total: int) -> np.ndarray:
     >>> _first_positions(d, at, 10).tolist(), _first_positions(d, at, 1 << 62).tolist()
     ([0, 3, 4, 5], [0, 3, 4, 5])
     """
+    if not len(at):
+        return at
     if total * len(dst) < 1 << 62:
         key = dst[at] * len(dst) + at
         key.sort()
