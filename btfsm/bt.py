@@ -47,7 +47,7 @@ __all__ = [
     "ReactiveSequence", "MemorySequence", "ReactiveFallback", "MemoryFallback", "Parallel",
     "SequenceWithMemory", "ParallelAll", "IfThenElse", "WhileDoElse",
     "Inverter", "ForceSuccess", "ForceFailure", "Retry", "Repeat", "Guard", "Effects",
-    "KeepRunningUntilFailure", "RunOnce",
+    "KeepRunningUntilFailure", "RunOnce", "PipelineSequence", "RecoveryNode", "RoundRobin",
     "Condition", "Action", "SkillRequest", "walk", "NODE_TYPES",
 ]
 
@@ -132,6 +132,33 @@ class WhileDoElse(Composite):
     """Two or three children: the condition (the first) is ticked every tick; SUCCESS ticks
     the second (halting the third), FAILURE the third (halting the second) or returns
     FAILURE with two children."""
+
+
+class PipelineSequence(Composite):
+    """Nav2's ``PipelineSequence``: ticks every child from the first on every tick; a child
+    that returns RUNNING before the furthest child reached so far is left running and the
+    next one is ticked (earlier stages keep running while later ones work). FAILURE halts
+    every child; all SUCCESS halts every child and succeeds (docs/semantics.md 8.3)."""
+
+
+@dataclass(frozen=True)
+class RecoveryNode(Composite):
+    """Nav2's ``RecoveryNode`` (two children): the first child's FAILURE runs the second
+    (the recovery); the recovery's SUCCESS ticks the first again, at most ``retries``
+    times, all within one tick when nothing runs (docs/semantics.md 8.3)."""
+
+    retries: int = 1
+
+
+@dataclass(frozen=True)
+class RoundRobin(Composite):
+    """Nav2's ``RoundRobin``: ticks one child at a time starting at the one after the child
+    that last finished; SUCCESS on the first child that succeeds (the position is kept for
+    the next run), FAILURE when every child failed in a row. Without ``wrap_around`` (Nav2's
+    default) reaching the end of the children ends the run with FAILURE, even when the last
+    child succeeded (docs/semantics.md 8.3)."""
+
+    wrap_around: bool = False
 
 
 @dataclass(frozen=True)
@@ -283,6 +310,6 @@ def walk(node: Node) -> Iterator[Node]:
 
 NODE_TYPES = {cls.__name__: cls for cls in (
     ReactiveSequence, MemorySequence, ReactiveFallback, MemoryFallback, Parallel,
-    SequenceWithMemory, ParallelAll, IfThenElse, WhileDoElse,
+    SequenceWithMemory, ParallelAll, IfThenElse, WhileDoElse, PipelineSequence, RecoveryNode, RoundRobin,
     Inverter, ForceSuccess, ForceFailure, Retry, Repeat, KeepRunningUntilFailure, RunOnce, Guard, Effects,
     Condition, Action, SkillRequest)}

@@ -125,6 +125,17 @@ def _args_model(sp):
     sp.add_argument("--semantics", choices=SEMANTICS, default=None,
                     help="tick rules of this engine instead of the model's own (btfsm, btcpp: BehaviorTree.CPP 4, "
                          "pytrees: py_trees 2.6; see docs/semantics.md section 8)")
+    _args_xml(sp)
+
+
+def _args_xml(sp):
+    g = sp.add_argument_group("BehaviorTree.CPP XML trees (docs/model-files.md)")
+    g.add_argument("--node-library", metavar="NAME", default=None,
+                   help="model the custom nodes of this family of trees (nav2: Nav2's controls, decorators and leaves)")
+    g.add_argument("--nodes", metavar="FILE", type=input_file, action="append", default=None,
+                   help="a Groot2 node model file (TreeNodesModel): port kinds and types of the tree's nodes (repeatable)")
+    g.add_argument("--main-tree", metavar="ID", default=None, help="the BehaviorTree to check (default: the file's "
+                   "main_tree_to_execute, or its only tree)")
 
 
 def _args_scene(sp):
@@ -324,6 +335,7 @@ def _args_import(sp):
                     help="profile written into the model (default: the side file's, else btcpp)")
     sp.add_argument("--output", "-o", type=output_file(".yaml", ".yml", ".json"), default=None,
                     help="model file to write (.yaml, .yml or .json; default: YAML on stdout)")
+    _args_xml(sp)
 
 
 _ARGS = {"validate": _args_validate, "show": _args_show, "run": _args_run, "replay": _args_replay,
@@ -535,7 +547,8 @@ def cli_import(args) -> int:
                 same = False
             if same:
                 raise UsageError(f"--output {args.output}: is the input file {inp}; refusing to overwrite it")
-    model = load_xml_model(args.model, leaves=args.leaves)
+    model = load_xml_model(args.model, leaves=args.leaves, node_library=args.node_library, nodes=args.nodes or (),
+                           main_tree=args.main_tree)
     if args.semantics is not None and args.semantics != model.semantics:
         model = dataclasses.replace(model, semantics=args.semantics)
     text = dumps_model(model, fmt)

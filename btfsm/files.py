@@ -38,7 +38,7 @@ from pathlib import Path
 import yaml
 
 from .bt import (NODE_TYPES, Action, Composite, Condition, Decorator, Effects, Guard, Parallel, ParallelAll, Repeat, Retry,
-                 RunOnce, SkillRequest, walk)
+                 RunOnce, SkillRequest, walk, RecoveryNode, RoundRobin)
 from .errors import ModelError
 from .expr import Const, Expr, as_expr, to_text
 from .fsm import FSM, Edge, Marker, State
@@ -751,6 +751,8 @@ _NODE_FIELDS = {
     "Parallel": ("success_threshold", "failure_threshold", "synchronise", "selected", "children"),
     "SequenceWithMemory": ("children",), "ParallelAll": ("max_failures", "children"),
     "IfThenElse": ("children",), "WhileDoElse": ("children",),
+    "PipelineSequence": ("children",), "RecoveryNode": ("retries", "children"),
+    "RoundRobin": ("wrap_around", "children"),
     "KeepRunningUntilFailure": ("child",), "RunOnce": ("then_skip", "child"),
     "Inverter": ("child",), "ForceSuccess": ("child",), "ForceFailure": ("child",),
     "Retry": ("attempts", "child"), "Repeat": ("times", "child"), "Guard": ("condition", "child"),
@@ -1007,13 +1009,14 @@ class _Reader:
             kw["children"] = tuple(self.node(c, f"{path}.children[{i}]", root, kids, i, depth + 1) for i, c in enumerate(kids))
         if "child" in obj:
             kw["child"] = self.node(obj["child"], f"{path}.child", root, obj, "child", depth + 1)
-        for f in ("attempts", "times", "failure_threshold", "max_failures"):
+        for f in ("attempts", "times", "failure_threshold", "max_failures", "retries"):
             if f in obj:
                 kw[f] = self.integer(obj[f], f"{path}.{f}", obj, f)
-        if "then_skip" in obj:
-            if not isinstance(obj["then_skip"], bool):
-                raise self.fail(f"{path}.then_skip", f"expected true or false, got {_kind(obj['then_skip'])}", obj, "then_skip")
-            kw["then_skip"] = obj["then_skip"]
+        for f in ("then_skip", "wrap_around"):
+            if f in obj:
+                if not isinstance(obj[f], bool):
+                    raise self.fail(f"{path}.{f}", f"expected true or false, got {_kind(obj[f])}", obj, f)
+                kw[f] = obj[f]
         if obj.get("synchronise") is not None:
             if not isinstance(obj["synchronise"], bool):
                 raise self.fail(f"{path}.synchronise", f"expected true or false, got {_kind(obj['synchronise'])}", obj, "synchronise")
@@ -1318,14 +1321,18 @@ def builtin_models() -> dict:
     return dict(BUILTIN)
 
 
-def load_model(ref, *, file_name: "str | None" = None, semantics: "str | None" = None) -> Model:
+def load_model(ref, *, file_name: "str | None" = None, semantics: "str | None" = None, **xml) -> Model:
     """A Model from a file (.yaml/.yml/.json) or a built-in name (``builtin_models()``).
 
     ``semantics`` (a ``btfsm.profiles`` name) overrides the profile the model names.
 
     Built-in entries are ``module:function`` (a shipped function returning a Model) or a
-    file path relative to the ``models`` package; user input never names a module."""
-    model = _load_model(ref, file_name)
+    file path relative to the ``models`` package; user input never names a module.
+
+    ``xml``: ``node_library``, ``nodes``, ``main_tree`` for a BehaviorTree.CPP XML file
+    (``load_xml_model``); an error for any other model."""
+    xml = {k: v for k, v in xml.items() if v}
+    model = _load_model(ref, file_name, xml)
     if semantics is None or semantics == model.semantics:
         return model
     if semantics not in PROFILES:
@@ -1339,11 +1346,14 @@ def load_model(ref, *, file_name: "str | None" = None, semantics: "str | None" =
 
 
 def load_cli_model(args) -> Model:
-    """The model a command's arguments name: ``args.model``, under ``args.semantics`` when given."""
-    return load_model(args.model, semantics=getattr(args, "semantics", None))
+    """The model a command's arguments name: ``args.model``, under ``args.semantics`` when given
+    (and ``--node-library``, ``--nodes``, ``--main-tree`` for an XML tree)."""
+    return load_model(args.model, semantics=getattr(args, "semantics", None),
+                      node_library=getattr(args, "node_library", None), nodes=getattr(args, "nodes", None) or (),
+                      main_tree=getattr(args, "main_tree", None))
 
 
-def _load_model(ref, file_name) -> Model:
+def _load_model(ref, file_name, xml=None) -> Model:
     text = os.fspath(ref) if isinstance(ref, os.PathLike) else ref
     if not isinstance(text, str) or not text:
         raise _err("", f"expected a model file or a built-in model name, got {text!r}")
@@ -1357,7 +1367,10 @@ def _load_model(ref, file_name) -> Model:
     if text in registry:
         return _with_source(_load_builtin(text, registry[text], file_name), file_name or text)
     if suffix == ".xml":
-        return _with_source(load_xml_model(text, file_name=file_name), file_name or text)
+        return _with_source(load_xml_model(text, file_name=file_name, **(xml or {})), file_name or text)
+    if xml:
+        opts = ", ".join("--" + k.replace("_", "-") for k in xml)
+        raise _err("", f"{opts}: only for a BehaviorTree.CPP XML tree (.xml); {text} is not one", file_name or text)
     if suffix in FORMATS or os.path.exists(text):
         if os.path.isdir(text):
             raise _err("", "is a folder, not a model file", file_name or text)
@@ -1366,17 +1379,58 @@ def _load_model(ref, file_name) -> Model:
     raise _err("", f"no such file or built-in model '{text}' (model files end in .yaml, .yml, .json or .xml; built-in models: {names})")
 
 
-def load_xml_model(path, *, leaves=None, file_name: "str | None" = None) -> Model:
+def load_xml_model(path, *, leaves=None, file_name: "str | None" = None, node_library: "str | None" = None,
+                   nodes=(), main_tree: "str | None" = None) -> Model:
     """A Model from a BehaviorTree.CPP XML v4 file and its side file (``leaves``, or
-    ``STEM.btfsm.yaml`` beside the XML when found): ``btfsm.interop.btcpp_import``."""
-    from .interop.btcpp_import import side_file_for, xml_to_data
+    ``STEM.btfsm.yaml`` beside the XML when found): ``btfsm.interop.btcpp_import``.
+
+    ``node_library`` names a node library (``btfsm.interop.libraries``; else the side
+    file's ``node_library``), ``nodes`` are Groot2 node model files (``TreeNodesModel``;
+    the side file's ``node_models`` add to them, relative to the side file), ``main_tree``
+    the BehaviorTree to check. ``<include path=...>`` is read relative to the including
+    file, within the folder of ``path``."""
+    from .interop.btcpp_import import parse_xml, side_file_for, xml_to_data
+    from .interop.groot import models_of_document
+    from .interop.libraries import load_library
 
     shown = file_name or os.fspath(path)
     xml = read_model_bytes(path, shown)
     side_path = leaves if leaves is not None else side_file_for(path)
     side_name = None if side_path is None else os.fspath(side_path)
     side = {} if side_path is None else load_data(side_path)
-    result = xml_to_data(xml, shown, side, side_name)
+    lib_name = node_library if node_library is not None else (side.get("node_library") if isinstance(side, dict) else None)
+    if lib_name is not None and not isinstance(lib_name, str):
+        raise _err("node_library", "expected the name of a node library", side_name)
+    try:
+        library = load_library(lib_name) if lib_name is not None else None
+    except ModelError as exc:
+        raise (exc if node_library is not None else exc.at(file=side_name)) from None
+    files = [(os.fspath(f), os.fspath(f)) for f in nodes]
+    side_models = side.get("node_models") if isinstance(side, dict) else None
+    if side_models is not None:
+        if isinstance(side_models, str):
+            side_models = [side_models]
+        if not isinstance(side_models, list) or not all(isinstance(x, str) for x in side_models):
+            raise _err("node_models", "expected a node model file (or a list of them), relative to the side file", side_name)
+        base = Path(side_name).parent
+        files += [(os.fspath(base / x), x) for x in side_models]
+    models: dict = {}
+    for f, _text in files:
+        models.update({k: v for k, v in models_of_document(parse_xml(read_model_bytes(f, f), f), f).items()
+                       if k not in models})
+    top = Path(path).resolve().parent
+
+    def include(text, including):
+        here = Path(including).parent if including != shown else Path(path).parent
+        target = (here / text)
+        real = target.resolve()
+        if top not in real.parents:
+            raise _err("", f"<include path=\"{text}\"> leads outside the folder of {shown} ({top}): refused")
+        name = os.path.normpath(target)  # one name per file, so that a cycle of includes is seen
+        return parse_xml(read_model_bytes(real, name), name), name
+
+    result = xml_to_data(xml, shown, side, side_name, library=library, models=models, main_tree=main_tree,
+                         include=include)
     try:
         model = model_from_data(result.data, side_name or shown)
     except ModelError as exc:
@@ -1550,6 +1604,10 @@ def _node_data(n) -> dict:
         out["max_failures"] = n.max_failures
     if isinstance(n, RunOnce):
         out["then_skip"] = n.then_skip
+    if isinstance(n, RecoveryNode) and n.retries != 1:
+        out["retries"] = n.retries
+    if isinstance(n, RoundRobin) and n.wrap_around:
+        out["wrap_around"] = True
     if isinstance(n, Retry) and n.attempts != 1:
         out["attempts"] = n.attempts
     if isinstance(n, Repeat) and n.times != 1:

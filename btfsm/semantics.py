@@ -21,8 +21,8 @@ from dataclasses import dataclass
 
 from .bt import (Action, Condition, Effects, ForceFailure, ForceSuccess, Guard, IfThenElse, Inverter,
                  KeepRunningUntilFailure, MemoryFallback, MemorySequence, Node, Parallel, ParallelAll,
-                 ReactiveFallback, ReactiveSequence, Repeat, Retry, RunOnce, SequenceWithMemory,
-                 SkillRequest, WhileDoElse)
+                 PipelineSequence, ReactiveFallback, ReactiveSequence, RecoveryNode, Repeat, Retry, RoundRobin,
+                 RunOnce, SequenceWithMemory, SkillRequest, WhileDoElse)
 from .errors import ModelError
 from .expr import BOOL, Scope, Slot, Type, compile_effects, compile_fn
 from .profiles import profile
@@ -206,6 +206,17 @@ class Program:
                 info.mem = self._slot(f"{n.name}:failures", "memory", max(n.attempts, 1))
             elif isinstance(n, Repeat):
                 info.mem = self._slot(f"{n.name}:done", "memory", max(n.times, 1))
+            elif isinstance(n, PipelineSequence):
+                info.mem = self._slot(f"{n.name}:last", "memory", max(len(n.children), 1))
+            elif isinstance(n, RecoveryNode):
+                if n.retries < 0:
+                    raise ModelError(f"tree.{n.name}.retries", "must be at least 0")
+                info.mem = self._slot(f"{n.name}:retries", "memory", n.retries + 1)
+            elif isinstance(n, RoundRobin):
+                # the child to tick next (kept when the node finishes, reset by a halt) and the
+                # failures in a row of this run
+                info.mem = self._slot(f"{n.name}:child", "memory", max(len(n.children), 1))
+                info.mems = (self._slot(f"{n.name}:failed", "memory", max(len(n.children), 1)),)
             elif isinstance(n, Parallel) and n.synchronise and info.can_run:
                 # rule 'parallel synchronise': which children succeeded since the parallel started
                 info.mems = tuple(self._slot(f"{n.name}:succeeded:{k.node.name}", "memory", 2) for k in info.kids)
@@ -739,6 +750,9 @@ class Program:
                 return finish(SUCCESS, ctx)
             return tick
 
+        if isinstance(n, (PipelineSequence, RecoveryNode, RoundRobin)):
+            return self._nav2_control(info, kids, finish, where)
+
         if isinstance(n, (IfThenElse, WhileDoElse)):
             if len(kids) not in (2, 3):
                 raise ModelError(where, f"{type(n).__name__} needs 2 or 3 children, got {len(kids)}")
@@ -896,6 +910,99 @@ class Program:
                 return finish(st, ctx)
             return tick
         raise ModelError(where, f"unknown node type {type(n).__name__}")
+
+    def _nav2_control(self, info, kids, finish, where):
+        """Rules 'PipelineSequence', 'RecoveryNode', 'RoundRobin' (docs/semantics.md 8.3),
+        ported from navigation2's nav2_behavior_tree/plugins/control/*.cpp."""
+        n, s_mem, count = info.node, info.mem, len(kids)
+        every = tuple((k.flag, k.halt) for k in info.kids if k.can_run)  # BT.CPP's haltChildren()
+        if isinstance(n, PipelineSequence):
+            def tick(ctx):
+                s = ctx.s
+                last = s[s_mem]
+                for i in range(count):
+                    st = kids[i](ctx)
+                    if st == FAILURE:
+                        _halt_running(ctx, every)
+                        s[s_mem] = 0
+                        return finish(FAILURE, ctx)
+                    if st == RUNNING and i >= last:
+                        s[s_mem] = i
+                        return finish(RUNNING, ctx)
+                    # SUCCESS, or RUNNING of an earlier stage: it keeps running, go on
+                _halt_running(ctx, every)
+                s[s_mem] = 0
+                return finish(SUCCESS, ctx)
+            return tick
+
+        if isinstance(n, RecoveryNode):
+            if count != 2:
+                raise ModelError(where, f"a RecoveryNode has exactly 2 children, has {count}")
+            first, second = kids
+            k0, k1 = info.kids
+            limit = n.retries
+            halt0 = ((k0.flag, k0.halt),) if k0.can_run else ()
+            halt1 = ((k1.flag, k1.halt),) if k1.can_run else ()
+
+            def end(ctx, st):
+                _halt_running(ctx, every)  # halt(): the children, the index and the count
+                ctx.s[s_mem] = 0
+                return finish(st, ctx)
+
+            def tick(ctx):
+                s = ctx.s
+                retry = s[s_mem]
+                recovering = k1.flag is not None and s[k1.flag]  # current_child_idx_ == 1
+                while retry <= limit:
+                    if not recovering:
+                        st = first(ctx)
+                        if st == SUCCESS:
+                            _halt_running(ctx, halt1)
+                            return end(ctx, SUCCESS)
+                        if st == RUNNING:
+                            s[s_mem] = retry
+                            return finish(RUNNING, ctx)
+                        if retry >= limit:
+                            return end(ctx, FAILURE)
+                        _halt_running(ctx, halt0)
+                        recovering = True
+                    else:
+                        st = second(ctx)
+                        if st == RUNNING:
+                            s[s_mem] = retry
+                            return finish(RUNNING, ctx)
+                        if st == FAILURE:
+                            return end(ctx, FAILURE)
+                        _halt_running(ctx, halt1)
+                        retry += 1
+                        recovering = False
+                return end(ctx, FAILURE)  # pragma: no cover - the count never passes the limit
+            return tick
+
+        fail_mem, wrap = info.mems[0], n.wrap_around
+
+        def tick(ctx):  # RoundRobin
+            s = ctx.s
+            i, failed = s[s_mem], s[fail_mem]
+            while failed < count:
+                st = kids[i](ctx)
+                if st == RUNNING:
+                    s[s_mem], s[fail_mem] = i, failed
+                    return finish(RUNNING, ctx)
+                i += 1
+                if i == count:
+                    if not wrap:
+                        break  # the end of the children: FAILURE, whatever the last one returned
+                    i = 0
+                if st == SUCCESS:
+                    _halt_running(ctx, every)
+                    s[s_mem], s[fail_mem] = i, 0
+                    return finish(SUCCESS, ctx)
+                failed += 1
+            _halt_running(ctx, every)  # halt(): the children, the index and the count
+            s[s_mem] = s[fail_mem] = 0
+            return finish(FAILURE, ctx)
+        return tick
 
     def _parallel_memory(self, info, kids, need, fail_at, halts, finish):
         """BehaviorTree.CPP's Parallel (profile switch ``parallel_memory``): finished children
@@ -1058,7 +1165,7 @@ class Program:
             if other is info or other.root != info.root or not other.can_run or other.kids:
                 continue
             lca, branch = _lca(info, other)
-            if isinstance(lca.node, (Parallel, ParallelAll)) or branch.name in seen:
+            if isinstance(lca.node, (Parallel, ParallelAll, PipelineSequence)) or branch.name in seen:
                 continue
             seen.add(branch.name)
             b = self.nodes[branch.name]

@@ -24,6 +24,7 @@ entity is refused, so no entity expansion ("billion laughs") or external file ca
 """
 from __future__ import annotations
 
+import difflib
 import re
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -33,6 +34,7 @@ from ..bt import NODE_TYPES
 from ..errors import ModelError
 from ..expr import as_expr, names_in
 from ..world import check_label
+from .groot import read_models as read_node_models
 
 __all__ = ["XmlImport", "xml_to_data", "side_file_for", "parse_xml", "CONTROLS", "DECORATORS", "REFUSED",
            "MAX_ELEMENTS", "MAX_DEPTH", "MAX_INLINED", "SIDE_KEYS"]
@@ -91,7 +93,7 @@ SCRIPT_ATTRS = ("_skipIf", "_successIf", "_failureIf", "_while", "_onSuccess", "
 #: Attributes that are documentation only (Groot2 writes them).
 DOC_ATTRS = ("_description", "_uid", "_fullpath")
 #: Side-file keys the importer itself reads (every other key is passed to the model).
-SIDE_KEYS = ("nodes", "main_tree")
+SIDE_KEYS = ("nodes", "main_tree", "node_library", "node_models")
 _PORT_TAGS = ("input_port", "output_port", "inout_port")
 _MODEL_KINDS = ("Action", "Condition", "Control", "Decorator", "SubTree")
 _IDENT = re.compile(r"[A-Za-z_][A-Za-z0-9_]*\Z")
@@ -215,9 +217,19 @@ def side_file_for(xml_path) -> "Path | None":
     return None
 
 
-def xml_to_data(xml: bytes, xml_name: str, side: "dict | None" = None, side_name: "str | None" = None) -> XmlImport:
-    """BT.CPP XML v4 (bytes) plus side-file data -> btfsm model data (see the module doc)."""
-    return _Importer(xml_name, side or {}, side_name).run(parse_xml(xml, xml_name))
+def xml_to_data(xml: bytes, xml_name: str, side: "dict | None" = None, side_name: "str | None" = None, *,
+                library=None, models: "dict | None" = None, main_tree: "str | None" = None,
+                include=None) -> XmlImport:
+    """BT.CPP XML v4 (bytes) plus side-file data -> btfsm model data (see the module doc).
+
+    ``library``: a node library (``btfsm.interop.libraries.load_library``); ``models``:
+    ``{ID: groot.NodeModel}`` from node model files (used for IDs the XML's own
+    ``TreeNodesModel`` does not define); ``main_tree`` overrides the side file's and the
+    XML's choice; ``include(path, including_file) -> (root element, shown name)`` reads an
+    ``<include path=...>`` (None: includes are refused)."""
+    imp = _Importer(xml_name, side or {}, side_name)
+    imp.library, imp.extra_models, imp.main_override, imp.include = library, models or {}, main_tree, include
+    return imp.run(parse_xml(xml, xml_name))
 
 
 class _Importer:
@@ -253,9 +265,10 @@ class _Importer:
         self.lines: dict = {}
         self.used_nodes: set = set()
         self.pending: list = []
+        self.library, self.extra_models, self.main_override, self.include = None, {}, None, None
 
     def fail(self, el, problem):
-        return ModelError(el.where() if el is not None else "", problem, self.file)
+        return ModelError(el.where() if el is not None else "", problem, getattr(el, "file", None) or self.file)
 
     # ---------------------------------------------------------------- document
     def run(self, root: El) -> XmlImport:
@@ -263,10 +276,20 @@ class _Importer:
             raise self.fail(root, "expected <root BTCPP_format=\"4\"> as the document element")
         for a, v in root.attrs.items():
             if a == "BTCPP_format":
+                if v.strip() == "3":
+                    raise self.fail(root, "BTCPP_format=\"3\": a BehaviorTree.CPP 3 file; btfsm reads version 4 only: "
+                                          "convert it with BehaviorTree.CPP's script convert_v3_to_v4.py (or Groot2), "
+                                          "then check the result")
                 if v.strip() != "4":
                     raise self.fail(root, f"BTCPP_format=\"{v}\": only BehaviorTree.CPP XML version 4 is read")
             elif a != "main_tree_to_execute":
                 raise self.fail(root, f"unknown attribute '{a}' (expected BTCPP_format, main_tree_to_execute)")
+        self.document(root, (self.file,))
+        self.finish_models()
+        return self.main_part(root)
+
+    def document(self, root: El, chain: tuple):
+        """Read the BehaviorTrees, node models and includes of one XML document."""
         for el in root.children:
             if el.tag == "BehaviorTree":
                 tid = el.attrs.get("ID")
@@ -283,19 +306,48 @@ class _Importer:
             elif el.tag == "TreeNodesModel":
                 self.read_models(el)
             elif el.tag == "include":
-                raise self.fail(el, "<include> of other XML files is not read: put every tree in one file")
+                self.read_include(el, chain)
             else:
-                raise self.fail(el, "unknown element under <root> (expected BehaviorTree, TreeNodesModel)")
+                raise self.fail(el, "unknown element under <root> (expected BehaviorTree, TreeNodesModel, include)")
+
+    def read_include(self, el: El, chain: tuple):
+        if self.include is None:
+            raise self.fail(el, "<include> of other XML files is not read here: load the tree from its file")
+        extra = [a for a in el.attrs if a != "path"]
+        if extra:
+            raise self.fail(el, f"unknown attribute '{extra[0]}' of <include> (btfsm reads path=, relative to the "
+                                "including file; ros_pkg= is not supported)")
+        if not el.attrs.get("path", "").strip():
+            raise self.fail(el, "an <include> needs a path")
+        try:
+            sub, shown = self.include(el.attrs["path"].strip(), getattr(el, "file", None) or self.file)
+        except ModelError as exc:
+            raise self.fail(el, exc.problem) from None
+        if shown in chain:
+            raise self.fail(el, f"recursive <include>: {' -> '.join(chain + (shown,))}")
+        if sub.tag != "root":
+            raise ModelError(sub.where(), "expected <root BTCPP_format=\"4\"> as the document element", shown)
+        _mark(sub, shown)
+        self.document(sub, chain + (shown,))
+
+    def finish_models(self):
+        extra = dict(self.library.models) if self.library is not None else {}
+        extra.update(self.extra_models)
+        for ident, m in extra.items():
+            self.models.setdefault(ident, m.as_tuple())
+
+    def main_part(self, root: El) -> XmlImport:
         if not self.trees:
             raise self.fail(root, "no <BehaviorTree> in the file")
-        main = self.side.get("main_tree") or root.attrs.get("main_tree_to_execute")
+        main = self.main_override or self.side.get("main_tree") or root.attrs.get("main_tree_to_execute")
         if main is None:
             if len(self.trees) != 1:
                 raise self.fail(root, f"{len(self.trees)} BehaviorTrees ({', '.join(self.trees)}) and no "
                                       "main_tree_to_execute: say which one runs (or main_tree: ID in the side file)")
             main = next(iter(self.trees))
         if main not in self.trees:
-            raise self.fail(root, f"main tree '{main}' is not defined (trees: {', '.join(self.trees)})")
+            how = " (--main-tree)" if main == self.main_override else ""
+            raise self.fail(root, f"main tree '{main}'{how} is not defined (trees: {', '.join(self.trees)})")
         tree = self.node(self.trees[main].children[0], "tree", _Scope.root(), (main,), "")
         self.resolve_pending()
         data = {"name": self.side.get("name", main)}
@@ -316,25 +368,9 @@ class _Importer:
         return XmlImport(data, self.warnings, self.lines)
 
     def read_models(self, tnm: El):
-        for el in tnm.children:
-            if el.tag not in _MODEL_KINDS:
-                raise self.fail(el, f"unknown element in TreeNodesModel (expected {', '.join(_MODEL_KINDS)})")
-            ident = el.attrs.get("ID")
-            if not ident:
-                raise self.fail(el, "a TreeNodesModel entry needs an ID")
-            ports, desc = {}, el.attrs.get("description", "")
-            for p in el.children:
-                if p.tag in _PORT_TAGS:
-                    pname = p.attrs.get("name")
-                    if not pname:
-                        raise self.fail(p, "a port needs a name")
-                    ports[pname] = (p.tag.split("_")[0], p.attrs.get("type", ""), p.attrs.get("default"))
-                elif p.tag == "description":
-                    desc = p.text.strip()
-                elif p.tag != "MetadataFields":
-                    raise self.fail(p, "unknown element in a node model (expected input_port, output_port, "
-                                       "inout_port, description)")
-            self.models[ident] = (el.tag, ports, desc, el)
+        file = getattr(tnm, "file", None) or self.file
+        for ident, m in read_node_models(tnm, file).items():
+            self.models[ident] = m.as_tuple()
 
     # ---------------------------------------------------------------- nodes
     def unique(self, name: str, el: El) -> str:
@@ -368,6 +404,8 @@ class _Importer:
         shown = name_attr or ident
         if ident in CONTROLS or ident in DECORATORS:
             return self.inner(el, ident, path, scope, stack, prefix)
+        if self.library is not None and self.library.knows(ident):
+            return self.library.inner(self, el, ident, path, scope, stack, prefix)
         decl = self.declaration(prefix + shown, shown, ident)
         if ident in REFUSED and decl is None and shown not in self.side_prims and ident not in self.side_prims:
             raise self.fail(el, f"{ident} {REFUSED[ident]}: not modelled by btfsm (declare '{shown}' under "
@@ -380,17 +418,27 @@ class _Importer:
                 return self.node(el.children[0], path, scope, stack, prefix)
             model = self.models.get(ident)
             what = f"declared as a {model[0]} in TreeNodesModel" if model else "not a BehaviorTree.CPP 4 control or decorator"
-            raise self.fail(el, f"unknown node type with children ({what}); btfsm models the standard controls and "
-                                f"decorators: {', '.join(list(CONTROLS) + list(DECORATORS))}")
+            known = list(CONTROLS) + list(DECORATORS)
+            lib = ""
+            if self.library is not None:
+                what += f" nor one of the {self.library.name} node library"
+                lib = f" and the {self.library.name} library's"
+            close = difflib.get_close_matches(ident, known + ([k for k, m in self.models.items() if m[0] in (
+                "Control", "Decorator")]), 1, 0.6) or [k for k in known if k.lower() == ident.lower()]
+            hint = f"; did you mean '{close[0]}'? (BehaviorTree.CPP refuses it too: tags are case-sensitive)" \
+                if close else ""
+            raise self.fail(el, f"unknown node type with children ({what}){hint}; btfsm models the standard controls "
+                                f"and decorators{lib}: {', '.join(known)}")
         return self.leaf(el, ident, kind, shown, path, scope, prefix)
 
-    def node_key(self, full, name, ident):
-        """The ``nodes`` key that declares a node: its full name (SubTree prefix included),
-        its name, its ID; None when there is none."""
-        return next((k for k in (full, name, ident) if k in self.nodes), None)
+    def node_key(self, *keys):
+        """The ``nodes`` key that declares a node: (for a leaf) its unique name as ``btfsm
+        import`` prints it (``pick#2``), its full name (SubTree prefix included), its name,
+        its ID; None when there is none."""
+        return next((k for k in keys if k in self.nodes), None)
 
-    def declaration(self, full, name, ident):
-        key = self.node_key(full, name, ident)
+    def declaration(self, *keys):
+        key = self.node_key(*keys)
         return None if key is None else self.nodes[key]
 
     def inner(self, el, tag, path, scope, stack, prefix):
@@ -494,13 +542,15 @@ class _Importer:
                 continue
             var = res[1]
             ptype = model[1][a][1] if model is not None else ""
-            self.declare_var(el, var, a, ptype)
+            if not self.declare_var(el, var, a, ptype):
+                args[a] = v  # an entry the node library leaves out of the model (kept as text)
+                continue
             args[a] = "{" + var + "}"
             if model is not None and model[1][a][0] in ("output", "inout"):
                 written.append(var)
-        decl = self.declaration(prefix + shown, shown, ident)
+        decl = self.declaration(name, prefix + shown, shown, ident)
         if decl is not None:
-            key = self.node_key(prefix + shown, shown, ident)
+            key = self.node_key(name, prefix + shown, shown, ident)
             self.used_nodes.add(key)
             return self.declared(el, name, ident, key, decl, args)
         for key in (shown, ident):
@@ -526,6 +576,10 @@ class _Importer:
             return {"Condition": name, "expr": _EXPR.match(desc)["expr"].strip()}
         if model is not None and model[2] and _SKILL.match(model[2]) and kind == "Action":
             got = self.from_description(el, name, kind, model[2])
+            if got is not None:
+                return got
+        if self.library is not None:
+            got = self.library.leaf(self, el, name, ident, kind, written, args)
             if got is not None:
                 return got
         if ident in BUILTIN_LEAVES and not ports:
@@ -598,15 +652,19 @@ class _Importer:
                 return list(range(lo, hi + 1))
         return None
 
-    def declare_var(self, el, var, port, ptype):
+    def declare_var(self, el, var, port, ptype) -> bool:
+        """Make the entry ``var`` a world variable (True), or leave it out of the model
+        when the node library says its type is not finite (False)."""
         if var in self.variables:
-            return
+            return True
         if not _IDENT.match(var):
             raise self.fail(el, f"port {port}: blackboard entry '{var}' is not an identifier, so it cannot be "
                                 "a btfsm world variable")
         if ptype in _BOOL_TYPES:
             self.variables[var] = "bool"
-            return
+            return True
+        if self.library is not None and ptype and self.library.opaque(ptype):
+            return False
         why = f"has type {ptype}, which is not finite" if ptype else "has no declared type (no TreeNodesModel port type)"
         raise self.fail(el, f"port {port}: blackboard entry {{{var}}} {why}: declare '{var}' under variables: in the "
                             "side file (bool, enum or int range) to model it")
@@ -693,6 +751,15 @@ class _Scope:
         if self.auto:
             return self.parent.lookup(key)
         return ("var", f"{self.prefix}__{key}")
+
+
+def _mark(el: El, file: str):
+    """Tag every element of an included document with its file (for error messages)."""
+    stack = [el]
+    while stack:
+        e = stack.pop()
+        e.file = file
+        stack.extend(e.children)
 
 
 def _ident(text: str) -> str:
