@@ -17,6 +17,7 @@ from btfsm.profiles import SEMANTICS
 from btfsm.world import Bool, Enum, Int
 
 __all__ = ["random_models", "timed_models"]
+_NAV2 = ("PipelineSequence", "RecoveryNode", "RoundRobin")
 
 _ENUM_VALUES = ["idle", "busy", "bins", "agv", "belt", "it's", "a b"]
 _STATE_IDS = ["home", "approach bins", "grasp", "raise on X", "s4", "état", "put-on"]
@@ -130,7 +131,9 @@ class _Names:
 
 def _node(draw, ctx, depth, leaves_only_fsm=False):
     names, variables, prims, fsms = ctx["names"], ctx["variables"], ctx["prims"], ctx["fsms"]
-    kinds = list(NODE_TYPES) if depth > 0 else ["Condition", "Action", "SkillRequest"]
+    # Nav2's controls (docs/semantics.md 8.3) have no BehaviorTree.CPP or py_trees counterpart
+    # to export to; tests/test_nav2.py covers them
+    kinds = [k for k in NODE_TYPES if k not in _NAV2] if depth > 0 else ["Condition", "Action", "SkillRequest"]
     if leaves_only_fsm or not fsms:
         kinds = [k for k in kinds if k != "SkillRequest"]
     t = draw(st.sampled_from(kinds))

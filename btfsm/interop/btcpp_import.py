@@ -277,9 +277,9 @@ class _Importer:
         for a, v in root.attrs.items():
             if a == "BTCPP_format":
                 if v.strip() == "3":
-                    raise self.fail(root, "BTCPP_format=\"3\": a BehaviorTree.CPP 3 file; btfsm reads version 4 only: "
-                                          "convert it with BehaviorTree.CPP's script convert_v3_to_v4.py (or Groot2), "
-                                          "then check the result")
+                    raise self.fail(root, "BTCPP_format=\"3\": only BehaviorTree.CPP XML version 4 is read: convert "
+                                          "this version 3 file with BehaviorTree.CPP's script convert_v3_to_v4.py (or "
+                                          "Groot2), then check the result")
                 if v.strip() != "4":
                     raise self.fail(root, f"BTCPP_format=\"{v}\": only BehaviorTree.CPP XML version 4 is read")
             elif a != "main_tree_to_execute":
@@ -423,8 +423,8 @@ class _Importer:
             if self.library is not None:
                 what += f" nor one of the {self.library.name} node library"
                 lib = f" and the {self.library.name} library's"
-            close = difflib.get_close_matches(ident, known + ([k for k, m in self.models.items() if m[0] in (
-                "Control", "Decorator")]), 1, 0.6) or [k for k in known if k.lower() == ident.lower()]
+                known += self.library.inner_ids()
+            close = [k for k in known if k.lower() == ident.lower()] or difflib.get_close_matches(ident, known, 1, 0.7)
             hint = f"; did you mean '{close[0]}'? (BehaviorTree.CPP refuses it too: tags are case-sensitive)" \
                 if close else ""
             raise self.fail(el, f"unknown node type with children ({what}){hint}; btfsm models the standard controls "

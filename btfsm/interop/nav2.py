@@ -113,6 +113,10 @@ class NodeLibrary:
     def knows(self, ident: str) -> bool:
         return ident in CONTROLS or ident in GATES or ident in PASS_THROUGH or ident in REFUSED
 
+    def inner_ids(self) -> list:
+        """The control and decorator IDs the library models."""
+        return [*CONTROLS, *GATES, *PASS_THROUGH]
+
     def opaque(self, ptype: str) -> bool:
         """A blackboard entry of this port type is left out of the model (not finite)."""
         return ptype not in _FINITE
