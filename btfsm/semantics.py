@@ -1215,7 +1215,10 @@ class Program:
             if isinstance(info.node, ReactiveSequence):
                 running = [k.node.name for k in info.kids if k.can_run]
                 if len(running) > 1:
-                    self.lints.append((f"tree.{info.node.name}", f"reactive sequence with several children that can run ({', '.join(running)}): an earlier one restarts each tick and halts the later ones; use MemorySequence"))
+                    # in the profile's own node names (BehaviorTree.CPP's, py_trees')
+                    what = "reactive sequence" if self.profile.name == "btfsm" else \
+                        self.profile.node_name("ReactiveSequence")
+                    self.lints.append((f"tree.{info.node.name}", f"{what} with several children that can run ({', '.join(running)}): an earlier one restarts each tick and halts the later ones; use {self.profile.node_name('MemorySequence')}"))
 
     # ------------------------------------------------------------------ running
     def step(self, state, oracle, record: bool = False) -> Step:

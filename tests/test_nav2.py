@@ -276,3 +276,20 @@ def test_docking_example_is_refused_for_its_inverter_typo(capsys):
     assert code == 2
     assert "application_example.xml: line 22: <inverter>: unknown node type with children" in err
     assert "did you mean 'Inverter'" in err and "Traceback" not in err
+
+
+# ---------------------------------------------------------------- issue 20.4: lints in the profile's names
+
+@pytest.mark.parametrize("semantics,text", [
+    ("btfsm", "reactive sequence with several children that can run (a, b): an earlier one restarts each tick and "
+              "halts the later ones; use MemorySequence"),
+    ("btcpp", "ReactiveSequence with several children that can run (a, b): an earlier one restarts each tick and "
+              "halts the later ones; use Sequence"),
+    ("pytrees", "Sequence(memory=False) with several children that can run (a, b): an earlier one restarts each tick "
+                "and halts the later ones; use Sequence(memory=True)")])
+def test_lints_speak_the_profile_node_names(semantics, text):
+    from btfsm import Action, Model, Outcome, ReactiveSequence, Status
+    outs = (Outcome(Status.RUNNING), Outcome(Status.SUCCESS))
+    m = Model("m", tree=ReactiveSequence("rs", [Action("a", outcomes=outs), Action("b", outcomes=outs)]),
+              semantics=semantics)
+    assert m.program.lints == [("tree.rs", text)]
