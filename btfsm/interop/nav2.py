@@ -80,7 +80,10 @@ PASS_THROUGH = ("GoalUpdater",)
 SYNC_ACTIONS = ("PlannerSelector", "ControllerSelector", "SmootherSelector", "GoalCheckerSelector",
                 "ProgressCheckerSelector", "PathHandlerSelector",
                 "AppendGoalPoseToGoals", "ConcatenatePaths", "ExtractRouteNodesAsGoals", "GetCurrentPose",
-                "GetNextFewGoals", "GetPoseFromPath", "RemovePassedGoals", "TruncatePath", "TruncatePathLocal")
+                "GetNextFewGoals", "GetPoseFromPath", "RemovePassedGoals", "TruncatePath", "TruncatePathLocal",
+                # BtCancelActionNode: waits for the cancel's answer within the tick
+                "CancelControl", "CancelBackUp", "CancelSpin", "CancelWait", "CancelDriveOnHeading",
+                "CancelAssistedTeleop", "CancelComputeAndTrackRoute", "CancelFollowObject")
 #: leaves that are Nav2 BtActionNodes: they send a goal to a ROS 2 action server on the tick
 #: they start and return RUNNING until its result arrives. The library assumes the result
 #: comes on a later tick than the goal (the one assumption it makes, docs/semantics.md 8.3):
