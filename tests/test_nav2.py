@@ -305,3 +305,22 @@ def test_lints_speak_the_profile_node_names(semantics, text):
     m = Model("m", tree=ReactiveSequence("rs", [Action("a", outcomes=outs), Action("b", outcomes=outs)]),
               semantics=semantics)
     assert m.program.lints == [("tree.rs", text)]
+
+
+def test_side_file_keys_node_library_and_node_models(tmp_path, capsys):
+    (tmp_path / "m").mkdir()
+    (tmp_path / "m" / "models.xml").write_text(
+        '<root BTCPP_format="4"><TreeNodesModel><Condition ID="Ready"><input_port name="flag" type="bool"/>'
+        '</Condition></TreeNodesModel></root>')
+    (tmp_path / "t.xml").write_text('<root BTCPP_format="4"><BehaviorTree ID="T"><PipelineSequence name="p">'
+                                    '<Ready flag="{f}"/><FollowPath/></PipelineSequence></BehaviorTree></root>')
+    (tmp_path / "t.btfsm.yaml").write_text("node_library: nav2\nnode_models: m/models.xml\n")
+    m = load_xml_model(tmp_path / "t.xml")
+    assert [v.name for v in m.variables] == ["f"] and type(m.tree).__name__ == "PipelineSequence"
+    (tmp_path / "t.btfsm.yaml").write_text("node_library: nav3\n")
+    with pytest.raises(ModelError, match=r"t.btfsm.yaml: node_library: unknown node library 'nav3' \(one of: nav2\)"):
+        load_xml_model(tmp_path / "t.xml")
+    from btfsm import cli
+    assert cli.main(["validate", str(tmp_path / "t.xml"), "--node-library", "nav2", "--nodes",
+                     str(tmp_path / "m" / "models.xml")]) == 0
+    assert "ok" in capsys.readouterr().out
