@@ -274,7 +274,6 @@ def test_nav2_trees_check(capsys):
 
 #: the trees whose in-tick RecoveryNode retries the checker cannot enumerate in time (tests/data/nav2/README.md)
 UNFINISHED = ("navigate_on_route_graph_w_recovery", "navigate_through_poses_w_replanning_and_recovery",
-              "navigate_to_pose_w_replanning_goal_patience_and_recovery",
               "navigate_w_routing_global_planning_and_control_w_recovery")
 
 
