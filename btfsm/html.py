@@ -326,7 +326,9 @@ def _svg(dot_text: str, prefix: str) -> str:
     for g in root.iter(f"{{{_SVG}}}g"):
         cls = g.get("class")
         gid = g.attrib.pop("id", None)
-        if cls == "node":
+        if cls == "node" and gid and gid.startswith("marker:"):  # a marker fires like an edge
+            g.set("data-k", "e:" + gid[len("marker:"):])
+        elif cls == "node":
             title = g.find(f"{{{_SVG}}}title")
             g.set("data-k", prefix + (title.text or "" if title is not None else ""))
         elif cls == "edge" and gid and gid.startswith("edge:"):
@@ -433,7 +435,7 @@ fetched. Keys: left/right arrow one tick, Home/End first/last tick, up/down arro
 <input id="slider" type="range" min="0" max="0" value="0" aria-label="tick">
 <button id="next" title="next tick (right arrow)">&#9654;</button> <span id="tickinfo"></span></div>
 <div id="strip"></div></section>
-<main>{tree_html}<div class="fsms">{"".join(fsm_html)}</div>
+<main><div class="graphs">{tree_html}<div class="fsms">{"".join(fsm_html)}</div></div>
 <section class="panel side"><h3>tick</h3><div id="events"></div><h3>variables</h3><div id="vars"></div>
 <div id="picture"></div></section></main>
 <script type="application/json" id="btfsm-data">{_script_json(data)}</script>

@@ -283,7 +283,7 @@
         var v = p.views[p.shown];
         var curs = v.svg.querySelectorAll("g.node.current");
         fsm[p.name] = curs.length ? curs[0].getAttribute("data-k").slice(2) : null;
-        v.svg.querySelectorAll("g.edge.fired").forEach(function (g) { fired.push([p.name, g.getAttribute("data-k").slice(2)]); });
+        v.svg.querySelectorAll("g.fired").forEach(function (g) { fired.push([p.name, g.getAttribute("data-k").slice(2)]); });
       });
       return { run: cur.run, tick: cur.tick, slider: Number(slider.value), nodes: nodes, halted: halted.sort(), fsm: fsm, fired: fired };
     }
