@@ -124,7 +124,7 @@ def _initial_tick(program, state, keep=None, time=None) -> dict:
 
 
 def _run(kind: str, title: str, initial: dict, ticks: list, **extra) -> dict:
-    run = {"kind": kind, "title": title, "initial": initial, "ticks": ticks, "loop": None, "mark": None,
+    run = {"kind": kind, "title": title, "initial": initial, "ticks": ticks, "loop": None, "marks": [],
            "summary": "", "violation": "", "pictures": []}
     run.update(extra)
     return run
@@ -175,9 +175,12 @@ def counterexample_run(model, ce, title: "str | None" = None) -> dict:
             rec = _recorded_tick(st["tick"], st.get("fsm") or ticks[-1]["fsm"], st, ticks[-1]["fsm"])
         if st.get("error"):
             rec["lines"].append(f"error: {st['error']}")
-            run["mark"] = st["tick"]
+            run["marks"].append([st["tick"], "the domain error"])
         ticks.append(rec)
     run["ticks"] = ticks
+    v = d.get("violation") or {}
+    if isinstance(v.get("trigger_step"), int) and 0 <= v["trigger_step"] < len(ticks):
+        run["marks"].append([v["trigger_step"], f"the trigger ({v.get('trigger')})"])
     return run
 
 
@@ -231,7 +234,7 @@ def trace_run(model, header: dict, records: list, title: str) -> dict:
 
     Each tick is re-run through ``Program.step`` answered from the record
     (``ReplayOracle``: the events by name, the outcomes in order), as ``btfsm replay``
-    does; the first tick whose re-run differs from the record is the run's ``mark`` (the
+    does; the first tick whose re-run differs from the record is marked on the timeline (the
     first nonconforming step), and from there the page shows the trace's own records
     (``nodes``: the status changes the trace records)."""
     from btfsm.clock import Clock
@@ -245,8 +248,8 @@ def trace_run(model, header: dict, records: list, title: str) -> dict:
         state = encode_state(prog, header.get("initial", {}))
         ticks = [_initial_tick(prog, state, time=0.0)]
     except ValueError as exc:
-        state, run["mark"] = None, 0
-        run["note"] = f"the trace's initial state does not fit {model.name}: {exc}"
+        state = None
+        run["marks"].append([0, f"the trace's initial state does not fit {model.name}: {exc}"])
         ticks = [_recorded_tick(0, {}, None, {})]
     clock, last = Clock(model.tick_rate), {}
     for rec in records:
@@ -266,8 +269,9 @@ def trace_run(model, header: dict, records: list, title: str) -> dict:
                 state = step.state
                 clock.tick += 1
             else:
-                state, run["mark"] = None, rec["tick"] + 1
-                run["note"] = f"tick {rec['tick']}: {why}"
+                state = None
+                run["marks"].append([rec["tick"] + 1, f"the first step that differs: trace tick {rec['tick']}: {why}"])
+                run["note"] = "from the first step that differs on, the page shows the trace's own records"
         if mine is None:
             mine = {"tick": rec["tick"] + 1, "time": rec["time"], "status": rec["status"], "nodes": dict(rec["changes"]),
                     "halted": [n for n, s in rec["changes"].items() if s == "halted"], "fsm": rec["fsm"],
@@ -290,7 +294,7 @@ class RunRecorder:
         self.pictures: list = []
         self.max_pictures = max_pictures
         self.initial: dict = {}
-        self.mark = None
+        self.marks: list = []  # [tick, text]: e.g. the first nonconforming step
         self.note = ""
 
     def start(self, state, time=0.0) -> None:
@@ -309,7 +313,7 @@ class RunRecorder:
         return True
 
     def run(self, **extra) -> dict:
-        return _run(self.kind, self.title, self.initial, self.ticks, mark=self.mark, pictures=self.pictures,
+        return _run(self.kind, self.title, self.initial, self.ticks, marks=self.marks, pictures=self.pictures,
                     note=self.note, **extra)
 
 

@@ -46,6 +46,7 @@
         views.forEach(function (v, i) { v.el.hidden = i !== panel.shown; });
         toggle.textContent = views[panel.shown].kind === "full" ? "visited states only" : "whole FSM";
         fit(views[panel.shown].svg);
+        size(sec.querySelector(".graph"));
         show();
       });
     }
@@ -91,6 +92,17 @@
     if (btn) { btn.addEventListener("click", function () { fit(svgOf()); }); }
   });
   document.querySelectorAll(".graph svg").forEach(fit);
+  // each drawing's box as tall as its picture at the page's width (within 180 px .. 75 % of the window)
+  function size(graph) {
+    var svg = graph.querySelector(".view:not([hidden]) svg");
+    if (!svg || !graph.clientWidth) { return; }
+    var b = svg.dataset.home.split(/[ ,]+/).map(Number);
+    var h = graph.clientWidth * b[3] / b[2] + 8;
+    graph.style.height = Math.round(Math.max(180, Math.min(window.innerHeight * 0.75, h))) + "px";
+  }
+  function sizeAll() { document.querySelectorAll(".graph").forEach(size); }
+  sizeAll();
+  window.addEventListener("resize", sizeAll);
 
   // ------------------------------------------------------------------ verdicts and runs
   function verdicts() {
@@ -121,8 +133,9 @@
         if (i === run.loop + 1) { cls += " loop"; }
         if (i > run.loop) { cls += " incycle"; }
       }
-      if (run.mark !== null && run.mark !== undefined && i === run.mark) { cls += " mark"; }
-      return "<div class=\"" + cls + "\" data-t=\"" + i + "\" title=\"tick " + t.tick + "\"></div>";
+      var title = "tick " + t.tick;
+      (run.marks || []).forEach(function (m) { if (m[0] === i) { cls += " mark"; title += ": " + m[1]; } });
+      return "<div class=\"" + cls + "\" data-t=\"" + i + "\" title=\"" + esc(title) + "\"></div>";
     });
     $("strip").innerHTML = html.join("");
   }
@@ -141,8 +154,8 @@
     if (run.loop !== null && run.loop !== undefined) {
       parts.push("lasso: the cycle starts after tick " + run.loop + " and returns to the state after tick " + run.loop + " (marked on the timeline)");
     }
-    if (run.mark !== null && run.mark !== undefined) { parts.push("<span class=\"note\">marked: tick " + run.mark + (run.note ? " (" + esc(run.note) + ")" : "") + "</span>"); }
-    else if (run.note) { parts.push("<span class=\"note\">" + esc(run.note) + "</span>"); }
+    (run.marks || []).forEach(function (m) { parts.push("<span class=\"note\">marked on the timeline: tick " + m[0] + ": " + esc(m[1]) + "</span>"); });
+    if (run.note) { parts.push("<span class=\"note\">" + esc(run.note) + "</span>"); }
     if (run.violation) { parts.push(esc(run.violation)); }
     $("summary").innerHTML = parts.filter(Boolean).join("\n");
     document.querySelectorAll("#verdicts tr").forEach(function (tr) {
@@ -200,6 +213,7 @@
     if (t.time !== null && t.time !== undefined) { info += ", t = " + Number(t.time).toFixed(2) + " s"; }
     if (t.status) { info += ", root " + t.status; }
     if (run.loop !== null && run.loop !== undefined && cur.tick > run.loop) { info += ", in the cycle"; }
+    (run.marks || []).forEach(function (m) { if (m[0] === cur.tick) { info += "; " + m[1]; } });
     $("tickinfo").textContent = info;
     document.querySelectorAll("#strip .at").forEach(function (d) { d.classList.remove("at"); });
     var cell = document.querySelector("#strip [data-t=\"" + cur.tick + "\"]");
