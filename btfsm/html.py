@@ -304,12 +304,13 @@ class RunRecorder:
     def tick(self, before, step, time=None) -> None:
         self.ticks.append(view_tick(self.program, len(self.ticks), step, before, time=time))
 
-    def picture(self, png: bytes) -> bool:
-        """Attach ``png`` to the last tick; False (nothing kept) once ``max_pictures`` are held."""
+    def picture(self, png: bytes, tick: int = -1) -> bool:
+        """Attach ``png`` to the tick at index ``tick`` (default the last); False (nothing
+        kept) once ``max_pictures`` are held."""
         if len(self.pictures) >= self.max_pictures:
             return False
         self.pictures.append("data:image/png;base64," + base64.b64encode(png).decode("ascii"))
-        self.ticks[-1]["picture"] = len(self.pictures) - 1
+        self.ticks[tick]["picture"] = len(self.pictures) - 1
         return True
 
     def run(self, **extra) -> dict:
@@ -374,7 +375,7 @@ def drawings(model, runs) -> dict:
         visited = _visited(runs, f.name)
         entry = {"name": f.name, "states": len(f.states), "visited": len(visited | {f.initial}),
                  "full": None, "collapsed": None}
-        if len(f.states) > COLLAPSE_AT and len(visited | {f.initial}) < len(f.states):
+        if len(f.states) > COLLAPSE_AT and visited and len(visited | {f.initial}) < len(f.states):
             entry["collapsed"] = _svg(_collapsed_dot(model, f, visited), "")
         if len(f.states) <= FULL_LIMIT or entry["collapsed"] is None:
             entry["full"] = _svg(fsm_to_dot(model, f), "")

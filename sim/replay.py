@@ -155,7 +155,7 @@ class _Pacer:
 
 
 def replay_in_cell(model, ce, *, time_limit: float = 120.0, render: "str | None" = None, gif: "str | None" = None,
-                   settle: float = 20.0, pace: "bool | None" = None) -> CellReplay:
+                   settle: float = 20.0, pace: "bool | None" = None, on_tick=None) -> CellReplay:
     """Run ``model`` in the ARIAC scene, raising the counterexample's events in its FSM states.
 
     ``pace`` (default: for a ``response`` counterexample, whose timing is the point): the
@@ -163,7 +163,7 @@ def replay_in_cell(model, ce, *, time_limit: float = 120.0, render: "str | None"
     the counterexample does is held running until the counterexample's tick (the arm waits
     where its move ended); the cell's arm cannot be made faster than it is. Stops
     ``settle`` seconds after the last injected part was lost or picked, or at
-    ``time_limit``."""
+    ``time_limit``. ``on_tick(rt, world)``: called after each tick (``cell_view.CellView``)."""
     from btfsm.runtime import Runtime
 
     from .experiment import TrialSpec
@@ -213,6 +213,8 @@ def replay_in_cell(model, ce, *, time_limit: float = 120.0, render: "str | None"
         binding.after_tick(rt)
         if pacer is not None:
             pacer.after(rt.fsm_state(d.fsm)[0])
+        if on_tick is not None:
+            on_tick(rt, world)
         world.step(steps)
         if frames is not None and rt.clock.tick % 5 == 0 and len(frames) < 2000:
             frames.append(world.snapshot())
@@ -295,13 +297,14 @@ def scene_triggers(ce: dict, fsms) -> list:
 
 
 def replay_in_scene(model, ce, scene, *, time_limit: float = 120.0, seed: "int | None" = None,
-                    render: "str | None" = None, settle: float = 20.0) -> SceneReplay:
+                    render: "str | None" = None, settle: float = 20.0, on_tick=None) -> SceneReplay:
     """Run ``model`` in ``scene`` with the scene's own arrivals switched off, and make
     each of the counterexample's environment events happen in the FSM states where the
     counterexample had it: a part is put where the sensor that raises the event will
     see it (upstream on a belt crossing its region, or in the area under it); an event
     no sensor raises is given to the model directly. Stops ``settle`` seconds after the
-    last injection, at the first conformance error, or at ``time_limit``."""
+    last injection, at the first conformance error, or at ``time_limit``. ``on_tick(rt,
+    world)``: called after each tick (``cell_view.CellView``)."""
     from btfsm.errors import ConformanceError, DomainError
     from btfsm.runtime import Runtime
 
@@ -318,7 +321,7 @@ def replay_in_scene(model, ce, scene, *, time_limit: float = 120.0, seed: "int |
     for name in world.arrivals:
         world.arrivals[name] = []
     binding = bind_model(scene, model, world)
-    rt = Runtime(model, binding.implementations())
+    rt = Runtime(model, binding.implementations(), record=on_tick is not None)
     pending = scene_triggers(ce, fsms)
     result = SceneReplay(model.name, scene.name, list(pending))
     steps = max(1, round(1.0 / (model.tick_rate * scene.dt)))
@@ -352,6 +355,8 @@ def replay_in_scene(model, ce, scene, *, time_limit: float = 120.0, seed: "int |
         except (ConformanceError, DomainError) as exc:
             result.mismatch = str(exc)
             break
+        if on_tick is not None:
+            on_tick(rt, world)
         world.step(steps)
         if done_at is not None and world.time >= done_at + settle:
             break
@@ -368,9 +373,11 @@ def replay_in_scene(model, ce, scene, *, time_limit: float = 120.0, seed: "int |
     return result
 
 
-def replay_for_cli(model, ce_json: dict, args) -> str:
+def replay_for_cli(model, ce_json: dict, args, record: bool = False):
     """``btfsm replay CE.json MODEL --cell [--scene FILE]``: the kitting cell for the
-    paper's models, else the scene (``--scene`` or the model's default scene)."""
+    paper's models, else the scene (``--scene`` or the model's default scene). Returns the
+    text; with ``record`` (``--html``), ``(text, run)``: the cell run as a view run
+    (``cell_view.CellView``), pictures included."""
     from btfsm.errors import UsageError
 
     from .binding import dialect_of, unsupported
@@ -378,13 +385,27 @@ def replay_for_cli(model, ce_json: dict, args) -> str:
     from .scene_trial import scene_for
 
     path = getattr(args, "scene", None)
+    view = None
     if path is None and dialect_of(model) is not None:
-        return replay_in_cell(model, ce_json, time_limit=args.time, render=args.render, gif=args.gif).text()
-    path = path or scene_for(model, args.model)
-    if path is None:
-        why = unsupported(model)
-        raise UsageError(f"{model.name}: the kitting cell cannot run this model ({why}) and it has no scene: "
-                         "give --scene FILE (docs/cell.md)")
-    if args.gif:
-        raise UsageError("--gif is not available for a scene replay yet (use --render)")
-    return replay_in_scene(model, ce_json, load_scene(path), time_limit=args.time, render=args.render).text()
+        if record:
+            from .cell_view import CellView
+
+            view = CellView(model, f"{model.name} in the kitting cell")
+        out = replay_in_cell(model, ce_json, time_limit=args.time, render=args.render, gif=args.gif, on_tick=view)
+    else:
+        path = path or scene_for(model, args.model)
+        if path is None:
+            why = unsupported(model)
+            raise UsageError(f"{model.name}: the kitting cell cannot run this model ({why}) and it has no scene: "
+                             "give --scene FILE (docs/cell.md)")
+        if args.gif:
+            raise UsageError("--gif is not available for a scene replay yet (use --render)")
+        scene = load_scene(path)
+        if record:
+            from .cell_view import CellView
+
+            view = CellView(model, f"{model.name} in scene {scene.name}")
+        out = replay_in_scene(model, ce_json, scene, time_limit=args.time, render=args.render, on_tick=view)
+    if not record:
+        return out.text()
+    return out.text(), view.run(summary=out.text().splitlines()[0])
