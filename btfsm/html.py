@@ -38,7 +38,7 @@ from importlib import resources
 from .show import GraphvizError, fsm_to_dot, render, tree_to_dot
 
 __all__ = ["FORMAT", "view_tick", "counterexample_run", "trace_run", "RunRecorder", "page", "write_page",
-           "require_dot", "COLLAPSE_AT"]
+           "read_page", "require_dot", "check_page", "replay_page", "COLLAPSE_AT"]
 
 FORMAT = "btfsm-view/1"
 _NAMES = ("RUNNING", "SUCCESS", "FAILURE")
@@ -455,6 +455,15 @@ def write_page(path, model, **kw) -> str:
 
     atomic_write_text(path, page(model, **kw))
     return str(path)
+
+
+def read_page(path) -> dict:
+    """The data a page was written from (its ``btfsm-data`` script element): format,
+    model, title, verdicts, runs, notes."""
+    text = open(path, encoding="utf-8").read()
+    start = text.index('<script type="application/json" id="btfsm-data">')
+    start = text.index(">", start) + 1
+    return json.loads(text[start:text.index("</script>", start)])
 
 
 def check_page(model, report) -> dict:

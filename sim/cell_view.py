@@ -66,15 +66,15 @@ class ConformViews:
     (view records and snapshots, no drawing) until the first one that does not conform;
     the page shows that one (else the first scenario), with the first mismatch marked."""
 
-    def __init__(self, model):
-        self.model = model
+    def __init__(self, model, max_pictures: int = 40):
+        self.model, self.max_pictures = model, max_pictures
         self.current = None
         self.first = self.failed = None  # (index, CellView, result)
 
     def __call__(self, index: int):
         if self.failed is not None:
             return None
-        self.current = CellView(self.model, f"scenario {index}")
+        self.current = CellView(self.model, f"scenario {index}", self.max_pictures)
         return self.current
 
     def result(self, index: int, scenario, res) -> None:

@@ -100,13 +100,16 @@ def picture_png(scene, snap: dict, title: "str | None" = None, fig=None) -> byte
     from PIL import Image
 
     fig = fig or _figure()
-    fig.clear()
-    draw_world(fig.add_subplot(1, 1, 1), scene, snap, title)
-    fig.tight_layout()
+    ax = fig.axes[0] if fig.axes else fig.add_subplot(1, 1, 1)
+    ax.clear()
+    draw_world(ax, scene, snap, title)
+    if not getattr(fig, "laid_out", False):  # one layout for every picture (as write_gif)
+        fig.tight_layout()
+        fig.laid_out = True
     fig.canvas.draw()
     rgb = Image.frombuffer("RGBA", fig.canvas.get_width_height(), fig.canvas.buffer_rgba()).convert("RGB")
     out = io.BytesIO()
-    rgb.quantize(colors=64, method=Image.Quantize.FASTOCTREE).save(out, format="PNG", optimize=True)
+    rgb.quantize(colors=64, method=Image.Quantize.FASTOCTREE).save(out, format="PNG")
     return out.getvalue()
 
 

@@ -228,3 +228,52 @@ def test_without_graphviz_the_html_flag_says_why(tmp_path, monkeypatch, capsys):
     err = capsys.readouterr().err
     assert "Graphviz" in err and "'dot'" in err and "Traceback" not in err
     assert not page.exists()
+
+
+def test_a_trace_that_differs_is_marked_at_its_first_differing_step(tmp_path):
+    from btfsm.html import trace_run
+
+    trace = tmp_path / "t.jsonl"
+    assert main(["run", "ariac-preemptive", "--ticks", "30", "--seed", "2", "--trace", str(trace)]) == 0
+    header, records = read_trace(trace)
+    k = next(i for i, r in enumerate(records) if i >= 5 and r["outcomes"])
+    records[k]["status"] = "FAILURE" if records[k]["status"] != "FAILURE" else "SUCCESS"
+    run = trace_run(builtin_model("ariac-preemptive"), header, records, "t")
+    assert [m[0] for m in run["marks"]] == [k + 1] and "differs" in run["marks"][0][1]
+    assert len(run["ticks"]) == len(records) + 1
+    assert run["ticks"][k + 1]["nodes"] == records[k]["changes"]  # from there: the trace's own records
+
+
+@needs_browser
+def test_conform_page_shows_the_first_mismatch_and_the_cell(browser, tmp_path):
+    """A scene whose check cannot hold (no slack): the first scenario does not conform;
+    its run is in the page with the cell's pictures and the mismatch marked."""
+    from btfsm.files import load_data
+    from btfsm.html import write_page
+    from btfsm.sim.cell_view import ConformViews
+    from btfsm.sim.conformance import conform
+    from btfsm.sim.scene import builtin_scene, scene_from_data
+
+    data = load_data(builtin_scene("two_area"))  # btfsm's YAML reading: `on:` stays a string
+    data["checks"][1]["slack"] = [0, 0]
+    model = builtin_model("two-area")
+    views = ConformViews(model, max_pictures=3)
+    rows = []
+
+    def result(i, sc, res):
+        views.result(i, sc, res)
+        rows.append({"scenario": i, "seed": sc.seed, "ticks": res.ticks, "conforms": res.mismatch is None,
+                     "mismatch": None if res.mismatch is None else str(res.mismatch)})
+
+    out = conform(model, 1, 0, 300.0, scene=scene_from_data(data), path=False, on_result=result, views=views)
+    assert not out.conforms
+    page = tmp_path / "c.html"
+    write_page(page, model, **views.page(rows))
+    _open(browser, page)
+    run = browser.execute_script("return window.btfsmView.data.runs[0]")
+    assert run["kind"] == "cell" and len(run["ticks"]) == out.results[0].ticks + 1
+    assert [m[0] for m in run["marks"]] == [len(run["ticks"]) - 1] and "mismatch" in run["marks"][0][1]
+    assert 2 <= len(run["pictures"]) <= 3
+    browser.execute_script("window.btfsmView.setTick(1)")
+    src = browser.execute_script("var i = document.querySelector('#picture img'); return i && i.src")
+    assert src and src.startswith("data:image/png;base64,")
