@@ -468,10 +468,18 @@ def read_page(path) -> dict:
 
 def check_page(model, report) -> dict:
     """``page`` keywords for a ``btfsm check`` report: the verdicts and one run per counterexample."""
+    from btfsm.verify.report import lint_summary
+
     verdicts, runs = [], []
     for r in report.results:
         verdict = "holds" if r.holds else ("VIOLATED" if r.holds is False else "undecided")
         entry = {"name": r.name, "verdict": verdict, "summary": "", "run": None}
+        if r.name == "lints":  # as the text report: warnings, not a verdict
+            warns = r.info.get("warnings") or [{"element": n, "text": ""} for n in r.notes]
+            entry.update(verdict=f"{len(r.notes)} warning(s)", cls="lints",
+                         summary=lint_summary(warns) if r.notes else "")
+        elif r.holds is True and r.info.get("vacuous"):
+            entry["summary"] = "vacuously: the model has no tree"
         if r.counterexample is not None:
             entry["summary"] = r.counterexample.summary
             entry["run"] = len(runs)
@@ -481,8 +489,10 @@ def check_page(model, report) -> dict:
         verdicts.append(entry)
     explored = ", ".join(f"{s.get('kind')}{' ' + s['fsm'] if s.get('fsm') else ''}: {s['states']:,} states"
                          for s in report.systems)
-    return {"title": f"btfsm check {model.name}", "verdicts": verdicts, "runs": runs,
-            "notes": [f"explored {explored}" if explored else "nothing explored"]}
+    notes = [f"explored {explored}" if explored else "nothing explored"]
+    if not report.complete:
+        notes.append("INCOMPLETE: a budget was hit; the undecided properties say so")
+    return {"title": f"btfsm check {model.name}", "verdicts": verdicts, "runs": runs, "notes": notes}
 
 
 def replay_page(model, path, ok: bool, text: str, ce=None, cell: "dict | None" = None) -> dict:
