@@ -18,6 +18,7 @@ from pathlib import Path
 
 import pytest
 
+from btfsm.bt import walk
 from btfsm.cli import main
 from btfsm.models.registry import load_builtin as builtin_model
 from btfsm.trace import ReplayOracle, encode_state, read_trace
@@ -119,6 +120,7 @@ def _walk_counterexample(driver, model, ce, run: int) -> None:
 
     driver.execute_script("window.btfsmView.selectRun(arguments[0])", run)
     expected = _expected_nodes(model, ce) if ce["level"] == "model" else None
+    in_fsms = {n.name for path, root in model.roots() if path != "tree" for n in walk(root)}  # FSM states' subtrees
     fsms = [f.name for f in model.fsms] if ce["level"] == "model" else [ce["fsm"]]
     initial = {f: ce["initial"].get(f"{f}.state") for f in fsms}
     for k in range(len(ce["steps"]) + 1):
@@ -137,6 +139,8 @@ def _walk_counterexample(driver, model, ce, run: int) -> None:
                     assert shown["nodes"][site] == status, (k, site)
             if expected is not None:
                 assert (shown["nodes"], shown["halted"]) == expected[k], k
+            else:  # one request to one FSM: only its states' subtrees can run
+                assert set(shown["nodes"]) <= in_fsms, k
         _key(driver, Keys.ARROW_RIGHT)
     assert _shown(driver)["tick"] == len(ce["steps"])  # the last tick stays
 
@@ -156,6 +160,15 @@ def test_check_original_page_steps_through_every_counterexample(browser, tmp_pat
     for path in files:
         ce = json.loads(path.read_text())
         _walk_counterexample(browser, model, ce, by_property[ce["property"]])
+    # the whole FSM instead of the states the counterexamples visit: the same highlights
+    run = by_property["goal-reachability"]
+    browser.execute_script("window.btfsmView.selectRun(arguments[0]); window.btfsmView.setTick(1)", run)
+    before = _shown(browser)
+    toggle = browser.find_element("css selector", "section.fsm button.toggle")
+    toggle.click()
+    assert browser.execute_script("return document.querySelector('section.fsm .view[data-view=full]').hidden") is False
+    assert _shown(browser) == before and before["fsm"]["movement_manager"] is not None
+    toggle.click()
     # the slider and the keys Home/End, left arrow
     browser.execute_script("window.btfsmView.selectRun(arguments[0])", by_property["goal-reachability"])
     browser.execute_script("var s = document.getElementById('slider'); s.value = '2';"
