@@ -118,7 +118,7 @@ def view_tick(program, tick: int, step, before, time=None, keep=None) -> dict:
             "fsm": _fsm_of(program, after), "fired": fired, "changes": changes, "env": env, "lines": lines}
 
 
-def _initial_tick(program, state, keep=None, time=None) -> dict:
+def _initial_tick(program, state, time=None) -> dict:
     return {"tick": 0, "time": time, "status": None, "nodes": {}, "halted": [], "fsm": _fsm_of(program, state),
             "fired": [], "changes": {}, "env": [], "lines": ["initial state"]}
 
@@ -416,6 +416,7 @@ def page(model, *, title: str, verdicts: list, runs: list, notes: "list | None" 
                 f' <span class="dim">{f["states"]} states</span>')
         fsm_html.append(f'<section class="panel fsm" data-fsm="{html.escape(f["name"])}"><h3>FSM '
                         f'{html.escape(f["name"])}{note} <span class="cur"></span> {toggle}'
+                        f'<button class="near" title="zoom in on the token\'s state">zoom to the state</button>'
                         f'<button class="fit">fit</button></h3><div class="graph">{views}</div></section>')
     legend = ('<span class="legend"><span class="l-IDLE">IDLE</span><span class="l-RUNNING">RUNNING</span>'
               '<span class="l-SUCCESS">SUCCESS</span><span class="l-FAILURE">FAILURE</span>'

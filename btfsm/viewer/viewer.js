@@ -90,6 +90,20 @@
     window.addEventListener("mouseup", function () { drag = null; graph.classList.remove("dragging"); });
     var btn = graph.parentNode.querySelector("button.fit");
     if (btn) { btn.addEventListener("click", function () { fit(svgOf()); }); }
+    var near = graph.parentNode.querySelector("button.near");
+    if (near) {
+      near.addEventListener("click", function () {  // zoom in on the token's state
+        var svg = svgOf(), g = svg && svg.querySelector("g.node.current");
+        if (!g) { return; }
+        var bb = g.getBBox(), home = svg.dataset.home.split(/[ ,]+/).map(Number);
+        var w = Math.min(home[2], Math.max(bb.width * 4, home[2] / 4)), h = w * home[3] / home[2];
+        var m = g.getCTM(), root = svg.getCTM();  // the node's box in the drawing's coordinates
+        var pt = svg.createSVGPoint();
+        pt.x = bb.x + bb.width / 2; pt.y = bb.y + bb.height / 2;
+        var c = pt.matrixTransform(root.inverse().multiply(m));
+        setBox(svg, { x: c.x - w / 2, y: c.y - h / 2, w: w, h: h });
+      });
+    }
   });
   document.querySelectorAll(".graph svg").forEach(fit);
   // each drawing's box as tall as its picture at the page's width (within 180 px .. 75 % of the window)
@@ -108,7 +122,7 @@
   function verdicts() {
     var rows = data.verdicts.map(function (v) {
       var link = v.run === null || v.run === undefined ? "" :
-        " <a data-run=\"" + v.run + "\">counterexample</a>";
+        " <a data-run=\"" + v.run + "\">" + (runs[v.run] && runs[v.run].kind === "counterexample" ? "counterexample" : "show the run") + "</a>";
       return "<tr class=\"" + esc(v.cls || v.verdict.toLowerCase()) + "\" data-run=\"" + (v.run === null || v.run === undefined ? "" : v.run) +
         "\"><td>" + esc(v.name) + "</td><td class=\"v\">" + esc(v.verdict) + "</td><td>" + esc(v.summary || "") + link + "</td></tr>";
     });
