@@ -140,9 +140,40 @@ def test_invariant_violation_is_shortest():
     assert _one(_counter(invariants={"range": "n <= 3"}), "invariants").holds is True
 
 
-def test_no_invariant_holds_trivially():
+def test_no_invariant_is_not_applicable():
     res = _one(_counter(), "invariants")
-    assert res.holds is True and "no invariant" in res.notes[0]
+    assert res.holds is True and res.verdict == "not-applicable" and res.not_applicable == "no invariant declared"
+
+
+@pytest.mark.parametrize("name,bare,declared", [
+    # (property, why on a counter without FSM or declarations, a model where it applies)
+    ("workable-reachability", "no skill FSM and no 'workable' expression", lambda: _counter(workable="n == 0")),
+    ("goal-reachability", "no skill FSM", lambda: _worker(True)),
+    ("determinism", "no skill FSM", lambda: _worker(True)),
+    ("contracts", "no skill FSM", lambda: _worker(True)),
+    ("request-latency", "no skill FSM", lambda: _targeted("immediate")),
+    ("invariants", "no invariant declared", lambda: _counter(invariants={"r": "n <= 3"})),
+    ("exclusive-actions", "no 'resources:' declared",
+     lambda: Model("r", [Int("n", 0, 3)], tree=Action("inc", outcomes=[success()]), resources={"arm": ["inc"]})),
+    ("response", "no 'responses:' declared",
+     lambda: _counter(responses={"top": {"trigger": "n == 0", "response": "n == 3", "within": 10}})),
+    ("no-dead-states", None, lambda: _counter()),
+    ("lints", None, lambda: _counter()),
+])
+def test_not_applicable_table(name, bare, declared):
+    """Each property's rule for "not applicable" (docs/verification.md section 2): on a bare
+    counter it reports the reason and holds (never fails); where the model declares what it
+    needs, it is decided as usual."""
+    res = _one(_counter(), name)
+    assert res.not_applicable == bare and res.holds is True
+    assert res.verdict == ("holds" if bare is None else "not-applicable")
+    assert _one(declared(), name).not_applicable is None
+
+
+def test_domain_is_not_applicable_without_int_or_fsm():
+    m = Model("b", [Bool("b")], tree=Action("flip", outcomes=[success(b="not b")]))
+    assert _one(m, "domain").not_applicable == "no int variable and no skill FSM"
+    assert _one(_counter(), "domain").verdict == "holds"
 
 
 def test_contract_violation():
@@ -260,16 +291,16 @@ def test_immediate_retarget_holds():
     assert _one(_targeted("immediate"), "request-latency").holds is True
 
 
-def test_no_params_holds_trivially():
+def test_no_params_is_not_applicable():
     res = _one(_worker(True), "request-latency")
-    assert res.holds is True and any("trivially" in n for n in res.notes)
+    assert res.holds is True and res.not_applicable == "no FSM has parameters"
 
 
 # ---------------------------------------------------------------------- budget, report, tampering
 
 
 def test_budget_hit_gives_undecided_not_a_verdict():
-    m = _counter(invariants={"range": "n <= 3"})
+    m = _counter(invariants={"range": "n <= 3"}, workable="n <= 3")
     r = check(m, ["workable-reachability", "invariants"], max_states=2)
     assert not r.complete and r.exit_code == 3
     assert [x.holds for x in r.results] == [None, None]
