@@ -542,3 +542,58 @@ def test_counterexample_file_names_differ_per_violation():
     b = _one(Model("worker", fsms=[_sink()], tree=SkillRequest("do", fsm="arm", goal="go")), "workable-reachability").counterexample
     assert a.file_name() != b.file_name() and a.file_name().startswith("worker.workable-reachability.")
     assert a.file_name() == _one(_worker(False), "workable-reachability").counterexample.file_name()  # stable
+
+
+# ---------------------------------------------------------------------- tree coverage (dead branches)
+
+
+def _nav(guard_written: bool):
+    """A guard before FollowPath; nothing writes ``path_ok`` unless ``guard_written``."""
+    env = [EnvEvent("plan", None, {"path_ok": "True"})] if guard_written else []
+    return Model("nav", [Bool("path_ok"), Bool("done")], environment=env, tree=ReactiveFallback("root", [
+        ReactiveSequence("follow", [Condition("path_valid", "path_ok"),
+                                    Action("FollowPath", outcomes=[running(), success(done="True")])]),
+        Action("Wait", outcomes=[running(), success()])]))
+
+
+def _coverage(model):
+    lint = check(model, ["lints"]).result("lints")
+    return {w["element"]: w for w in lint.info["warnings"] if w["text"].startswith(("never ticked", "ticked but"))}
+
+
+def test_dead_branch_never_ticked_with_the_run_that_shows_why():
+    found = _coverage(_nav(False))
+    assert set(found) == {"tree.path_valid", "tree.FollowPath"}
+    assert found["tree.path_valid"]["text"] == "ticked but never succeeds in any reachable state"
+    assert found["tree.FollowPath"]["text"] == ("never ticked in any reachable state ('follow' is ticked but never "
+                                                "reaches it; before it, 'path_valid' never succeeds)")
+    for w in found.values():  # the shortest run: one tick, in which the guard is ticked and fails
+        run = w["run"]
+        assert len(run["steps"]) == 1 and run["steps"][0]["choices"] == [["outcome", "Wait", "running", "RUNNING"]]
+        ok, text = replay_counterexample(run, _nav(False))
+        assert ok, text
+
+
+def test_covered_tree_has_no_dead_branch():
+    assert _coverage(_nav(True)) == {}
+
+
+def test_dead_subtree_reports_its_topmost_node_only():
+    m = Model("d", [Bool("never")], tree=ReactiveFallback("root", [
+        Action("always", outcomes=[success()]),
+        ReactiveSequence("spare", [Action("a", outcomes=[success()]), Action("b", outcomes=[success()])])]))
+    found = _coverage(m)
+    assert set(found) == {"tree.spare"} and "'root' is ticked but never reaches it" in found["tree.spare"]["text"]
+
+
+def test_a_leaf_that_cannot_succeed_by_declaration_is_not_reported():
+    m = Model("f", [Bool("b")], tree=ReactiveFallback("root", [
+        Action("fails", outcomes=[failure()]), Action("ok", outcomes=[success()])]))
+    assert _coverage(m) == {}
+
+
+def test_no_coverage_beyond_the_rerun_limit(monkeypatch):
+    import btfsm.verify.properties.lints as lints
+
+    monkeypatch.setattr(lints, "FIRE_LIMIT", 1)
+    assert _coverage(_nav(False)) == {}
