@@ -479,6 +479,8 @@ def check_page(model, report) -> dict:
             warns = r.info.get("warnings") or [{"element": n, "text": ""} for n in r.notes]
             entry.update(verdict=f"{len(r.notes)} warning(s)", cls="lints",
                          summary=lint_summary(warns) if r.notes else "")
+        elif r.not_applicable is not None:
+            entry.update(verdict="not applicable", cls="na", summary=r.not_applicable)
         elif r.holds is True and r.info.get("vacuous"):
             entry["summary"] = "vacuously: the model has no tree"
         if r.counterexample is not None:
