@@ -490,6 +490,12 @@ def check_page(model, report) -> dict:
         elif r.notes and r.holds is not True:
             entry["summary"] = str(r.notes[0])
         verdicts.append(entry)
+        if r.name == "lints":  # a dead branch comes with the shortest run that shows why
+            for w in r.info.get("warnings") or []:
+                if isinstance(w, dict) and isinstance(w.get("run"), dict):
+                    verdicts.append({"name": f"lint {w['element']}", "verdict": "warning", "cls": "lints",
+                                     "summary": w.get("text", ""), "run": len(runs)})
+                    runs.append(counterexample_run(model, w["run"], title=f"lint {w['element']}: {w.get('text', '')}"))
     explored = ", ".join(f"{s.get('kind')}{' ' + s['fsm'] if s.get('fsm') else ''}: {s['states']:,} states"
                          for s in report.systems)
     notes = [f"explored {explored}" if explored else "nothing explored"]

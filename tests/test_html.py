@@ -146,11 +146,12 @@ def _walk_counterexample(driver, model, ce, run: int) -> None:
 
 
 @needs_browser
-def test_check_original_page_steps_through_every_counterexample(browser, tmp_path):
+def test_check_original_page_steps_through_every_counterexample(browser, tmp_path, capsys):
     from selenium.webdriver.common.keys import Keys
 
     page, ces = tmp_path / "r.html", tmp_path / "ce"
-    assert main(["check", "original", "--html", str(page), "--counterexample-dir", str(ces)]) == 1
+    assert main(["check", "original", "--html", str(page), "--counterexample-dir", str(ces), "--json"]) == 1
+    report = json.loads(capsys.readouterr().out)
     _open(browser, page)
     data = browser.execute_script("return window.btfsmView.data")
     model = builtin_model("original")
@@ -160,6 +161,12 @@ def test_check_original_page_steps_through_every_counterexample(browser, tmp_pat
     for path in files:
         ce = json.loads(path.read_text())
         _walk_counterexample(browser, model, ce, by_property[ce["property"]])
+    # the dead branch's run (a lint): every node's status, tick by tick
+    (lints,) = [p for p in report["properties"] if p["name"] == "lints"]
+    dead = [w["run"] for w in lints["info"]["warnings"] if w.get("run")]
+    assert dead and len(data["runs"]) == 3 + len(dead)
+    for k, ce in enumerate(dead):
+        _walk_counterexample(browser, model, ce, 3 + k)
     # the whole FSM instead of the states the counterexamples visit: the same highlights
     run = by_property["goal-reachability"]
     browser.execute_script("window.btfsmView.selectRun(arguments[0]); window.btfsmView.setTick(1)", run)
