@@ -146,7 +146,11 @@ def counterexample_run(model, ce, title: "str | None" = None) -> dict:
     run = _run("counterexample", title, dict(d["initial"]), [], property=d["property"], level=d["level"],
                fsm_name=d.get("fsm"), summary=d["summary"], violation=(d.get("violation") or {}).get("text", ""),
                loop=d.get("loop"))
+    if d["level"] == "fsm":
+        run["note"] = (f"FSM {d.get('fsm')} as an open system: one step is one request to it, and the tree does "
+                       "not run (only FSM states' subtrees can)")
     if d["level"] == "static":
+        run["note"] = "no path: two guards that can be true together (both elements highlighted)"
         v = d.get("violation") or {}
         fsm = {f.name: [f.initial, None] for f in model.fsms}
         fired = []
