@@ -26,8 +26,9 @@
   var treeSvg = document.querySelector(".tree svg");
   var treeNodes = {};
   if (treeSvg) {
-    Object.keys(index(treeSvg)).forEach(function (k) {
-      if (k.indexOf("n:") === 0) { treeNodes[k.slice(2)] = index(treeSvg)[k]; }
+    var all = index(treeSvg);
+    Object.keys(all).forEach(function (k) {
+      if (k.indexOf("n:") === 0) { treeNodes[k.slice(2)] = all[k]; }
     });
   }
   var fsmPanels = [];
