@@ -160,14 +160,12 @@ def counterexample_run(model, ce, title: "str | None" = None) -> dict:
         run["ticks"] = [{"tick": 0, "time": None, "status": None, "nodes": {}, "halted": [], "fsm": fsm,
                          "fired": fired, "changes": {}, "env": [], "lines": ["the two overlapping elements"]}]
         return run
-    runner, keep = _runner(model, d)
     try:
+        runner, keep = _runner(model, d)
         state = encode_state(prog, d["initial"])
-    except ValueError as exc:
-        state, run["note"] = None, f"not re-run: {exc}"
-    ticks = [_initial_tick(prog, state) if state is not None else _recorded_tick(0, d["initial"], None, {})]
-    if state is not None and keep is not None:
-        ticks[0]["fsm"] = _fsm_of(prog, state)
+    except (KeyError, ValueError) as exc:  # a file of another model: show what it records
+        state, run["note"] = None, f"not re-run on {model.name}: {exc}"
+    ticks = [_initial_tick(prog, state) if state is not None else _recorded_tick(0, {}, None)]
     for st in d["steps"]:
         rec = None
         if state is not None and not st.get("error"):
@@ -176,7 +174,7 @@ def counterexample_run(model, ce, title: "str | None" = None) -> dict:
                 run["note"] = (f"step {st['tick']} does not re-run to the state the file records: from there the page "
                                "shows only what the file records")
         if rec is None:
-            rec = _recorded_tick(st["tick"], st.get("fsm") or ticks[-1]["fsm"], st, ticks[-1]["fsm"])
+            rec = _recorded_tick(st["tick"], st.get("fsm") or ticks[-1]["fsm"], st)
         if st.get("error"):
             rec["lines"].append(f"error: {st['error']}")
             run["marks"].append([st["tick"], "the domain error"])
@@ -222,7 +220,7 @@ def _rerun(prog, runner, keep, st, state):
     return rec, step.state
 
 
-def _recorded_tick(tick, fsm, st, _last) -> dict:
+def _recorded_tick(tick, fsm, st) -> dict:
     """A tick from what a counterexample step records, without re-running it."""
     st = st or {}
     nodes = {n: "halted" for n in st.get("halted", ())}
@@ -254,7 +252,7 @@ def trace_run(model, header: dict, records: list, title: str) -> dict:
     except ValueError as exc:
         state = None
         run["marks"].append([0, f"the trace's initial state does not fit {model.name}: {exc}"])
-        ticks = [_recorded_tick(0, {}, None, {})]
+        ticks = [_recorded_tick(0, {}, None)]
     clock, last = Clock(model.tick_rate), {}
     for rec in records:
         mine = None
