@@ -78,11 +78,10 @@ def _fsm_of(program, state) -> dict:
             for f, ids, tok, g, _ in program.fsm_info}
 
 
-def _values(program, state, keep=None) -> dict:
-    """Readable values of the slots a person reads: variables, FSM tokens, goals, parameters."""
-    idx = range(len(state)) if keep is None else keep
-    return {program.slots[i].name: _jsonable(program.decode_slot(i, state[i])) for i in idx
-            if program.slots[i].kind in ("var", "token", "goal", "param")}
+def _values(program, state) -> dict:
+    """Readable values of every slot (``Program.decode``; node memory and timers have a
+    ``:`` in their names, and the page lists them apart)."""
+    return {program.slots[i].name: _jsonable(program.decode_slot(i, state[i])) for i in range(len(state))}
 
 
 def view_tick(program, tick: int, step, before, time=None, keep=None) -> dict:
@@ -112,8 +111,7 @@ def view_tick(program, tick: int, step, before, time=None, keep=None) -> dict:
         lines.append("violation: " + " ".join(str(x) for x in v))
     after = step.state
     idx = range(len(after)) if keep is None else keep
-    changes = {program.slots[i].name: _jsonable(program.decode_slot(i, after[i])) for i in idx
-               if before[i] != after[i] and program.slots[i].kind in ("var", "token", "goal", "param")}
+    changes = {program.slots[i].name: _jsonable(program.decode_slot(i, after[i])) for i in idx if before[i] != after[i]}
     return {"tick": tick, "time": time, "status": _NAMES[step.status], "nodes": nodes, "halted": halted,
             "fsm": _fsm_of(program, after), "fired": fired, "changes": changes, "env": env, "lines": lines}
 

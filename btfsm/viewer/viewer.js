@@ -270,10 +270,15 @@
     });
     $("events").innerHTML = lines.length ? "<ul>" + lines.join("") + "</ul>" : "<span class=\"dim\">nothing happened</span>";
     var vs = varsAt(run, cur.tick);
-    var rows = Object.keys(vs.vals).filter(function (k) { return k.indexOf(":") < 0; }).map(function (k) {
+    function row(k) {
       return "<tr class=\"" + (vs.changed[k] ? "changed" : "") + "\"><td>" + esc(k) + "</td><td>" + esc(val(vs.vals[k])) + "</td></tr>";
-    });
-    $("vars").innerHTML = "<table>" + rows.join("") + "</table>";
+    }
+    var keys = Object.keys(vs.vals);
+    var inner = keys.filter(function (k) { return k.indexOf(":") >= 0; });  // node memory, timers
+    var open = $("vars").querySelector("details") && $("vars").querySelector("details").open;
+    $("vars").innerHTML = "<table>" + keys.filter(function (k) { return k.indexOf(":") < 0; }).map(row).join("") + "</table>" +
+      (inner.length ? "<details" + (open ? " open" : "") + "><summary>node memory and timers (" + inner.length + ")</summary><table>" +
+        inner.map(row).join("") + "</table></details>" : "");
     var pic = pictureAt(run, cur.tick);
     $("picture").innerHTML = pic ? "<h3>the cell at tick " + pic.tick + "</h3><img alt=\"the cell\" src=\"" + pic.src + "\">" : "";
   }
