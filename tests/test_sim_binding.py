@@ -7,6 +7,7 @@ gripper drops a held part on the robot's path.
 from __future__ import annotations
 
 import copy
+import re
 import inspect
 
 import pytest
@@ -88,3 +89,15 @@ def test_a_python_binding_without_the_protocol_is_refused(tmp_path, monkeypatch)
         bind_model(scene, load_model("two-area"), World(scene))
     assert str(info.value) == ("half.yaml: binding.python: 'halfbinding:Half' made an object without events, "
                                "after_tick (a binding needs implementations(), events(state) and after_tick(runtime))")
+
+
+def test_a_tick_the_runtime_refuses_ends_a_trial_with_its_number(monkeypatch):
+    """Durations declared far too short: the runtime refuses a primitive's answer; the
+    trial ends there and reports it, numbered as the runtime numbers it (0-based: the
+    ticks before it ran, it did not)."""
+    monkeypatch.setattr(ariac, "ARM_DURATIONS", {s: 0.3 for s in ariac.ARM_DURATIONS})
+    r = trial.run_trial(TrialSpec("preemptive", 1, parts=2, time_limit=60.0), ariac.timed(ariac.preemptive(n_tray=2)))
+    m = re.match(r"tick (\d+) \(t = ([\d.]+) s\): conformance mismatch: tick (\d+): ", r.conformance_error)
+    assert m, r.conformance_error
+    assert m.group(1) == m.group(3) and int(m.group(1)) == r.ticks and not r.completed
+    assert float(m.group(2)) == pytest.approx(r.ticks / 10) and r.sim_time == pytest.approx(r.ticks / 10)
