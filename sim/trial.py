@@ -114,11 +114,14 @@ def run_kitting(spec: TrialSpec, model=None, *, seed: "int | None" = None, detec
 
 
 def run_trial(spec: TrialSpec, model=None, on_tick=None) -> TrialResult:
-    """Run one trial to completion (``parts`` on the tray) or to the time limit; an
-    abstraction mismatch is recorded (the first) and the trial goes on, a conformance
-    error (the runtime refuses a tick) ends it."""
+    """Run one trial to completion (``parts`` on the tray) or to the time limit. The
+    first abstraction mismatch is recorded in ``conformance_error`` and the trial goes
+    on; a conformance error (the runtime refuses a tick) ends it and is recorded too."""
     world, binding, h, end = run_kitting(spec, model, on_tick=on_tick)
-    return trial_result(spec, world, binding, h.starts, h.halts, end.ticks, str(end.mismatch or ""))
+    error = str(end.mismatch or "")
+    if end.ended_by is not None and end.ended_by is not end.mismatch:
+        error += f"; then {end.ended_by}"
+    return trial_result(spec, world, binding, h.starts, h.halts, end.ticks, error)
 
 
 def trial_result(spec, world, binding, starts, halts, ticks, error) -> TrialResult:
