@@ -77,42 +77,16 @@ class ScenarioResult:
 def run_scenario(scenario: Scenario, model=None, monitor: "PathMonitor | None" = None, on_tick=None) -> ScenarioResult:
     """Run the scenario in the ARIAC scene; stop at the first mismatch. ``on_tick(rt,
     world)``: called after each tick that conforms."""
-    from btfsm.errors import ConformanceError, DomainError
-
     from .experiment import TrialSpec
-    from .trial import build_model, build_trial
+    from .trial import run_kitting
 
     spec = TrialSpec(scenario.variant, 0, parts=scenario.parts, time_limit=scenario.time_limit)
-    model = model or build_model(spec)
-    model, world, binding, rt = build_trial(spec, model, seed=scenario.seed, detections=scenario.detections,
-                                            faults=tuple(scenario.drop_regions))
-    tray_slot = model.program.scope[binding.d.tray_var].index
-    steps = max(1, round(spec.physics_rate / model.tick_rate))
-    ticks = 0
-    while world.time < scenario.time_limit:
-        before = rt.state
-        try:
-            step = rt.tick(binding.events(before))
-        except (ConformanceError, DomainError) as exc:
-            return ScenarioResult(scenario, ticks, False, Mismatch(ticks, world.time, "conformance", str(exc)))
-        problems = binding.after_tick(rt)
-        if problems:
-            return ScenarioResult(scenario, ticks, False, Mismatch(ticks, world.time, "abstraction", "; ".join(problems)))
-        if monitor is not None:
-            why = monitor.check(before, step.state)
-            if why:
-                return ScenarioResult(scenario, ticks, False, Mismatch(ticks, world.time, "path", why))
-        if on_tick is not None:
-            on_tick(rt, world)
-        ticks += 1
-        if step.state[tray_slot] >= scenario.parts and binding.tray_count() >= scenario.parts:
-            break
-        world.step(steps)
-        try:
-            world.check_invariant()
-        except AssertionError as exc:
-            return ScenarioResult(scenario, ticks, False, Mismatch(ticks, world.time, "accounting", str(exc)))
-    return ScenarioResult(scenario, ticks, binding.tray_count() >= scenario.parts, None, world.lost)
+    world, binding, _hooks, end = run_kitting(spec, model, seed=scenario.seed, detections=scenario.detections,
+                                              faults=tuple(scenario.drop_regions), monitor=monitor,
+                                              check_invariant=True, stop_at_mismatch=True, on_tick=on_tick)
+    if end.mismatch is not None:
+        return ScenarioResult(scenario, end.ticks, False, end.mismatch)
+    return ScenarioResult(scenario, end.ticks, binding.tray_count() >= scenario.parts, None, world.lost)
 
 
 def random_scenarios(n: int, seed: int = 0, variant: str = "preemptive", parts: int = 4,

@@ -291,7 +291,8 @@ def test_conform_page_shows_the_first_mismatch_and_the_cell(browser, tmp_path):
     write_page(page, model, **views.page(rows))
     _open(browser, page)
     run = browser.execute_script("return window.btfsmView.data.runs[0]")
-    assert run["kind"] == "cell" and len(run["ticks"]) == out.results[0].ticks + 1
+    # the initial state and every tick before the one that showed the mismatch (0-based)
+    assert run["kind"] == "cell" and len(run["ticks"]) == out.results[0].mismatch.tick + 1
     assert [m[0] for m in run["marks"]] == [len(run["ticks"]) - 1] and "mismatch" in run["marks"][0][1]
     assert 2 <= len(run["pictures"]) <= 3
     browser.execute_script("window.btfsmView.setTick(1)")
