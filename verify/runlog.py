@@ -41,7 +41,7 @@ DEFAULT_MAX_CONFIGS = 200_000  # (state, log position, recorded statuses) triple
 IDLE, RUNNING, SUCCESS, FAILURE = 0, 1, 2, 3  # BehaviorTree.CPP's NodeStatus codes
 START, END, HALT = 0, 1, 2
 # how a BT.CPP node's tick begins (what it records before its children and its result)
-CONTROL, SUBTREE, LEAF, CUSTOM, QUIET = range(5)
+CONTROL, SUBTREE, LEAF, CUSTOM, QUIET, ONCE = range(6)
 
 
 @dataclass
@@ -164,7 +164,7 @@ def _map_tree(log_root, model, file, children, tag, label, key, wrapper, known):
             raise fail(ln, mn, f"a {tag(ln)} in the recording")
         if len(lkids) != len(kids):
             raise fail(ln, mn, f"{len(lkids)} child node(s) in the recording, {len(kids)} in the model")
-        rule = CONTROL if cls is not None and tag(ln) != "RunOnce" else CUSTOM
+        rule = CUSTOM if cls is None else ONCE if tag(ln) == "RunOnce" else CONTROL
         k = m.prim[mn.name] = m.add(key(ln), label(ln), rule, parent)
         for lc, mc in zip(lkids, kids):
             walk(lc, mc, k)
@@ -194,7 +194,8 @@ def _map_btlog(log, model, file) -> _Map:
 
 def _items(events, mp):
     """What BehaviorTree.CPP records for the events of one step, as items to match:
-    (START, k) when node k's tick begins (every ancestor's before its first descendant's),
+    (START, k, alone) when node k's tick begins (every ancestor's before its first
+    descendant's; ``alone``: nothing below it is ticked),
     (END, k, status) when it returns, (HALT, k) when it is halted (children first)."""
     out, started = [], set()
     prim, anc, wraps = mp.prim, mp.anc, mp.wraps
@@ -207,9 +208,9 @@ def _items(events, mp):
             for a in anc[ev[1]]:
                 if a not in started:
                     started.add(a)
-                    out.append((START, a))
+                    out.append((START, a, False))
             if k not in started:
-                out.append((START, k))
+                out.append((START, k, True))  # nothing below it ticked (a leaf, a RunOnce that ran)
             started.discard(k)
             code = ev[2] + 1  # btfsm RUNNING 0, SUCCESS 1, FAILURE 2 -> BT.CPP 1, 2, 3
             out.append((END, k, code))
@@ -269,7 +270,8 @@ class _Matcher:
             cur = t[k]
             if item[0] == START:
                 rule = rules[k]
-                need = (rule == CONTROL and cur != RUNNING) or (rule == SUBTREE and cur == IDLE)
+                need = ((rule == CONTROL and cur != RUNNING) or (rule == SUBTREE and cur == IDLE)
+                        or (rule == ONCE and cur != RUNNING and not item[2]))
                 may = (rule == LEAF and cur == IDLE) or (rule == CUSTOM and cur != RUNNING)
                 if need or may:
                     if entry == (k, RUNNING):
@@ -288,14 +290,39 @@ class _Matcher:
                     self._want(pos, k, want)
         return ends
 
-    def tail(self, pos, t) -> bool:
-        """Only resets of finished nodes are left from ``pos``: the log ends at a tick's end."""
-        t = list(t)
+    def tail(self, pos, t, children) -> bool:
+        """The log ends at a tick's end: what is left from ``pos`` are resets of finished
+        nodes and a halt of the whole tree (``Tree::haltTree``, which the Tree's destructor
+        calls): RUNNING nodes going IDLE, each after the RUNNING nodes below it, all of them."""
+        t, halted = list(t), False
         for k, status in self.log[pos:]:
-            if status != IDLE or t[k] not in (SUCCESS, FAILURE):
+            if status != IDLE or t[k] == IDLE or (t[k] == RUNNING and any(t[c] == RUNNING for c in children[k])):
                 return False
+            halted = halted or t[k] == RUNNING
             t[k] = IDLE
-        return True
+        return not halted or RUNNING not in t  # a halt of the tree halts every running node
+
+
+class _Ends:
+    """``matcher.run(items, {(pos, t)})`` for the items of one step from one configuration,
+    remembered: the answers of one tick share their first events, so a run that extends
+    the last one goes on from where that one ended."""
+
+    def __init__(self, matcher, pos, t):
+        self.matcher, self.cache = matcher, {(): {(pos, t)}}
+        self.last = ()
+
+    def __call__(self, items) -> set:
+        key = tuple(items)
+        got = self.cache.get(key)
+        if got is None:
+            last = self.last
+            j = len(last) if len(last) < len(key) and key[:len(last)] == last else 0
+            start = self.cache[key[:j]]
+            got = self.matcher.run(key[j:], start) if start else set()
+            self.cache[key] = got
+        self.last = key
+        return got
 
 
 def check_btlog(model, log, file: str = "log", allow=None, max_configs: int = DEFAULT_MAX_CONFIGS) -> LogVerdict:
@@ -312,6 +339,10 @@ def check_btlog(model, log, file: str = "log", allow=None, max_configs: int = DE
     program = model.program
     matcher = _Matcher(entries, mp.rule)
     n = len(entries)
+    children = [[] for _ in mp.keys]
+    for k, p in enumerate(mp.parent):
+        if p is not None:
+            children[p].append(k)
     start = (program.initial, 0, (IDLE,) * len(mp.keys))
     seen = {start: 0}
     heap = [(0, 0, 0, start)]
@@ -320,17 +351,19 @@ def check_btlog(model, log, file: str = "log", allow=None, max_configs: int = DE
     while heap:
         negpos, ticks, _, config = heapq.heappop(heap)
         state, pos, t = config
-        if matcher.tail(pos, t):
+        if matcher.tail(pos, t, children):
             return LogVerdict(True, "btcpp", model.semantics, n, ticks, len(seen))
         done_ticks = max(done_ticks, ticks) if -negpos == matcher.best else done_ticks
 
-        def fits(events, pos=pos, t=t):
-            return bool(matcher.run(_items(events, mp), ((pos, t),)))
+        ends = _Ends(matcher, pos, t)
+
+        def fits(events, ends=ends):
+            return bool(ends(_items(events, mp)))
 
         for step in _explanations(program, state, fits):
             if allow is not None and not allow(step):
                 continue
-            for pos2, t2 in matcher.run(_items(step.events, mp), ((pos, t),)):
+            for pos2, t2 in ends(_items(step.events, mp)):
                 nxt = (step.state, pos2, t2)
                 if nxt not in seen:
                     seen[nxt] = ticks + 1
