@@ -36,7 +36,7 @@ from btfsm.oracles import ScriptOracle, all_choices
 __all__ = ["LogVerdict", "check_btlog", "check_pytrees_run", "read_pytrees_run", "cli_conform_log",
            "PYTREES_FORMAT", "DEFAULT_MAX_CONFIGS"]
 
-PYTREES_FORMAT = "btfsm-pytrees-run/1"
+PYTREES_FORMAT = "btfsm-pytrees-run/1"  # = btfsm.interop.pytrees.RUN_FORMAT (that module needs py_trees)
 DEFAULT_MAX_CONFIGS = 200_000  # (state, log position, recorded statuses) triples searched
 IDLE, RUNNING, SUCCESS, FAILURE = 0, 1, 2, 3  # BehaviorTree.CPP's NodeStatus codes
 START, END, HALT = 0, 1, 2
@@ -475,7 +475,8 @@ def _map_pytrees(run, model, file) -> _Map:
 def check_pytrees_run(model, run, file: str = "run", allow=None, max_configs: int = DEFAULT_MAX_CONFIGS) -> LogVerdict:
     """Check a py_trees recording (a ``PytreesRun``) against ``model`` (pass it under
     ``pytrees``): each recorded tick must be a step of the model from a state the earlier
-    ticks reach: the visited nodes with their statuses in order, and the RUNNING ones after."""
+    ticks reach: the visited nodes with their statuses in order, and the RUNNING ones after.
+    ``allow(tick, step)`` may restrict the explaining steps (tests pin leaves' answers)."""
     mp = _map_pytrees(run, model, file)
     index = {key: k for k, key in enumerate(mp.keys)}
     program = model.program
@@ -529,7 +530,7 @@ def check_pytrees_run(model, run, file: str = "run", allow=None, max_configs: in
                 if now != want_running:
                     why_running = why_running or (now, want_running)
                     continue
-                if allow is None or allow(step):
+                if allow is None or allow(tick, step):
                     nxt.add(step.state)
         searched += len(nxt)
         if not nxt:
