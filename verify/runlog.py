@@ -347,13 +347,13 @@ def check_btlog(model, log, file: str = "log", allow=None, max_configs: int = DE
     seen = {start: 0}
     heap = [(0, 0, 0, start)]
     counter = 1
-    done_ticks = 0
+    done_ticks = 0  # complete ticks before the tick that reached the furthest transition
     while heap:
         negpos, ticks, _, config = heapq.heappop(heap)
         state, pos, t = config
         if matcher.tail(pos, t, children):
             return LogVerdict(True, "btcpp", model.semantics, n, ticks, len(seen))
-        done_ticks = max(done_ticks, ticks) if -negpos == matcher.best else done_ticks
+        reached = matcher.best
 
         ends = _Ends(matcher, pos, t)
 
@@ -371,11 +371,13 @@ def check_btlog(model, log, file: str = "log", allow=None, max_configs: int = DE
                     counter += 1
                     if len(seen) > max_configs:
                         return LogVerdict(False, "btcpp", model.semantics, n, ticks, len(seen), incomplete=True)
+        if matcher.best > reached:
+            done_ticks = ticks
     return LogVerdict(False, "btcpp", model.semantics, n, done_ticks, len(seen),
-                      first=_first_btlog(log, mp, entries, matcher))
+                      first=_first_btlog(log, mp, entries, matcher, done_ticks))
 
 
-def _first_btlog(log, mp, entries, matcher) -> dict:
+def _first_btlog(log, mp, entries, matcher, ticks) -> dict:
     pos = max(matcher.best, 0)
     allowed = sorted(matcher.expect)
     out = {"index": pos, "allowed": [{"node": mp.labels[k], "status": STATUS_NAMES[s]} for k, s in allowed]}
@@ -388,15 +390,14 @@ def _first_btlog(log, mp, entries, matcher) -> dict:
     k = entries[pos][0]
     mine = [STATUS_NAMES[s] for kk, s in allowed if kk == k]
     if mine:
-        here = f"the model allows {mp.labels[k]} -> {' or '.join(mine)} here"
+        here = f"the model allows {' or '.join(mine)} here"
     else:
         others = ", ".join(f"{mp.labels[kk]} -> {STATUS_NAMES[s]}" for kk, s in allowed[:6])
-        here = (f"the model allows no transition of this node here (statuses the model allows for it: none); "
-                f"it allows {others or 'only resets of finished nodes'}")
+        here = f"the model allows no transition of this node here, only {others or 'resets of finished nodes'}"
     prev = [STATUS_NAMES[s] for kk, s in entries[:pos] if kk == k]
     out.update(time=usec / 1e6, node=mp.labels[k], uid=uid, status=STATUS_NAMES[status],
                previous=prev[-1] if prev else "IDLE", model_allows=mine,
-               text=f"transition {pos + 1} at {usec / 1e6:.6f} s: {mp.labels[k]} "
+               text=f"transition {pos + 1} ({usec / 1e6:.6f} s), tick {ticks + 1}: {mp.labels[k]} "
                     f"{prev[-1] if prev else 'IDLE'} -> {STATUS_NAMES[status]} is not a step of the model; {here}")
     return out
 
@@ -561,7 +562,7 @@ def _first_pytrees(tick, want, best, why_running, mp) -> dict:
     k, st = want[j]
     status = names[st] if st is not None else "INVALID"
     mine = [s for n, s in allowed if n == mp.labels[k]]
-    here = (f"the model allows {mp.labels[k]} {' or '.join(mine)} here" if mine else
+    here = (f"the model allows {' or '.join(mine)} here" if mine else
             "the model allows " + (", ".join(f"{n} {s}" for n, s in allowed) or "the tick to end") + " here")
     if None in options and not allowed:
         here = "the model's tick ends before it"

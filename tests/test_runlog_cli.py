@@ -1,0 +1,136 @@
+"""``btfsm conform --log RUN MODEL``: exit 0 when the recorded run conforms, 1 with the
+first transition that is not a step of the model, 2 with one line for a malformed
+recording or one whose tree is not the model's."""
+from __future__ import annotations
+
+import json
+import os
+import struct
+import subprocess
+import sys
+
+import pytest
+
+from btfsm.cli import main
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+PICK = os.path.join(ROOT, "models", "examples", "pick_place_btcpp.xml")
+RECORD = os.path.join(ROOT, "docs", "examples", "btcpp_record.py")
+
+
+@pytest.fixture(scope="module")
+def logs(tmp_path_factory):
+    pytest.importorskip("behaviortreepy")
+    folder = tmp_path_factory.mktemp("cli")
+    good, bad = str(folder / "run.btlog"), str(folder / "stuck.btlog")
+    subprocess.run([sys.executable, RECORD, good], check=True, capture_output=True)
+    subprocess.run([sys.executable, RECORD, bad, "--stuck-sensor"], check=True, capture_output=True)
+    return good, bad
+
+
+def _run(capsys, *argv):
+    code = main(["conform", *argv])
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+def test_a_recorded_run_conforms(logs, capsys):
+    code, out, err = _run(capsys, "--log", logs[0], PICK)
+    assert code == 0, err
+    assert out.startswith(f"{logs[0]}: conforms to pick-place-btcpp under btcpp: ")
+    assert "explained by a run of 40 tick(s)" in out
+
+
+def test_a_stuck_sensor_is_found(logs, capsys):
+    code, out, err = _run(capsys, "--log", logs[1], PICK)
+    assert code == 1
+    assert "does not conform to pick-place-btcpp under btcpp: transition " in out
+    assert "'arm_work/agv_branch/has_part' (<IsHolding>, uid 8) IDLE -> SUCCESS is not a step of the model; " \
+           "the model allows FAILURE here" in out
+    code, out, _ = _run(capsys, "--log", logs[1], PICK, "--json")
+    first = json.loads(out)["first"]
+    assert code == 1 and first["status"] == "SUCCESS" and first["model_allows"] == ["FAILURE"] and first["uid"] == 8
+
+
+def _broken(data):
+    n = struct.unpack_from("<i", data, 19)[0]
+    body = 19 + 4 + n + 8
+    wrong_uid = data[:body + 6] + (99).to_bytes(2, "little") + data[body + 8:]
+    wrong_status = data[:body + 8] + bytes([7]) + data[body + 9:]
+    return {
+        "not a BehaviorTree.CPP FileLogger2 log": b"hello",
+        "FileLogger2 protocol version 2": data[:18] + b"\x02" + data[19:],
+        "the file ends inside a transition (4 of its 9 bytes)": data[:body + 4],
+        "the file ends inside the tree's XML": data[:100],
+        "node uid 99 is not in the log's tree": wrong_uid,
+        "status 7 (expected 0 IDLE to 4 SKIPPED)": wrong_status,
+    }
+
+
+def test_malformed_logs_exit_2_with_one_line(logs, capsys, tmp_path):
+    data = open(logs[0], "rb").read()
+    for problem, content in _broken(data).items():
+        path = tmp_path / "broken.btlog"
+        path.write_bytes(content)
+        code, out, err = _run(capsys, "--log", str(path), PICK)
+        assert code == 2, (problem, out, err)
+        assert err.startswith(f"btfsm conform: error: {path}: ") and problem in err and err.count("\n") == 1, err
+
+
+def test_a_log_of_another_tree_is_refused(logs, capsys, tmp_path):
+    other = tmp_path / "other.xml"
+    other.write_text('<root BTCPP_format="4"><BehaviorTree ID="T"><Sequence name="s"><A name="a"/><B name="b"/>'
+                     "</Sequence></BehaviorTree></root>")
+    code, _, err = _run(capsys, "--log", logs[0], str(other))
+    assert code == 2
+    assert "the recorded tree is not the model's tree: at 'arm_work' (<ReactiveFallback>, uid 1) vs model node 's' " \
+           "(MemorySequence): a ReactiveFallback in the recording" in err
+
+
+PYTREES_MODEL = '''
+import py_trees
+from btfsm.interop.pytrees import from_pytrees
+
+def tree():
+    return py_trees.composites.Selector("root", memory=False, children=[
+        py_trees.composites.Sequence("pick", memory=False, children=[
+            py_trees.behaviours.Success(name="part_seen"), py_trees.behaviours.Running(name="grasp")]),
+        py_trees.behaviours.Running(name="wait")])
+
+def model():
+    return from_pytrees(tree(), {"part_seen": ["success", "failure"], "grasp": ["running", "success"],
+                                 "wait": ["running"]})
+'''
+
+
+def test_a_recorded_py_trees_run(capsys, tmp_path):
+    py_trees = pytest.importorskip("py_trees")
+    from btfsm.interop.pytrees import RunRecorder
+
+    mod = tmp_path / "robot.py"
+    mod.write_text(PYTREES_MODEL)
+    sys.path.insert(0, str(tmp_path))
+    try:
+        import robot
+    finally:
+        sys.path.remove(str(tmp_path))
+    tree = py_trees.trees.BehaviourTree(robot.tree())
+    run = tmp_path / "run.jsonl"
+    recorder = RunRecorder(str(run))
+    tree.visitors.append(recorder)
+    for _ in range(3):
+        tree.tick()
+    recorder.close()
+    code, out, err = _run(capsys, "--log", str(run), f"{mod}:model")
+    assert code == 0, err
+    assert out.startswith(f"{run}: conforms to root under pytrees: 3 tick(s) explained")
+    lines = run.read_text().splitlines()
+    lines[2] = lines[2].replace('[3, "RUNNING"]', '[3, "FAILURE"]')  # grasp never fails in the model
+    run.write_text("\n".join(lines) + "\n")
+    code, out, _ = _run(capsys, "--log", str(run), f"{mod}:model")
+    assert code == 1
+    assert "tick 1, visited node 2: 'grasp' (Running, node 3) returned FAILURE, which is not a step of the model; " \
+           "the model allows RUNNING or SUCCESS here" in out, out
+    run.write_text(lines[0] + "\n{not json\n")
+    code, _, err = _run(capsys, "--log", str(run), f"{mod}:model")
+    assert code == 2 and f"{run}: line 2: not JSON" in err
