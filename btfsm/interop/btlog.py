@@ -33,7 +33,7 @@ a ``ModelError`` naming the file, the byte offset and the problem.
 ([(12, 1, 2)], 'Ok', 'Ok')
 >>> read_btlog(data[:-3], "run.btlog")
 Traceback (most recent call last):
-btfsm.errors.ModelError: run.btlog: byte 132: the file ends inside a transition (6 of its 9 bytes)
+btfsm.errors.ModelError: run.btlog: byte 134: the file ends inside a transition (6 of its 9 bytes)
 """
 from __future__ import annotations
 
