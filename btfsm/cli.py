@@ -308,7 +308,8 @@ def _args_conform(sp):
     sp.add_argument("--log", type=input_file, default=None, metavar="RUN",
                     help="check this recorded run instead of running scenarios: a BehaviorTree.CPP FileLogger2 file "
                          "(.btlog, checked under btcpp) or a py_trees run written by btfsm.interop.pytrees.RunRecorder "
-                         "(under pytrees); --max-states bounds the search (default 200,000); see docs/interop.md")
+                         "(under pytrees); --max-states bounds the configurations the search keeps at once (default "
+                         "200,000); see docs/interop.md section 5")
     sp.add_argument("--scenarios", type=int_range(1, MAX_SCENARIOS), default=10)
     sp.add_argument("--seed", type=seed_int, default=0)
     sp.add_argument("--time", type=finite_float(0, MAX_SIM_TIME, lo_open=True), default=700.0,

@@ -52,6 +52,11 @@ def test_a_stuck_sensor_is_found(logs, capsys):
     assert code == 1 and first["status"] == "SUCCESS" and first["model_allows"] == ["FAILURE"] and first["uid"] == 8
 
 
+def test_the_search_budget_exits_3(logs, capsys):
+    code, _, err = _run(capsys, "--log", logs[0], PICK, "--max-states", "1")
+    assert code == 3 and err.startswith("btfsm conform: incomplete: more than --max-states 1 configurations")
+
+
 def _broken(data):
     n = struct.unpack_from("<i", data, 19)[0]
     body = 19 + 4 + n + 8

@@ -37,7 +37,7 @@ __all__ = ["LogVerdict", "check_btlog", "check_pytrees_run", "read_pytrees_run",
            "PYTREES_FORMAT", "DEFAULT_MAX_CONFIGS"]
 
 PYTREES_FORMAT = "btfsm-pytrees-run/1"  # = btfsm.interop.pytrees.RUN_FORMAT (that module needs py_trees)
-DEFAULT_MAX_CONFIGS = 200_000  # (state, log position, recorded statuses) triples searched
+DEFAULT_MAX_CONFIGS = 200_000  # configurations alive at once (btlog: queued; py_trees: after a tick)
 IDLE, RUNNING, SUCCESS, FAILURE = 0, 1, 2, 3  # BehaviorTree.CPP's NodeStatus codes
 START, END, HALT = 0, 1, 2
 # how a BT.CPP node's tick begins (what it records before its children and its result)
@@ -132,7 +132,7 @@ class _Map:
         return self
 
 
-def _map_tree(log_root, model, file, children, tag, label, key, wrapper, known):
+def _map_tree(log_root, model, file, children, tag, name, label, key, wrapper, known):
     """Walk the recorded tree and the model's tree together (see ``_Map``)."""
     m = _Map()
 
@@ -152,8 +152,8 @@ def _map_tree(log_root, model, file, children, tag, label, key, wrapper, known):
         if isinstance(mn, Leaf):
             if lkids:
                 raise fail(ln, mn, f"{len(lkids)} child node(s) in the recording, a leaf in the model")
-            if _base(ln_name(ln)) != _base(mn.name):
-                raise fail(ln, mn, f"the leaf is named '{ln_name(ln)}' in the recording")
+            if _base(name(ln)) != _base(mn.name):
+                raise fail(ln, mn, f"the leaf is named '{name(ln)}' in the recording")
             # a sync action (BT.CPP's SimpleActionNode) records RUNNING before its result when it
             # was IDLE; a condition and an action that can return RUNNING (a StatefulActionNode) do not
             quiet = isinstance(mn, Condition) or model.program.nodes[mn.name].can_run
@@ -169,9 +169,6 @@ def _map_tree(log_root, model, file, children, tag, label, key, wrapper, known):
         for lc, mc in zip(lkids, kids):
             walk(lc, mc, k)
 
-    def ln_name(ln):
-        return ln.name if hasattr(ln, "name") else ln["name"]
-
     if model.tree is None:
         raise ModelError("", "the model has no tree: a recorded run cannot be checked against it", file)
     walk(log_root, model.tree, None)
@@ -185,6 +182,7 @@ def _btcpp_known(ln):
 
 def _map_btlog(log, model, file) -> _Map:
     return _map_tree(log.root, model, file, children=lambda ln: ln.children, tag=lambda ln: ln.tag,
+                     name=lambda ln: ln.name,
                      label=lambda ln: f"'{ln.path}' (<{ln.tag}>, uid {ln.uid})", key=lambda ln: ln.uid,
                      wrapper=lambda ln: ln.tag == "SubTree", known=_btcpp_known)
 
@@ -328,14 +326,13 @@ class _Ends:
 def check_btlog(model, log, file: str = "log", allow=None, max_configs: int = DEFAULT_MAX_CONFIGS) -> LogVerdict:
     """Check a FileLogger2 recording (a ``BtLog``) against ``model`` (its own profile:
     pass a model under ``btcpp``). ``allow(step)`` may restrict the explaining steps
-    (tests pin leaves' answers with it)."""
+    (tests pin leaves' answers with it). The search goes through the log in order: a
+    configuration (model state, log position, recorded statuses) is expanded once, and
+    those behind the furthest position being expanded are forgotten, so memory holds the
+    frontier; ``max_configs`` bounds it (``incomplete`` when hit)."""
     mp = _map_btlog(log, model, file)
-    index = {uid: k for k, uid in enumerate(mp.keys)}
-    entries = []
-    for usec, uid, status in log.transitions:
-        if uid not in index:
-            raise ModelError("", f"transition of node uid {uid}, which the model has no node for", file)
-        entries.append((index[uid], status))
+    index = {uid: k for k, uid in enumerate(mp.keys)}  # every node of the log's tree is mapped
+    entries = [(index[uid], status) for _, uid, status in log.transitions]
     program = model.program
     matcher = _Matcher(entries, mp.rule)
     n = len(entries)
@@ -344,17 +341,18 @@ def check_btlog(model, log, file: str = "log", allow=None, max_configs: int = DE
         if p is not None:
             children[p].append(k)
     start = (program.initial, 0, (IDLE,) * len(mp.keys))
-    seen = {start: 0}
-    heap = [(0, 0, 0, start)]
-    counter = 1
+    seen = {0: {start}}  # log position -> configurations found there
+    heap = [(0, 0, 0, start)]  # (position, ticks, order, configuration)
+    counter = searched = 1
     done_ticks = 0  # complete ticks before the tick that reached the furthest transition
     while heap:
-        negpos, ticks, _, config = heapq.heappop(heap)
-        state, pos, t = config
+        pos, ticks, _, config = heapq.heappop(heap)
+        for old in [p for p in seen if p < pos]:
+            del seen[old]  # every configuration there was expanded
+        state, _, t = config
         if matcher.tail(pos, t, children):
-            return LogVerdict(True, "btcpp", model.semantics, n, ticks, len(seen))
+            return LogVerdict(True, "btcpp", model.semantics, n, ticks, searched)
         reached = matcher.best
-
         ends = _Ends(matcher, pos, t)
 
         def fits(events, ends=ends):
@@ -365,15 +363,17 @@ def check_btlog(model, log, file: str = "log", allow=None, max_configs: int = DE
                 continue
             for pos2, t2 in ends(_items(step.events, mp)):
                 nxt = (step.state, pos2, t2)
-                if nxt not in seen:
-                    seen[nxt] = ticks + 1
-                    heapq.heappush(heap, (-pos2, ticks + 1, counter, nxt))
+                there = seen.setdefault(pos2, set())
+                if nxt not in there:
+                    there.add(nxt)
+                    heapq.heappush(heap, (pos2, ticks + 1, counter, nxt))
                     counter += 1
-                    if len(seen) > max_configs:
-                        return LogVerdict(False, "btcpp", model.semantics, n, ticks, len(seen), incomplete=True)
+                    searched += 1
+                    if len(heap) > max_configs:
+                        return LogVerdict(False, "btcpp", model.semantics, n, ticks, searched, incomplete=True)
         if matcher.best > reached:
             done_ticks = ticks
-    return LogVerdict(False, "btcpp", model.semantics, n, done_ticks, len(seen),
+    return LogVerdict(False, "btcpp", model.semantics, n, done_ticks, searched,
                       first=_first_btlog(log, mp, entries, matcher, done_ticks))
 
 
@@ -468,6 +468,7 @@ _PY_STATUS = {"RUNNING": 0, "SUCCESS": 1, "FAILURE": 2}
 
 def _map_pytrees(run, model, file) -> _Map:
     return _map_tree(run.nodes[0], model, file, children=lambda nd: nd["children"], tag=lambda nd: nd["type"],
+                     name=lambda nd: nd["name"],
                      label=lambda nd: f"'{nd['name']}' ({nd['type']}, node {nd['index']})", key=lambda nd: nd["index"],
                      wrapper=lambda nd: nd["type"] in ("PassThrough", "Count"),
                      known=lambda nd: _PYTREES_KNOWN.get(nd["type"]))
@@ -537,7 +538,7 @@ def check_pytrees_run(model, run, file: str = "run", allow=None, max_configs: in
         if not nxt:
             return LogVerdict(False, "pytrees", model.semantics, len(run.ticks), tick, searched,
                               first=_first_pytrees(tick, want, best, why_running, mp))
-        if searched > max_configs:
+        if len(nxt) > max_configs:  # the states a tick may have left the model in
             return LogVerdict(False, "pytrees", model.semantics, len(run.ticks), tick, searched, incomplete=True)
         states = nxt
     return LogVerdict(True, "pytrees", model.semantics, len(run.ticks), len(run.ticks), searched)
@@ -602,8 +603,8 @@ def cli_conform_log(args) -> int:
     if getattr(args, "json", False):
         print(json.dumps(dict(verdict.as_dict(), log=path, model=model.name)))
     elif verdict.incomplete:
-        print(f"btfsm conform: incomplete: the search hit --max-states {budget:,} after {verdict.ticks} tick(s); "
-              "raise it", file=sys.stderr)
+        print(f"btfsm conform: incomplete: more than --max-states {budget:,} configurations alive at once after "
+              f"{verdict.ticks} tick(s); raise it", file=sys.stderr)
     elif verdict.conforms:
         print(f"{path}: conforms to {model.name} under {semantics}: {what} explained by a run of "
               f"{verdict.ticks} tick(s) ({verdict.searched:,} configurations searched)")
