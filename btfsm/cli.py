@@ -99,7 +99,7 @@ COMMANDS = {
 #: Per command: the argument names that are output paths (checked against the inputs).
 OUTPUTS = {"show": ("output",), "run": ("trace",), "replay": ("render", "gif"), "check": ("counterexample_dir",), "bound": ("output",),
            "export": ("output",), "sim": ("render", "gif"), "experiment": ("out",), "sweep": ("out",), "import": ("output",)}
-INPUTS = {"replay": ("trace", "model"), "import": ("model", "leaves"), "conform": ("model", "log")}
+INPUTS = {"replay": ("trace", "model"), "import": ("model", "leaves")}
 
 
 def build_parser() -> argparse.ArgumentParser:

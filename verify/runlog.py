@@ -34,9 +34,10 @@ from btfsm.interop.btlog import MAGIC, STATUS_NAMES, read_btlog
 from btfsm.oracles import ScriptOracle, all_choices
 
 __all__ = ["LogVerdict", "check_btlog", "check_pytrees_run", "read_pytrees_run", "cli_conform_log",
-           "PYTREES_FORMAT", "DEFAULT_MAX_CONFIGS"]
+           "PYTREES_FORMAT", "DEFAULT_MAX_CONFIGS", "MAX_LOG_BYTES"]
 
 PYTREES_FORMAT = "btfsm-pytrees-run/1"  # = btfsm.interop.pytrees.RUN_FORMAT (that module needs py_trees)
+MAX_LOG_BYTES = 64 * 1024 * 1024  # a recording read at once: about 7 million .btlog transitions
 DEFAULT_MAX_CONFIGS = 200_000  # configurations alive at once (btlog: queued; py_trees: after a tick)
 IDLE, RUNNING, SUCCESS, FAILURE = 0, 1, 2, 3  # BehaviorTree.CPP's NodeStatus codes
 START, END, HALT = 0, 1, 2
@@ -580,7 +581,7 @@ def cli_conform_log(args) -> int:
     from btfsm.files import load_model, read_model_bytes
 
     path = args.log
-    data = read_model_bytes(path, path)
+    data = read_model_bytes(path, path, MAX_LOG_BYTES, "recorded run")
     if data.startswith(MAGIC):
         engine, semantics = "btcpp", args.semantics or "btcpp"
     elif data.lstrip().startswith(b"{"):
