@@ -29,13 +29,14 @@ from hypothesis import strategies as st
 
 bt = pytest.importorskip("behaviortreepy")
 
-from btcpp_peer import _BT, build  # noqa: E402
+from btcpp_peer import build  # noqa: E402
 from test_peer_btcpp import TICKS, trees  # noqa: E402
 
 from btfsm.interop.btcpp_export import to_btcpp_xml  # noqa: E402
 from btfsm.interop.btlog import read_btlog  # noqa: E402
 from btfsm.verify.runlog import check_btlog  # noqa: E402
 
+_BT = {"S": bt.NodeStatus.SUCCESS, "F": bt.NodeStatus.FAILURE, "R": bt.NodeStatus.RUNNING}
 LONG = bool(os.environ.get("BTFSM_LONG"))
 TREES = 1000 if LONG else 250
 TABLES = 4  # runs of each tree, with other leaf answers

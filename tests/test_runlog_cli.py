@@ -139,3 +139,37 @@ def test_a_recorded_py_trees_run(capsys, tmp_path):
     run.write_text(lines[0] + "\n{not json\n")
     code, _, err = _run(capsys, "--log", str(run), f"{mod}:model")
     assert code == 2 and f"{run}: line 2: not JSON" in err
+
+
+def _btlog(xml: str, transitions) -> bytes:
+    """A FileLogger2 file: the tree's XML (with _uid attributes) and (uid, status) pairs."""
+    data = b"BTCPP4-FileLogger2\x01" + struct.pack("<i", len(xml)) + xml.encode() + struct.pack("<q", 0)
+    for k, (uid, status) in enumerate(transitions):
+        data += (10 * k).to_bytes(6, "little") + uid.to_bytes(2, "little") + bytes([status])
+    return data
+
+
+def test_an_abstracted_decorator_passes_its_childs_status_on(capsys, tmp_path):
+    """A node the side file abstracts as its child (``abstract: child``) is matched as a
+    node that passes its child's status on (its RUNNING at the start of a tick allowed)."""
+    tree = tmp_path / "t.xml"
+    tree.write_text('<root BTCPP_format="4"><BehaviorTree ID="T"><Sequence name="s"><Delay name="d" delay_msec="5">'
+                    '<Work name="w"/></Delay><Ok name="ok"/></Sequence></BehaviorTree></root>')
+    (tmp_path / "t.btfsm.yaml").write_text("nodes: {d: {abstract: child}}\nprimitives: {Work: [running, success], "
+                                           "Ok: [success]}\n")
+    xml = ('<root BTCPP_format="4"><BehaviorTree ID="T" _fullpath=""><Sequence name="s" _uid="1">'
+           '<Delay name="d" _uid="2"><Work name="w" _uid="3"/></Delay><Ok name="ok" _uid="4"/></Sequence>'
+           '</BehaviorTree></root>')
+    # tick 1: s starts, d starts, w RUNNING; tick 2: w SUCCESS (reset by d), d SUCCESS, ok (a sync action:
+    # RUNNING first), s SUCCESS, resets
+    good = [(1, 1), (2, 1), (3, 1), (3, 2), (3, 0), (2, 2), (4, 1), (4, 2), (2, 0), (4, 0), (1, 2), (1, 0)]
+    run = tmp_path / "run.btlog"
+    run.write_bytes(_btlog(xml, good))
+    code, out, err = _run(capsys, "--log", str(run), str(tree))
+    assert code == 0, out + err
+    assert "explained by a run of 2 tick(s)" in out
+    bad = good[:5] + [(2, 3)] + good[6:]  # d FAILURE while w succeeded
+    run.write_bytes(_btlog(xml, bad))
+    code, out, _ = _run(capsys, "--log", str(run), str(tree))
+    assert code == 1 and "transition 6 (0.000050 s), tick 2: 's/d' (<Delay>, uid 2) RUNNING -> FAILURE is not a " \
+                         "step of the model; the model allows SUCCESS here" in out, out
