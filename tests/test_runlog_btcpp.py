@@ -13,9 +13,9 @@ finished nodes to IDLE, the RUNNING a sync action records before its result) are
 tampered with.
 
 Cost: 1,000 recordings per run (250 random trees, each run with 4 seeded random tables of
-leaf answers: hypothesis' tree generation is the slow part); the tampered logs come from
-the first 150 recordings (600 logs). ``BTFSM_LONG=1``: 1,000 trees (4,000 recordings),
-every one tampered.
+leaf answers: hypothesis' tree generation is the slow part); the first 150 recordings are
+tampered, four ways each. ``BTFSM_LONG=1``: 1,000 trees (4,000 recordings), every one
+tampered.
 """
 from __future__ import annotations
 
