@@ -62,7 +62,13 @@ for _ in range(args.ticks):
     if not cell["part_on_belt"] and rng.random() < 0.3:  # the environment, before the tick
         cell["part_on_belt"] = True
     tree.tick_exactly_once()
-time.sleep(0.05)  # FileLogger2 writes from its own thread every 10 ms
+# FileLogger2 writes from its own thread and drops what it has not written when it is
+# destroyed: wait until the file has stopped growing for 0.2 s
+size, still = -1, 0
+while still < 10:
+    time.sleep(0.02)
+    now = os.path.getsize(args.out)
+    size, still = now, still + 1 if now == size else 0
 logger.flush()
 del logger
 print(f"{args.out}: {args.ticks} ticks of PickPlace recorded")
