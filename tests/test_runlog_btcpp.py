@@ -26,7 +26,6 @@ import time
 
 import pytest
 from hypothesis import HealthCheck, given, settings
-from hypothesis import strategies as st
 
 bt = pytest.importorskip("behaviortreepy")
 
