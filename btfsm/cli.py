@@ -91,13 +91,15 @@ COMMANDS = {
     "sim": ("btfsm.sim.cli:cli_sim", "run a model in a simulated cell (its scene; the ARIAC cell for the paper's models)"),
     "experiment": ("btfsm.sim.cli:cli_experiment", "reproduce the paper's ARIAC experiment"),
     "sweep": ("btfsm.sim.cli:cli_sweep", "run the experiment over a grid of cell parameters (on Dask)"),
-    "conform": ("btfsm.sim.cli:cli_conform", "run scenarios and check runtime conformance"),
+    "conform": ("btfsm.cli:cli_conform", "run scenarios and check runtime conformance, or (--log) check a run recorded "
+                                         "by BehaviorTree.CPP or py_trees against the model"),
     "import": ("btfsm.cli:cli_import", "read a BehaviorTree.CPP XML v4 tree (+ side file); write a btfsm model file"),
 }
 
 #: Per command: the argument names that are output paths (checked against the inputs).
-OUTPUTS = {"show": ("output",), "run": ("trace",), "replay": ("render", "gif"), "check": ("counterexample_dir",), "bound": ("output",),
-           "export": ("output",), "sim": ("render", "gif"), "experiment": ("out",), "sweep": ("out",), "import": ("output",)}
+OUTPUTS = {"show": ("output",), "run": ("trace",), "replay": ("render", "gif", "html"), "check": ("counterexample_dir", "html"),
+           "bound": ("output",), "export": ("output",), "sim": ("render", "gif"), "experiment": ("out",), "sweep": ("out",),
+           "import": ("output",), "conform": ("html",)}
 INPUTS = {"replay": ("trace", "model"), "import": ("model", "leaves")}
 
 
@@ -142,6 +144,12 @@ def _args_scene(sp):
     sp.add_argument("--scene", metavar="FILE", type=input_file, default=None,
                     help="run in this scene file (docs/cell.md) instead of the kitting cell; default: the "
                          "model's own scene (MODEL.scene.yaml beside it, or a shipped scene named after it)")
+
+
+def _args_html(sp, what):
+    sp.add_argument("--html", metavar="HTML", type=output_file(".html", ".htm"), default=None,
+                    help=f"also write one self-contained HTML page: {what}, stepped tick by tick over the tree "
+                         "and the FSMs (needs Graphviz; btfsm/html.py)")
 
 
 def _args_json(sp, what="the result"):
@@ -189,6 +197,7 @@ def _args_replay(sp):
     sp.add_argument("--gif", metavar="GIF", type=output_file(".gif"), help="with --cell: write an animation")
     sp.add_argument("--time", type=finite_float(0, MAX_SIM_TIME, lo_open=True), default=120.0,
                     help="with --cell: time limit (simulated s)")
+    _args_html(sp, "the counterexample or trace (with --cell: and the cell run, with pictures)")
 
 
 def _args_check(sp):
@@ -198,6 +207,7 @@ def _args_check(sp):
     _args_max_states(sp)
     _args_budgets(sp)
     sp.add_argument("--counterexample-dir", type=output_dir, help="write each counterexample as JSON into this folder")
+    _args_html(sp, "the verdicts and each counterexample")
     sp.add_argument("--quiet", "-q", action="store_true", help="no warnings and no information lines, only verdicts and failures")
     sp.add_argument("--verbose", "-v", action="store_true", help="list every warning, determinism gap and note")
     sp.add_argument("--goal-level", choices=("open", "tree"), default="open",
@@ -315,6 +325,11 @@ def _args_sim(sp):
 
 def _args_conform(sp):
     _args_model(sp)
+    sp.add_argument("--log", type=input_file, default=None, metavar="RUN",
+                    help="check this recorded run instead of running scenarios: a BehaviorTree.CPP FileLogger2 file "
+                         "(.btlog, checked under btcpp) or a py_trees run written by btfsm.interop.pytrees.RunRecorder "
+                         "(under pytrees); --max-states bounds the configurations the search keeps at once (default "
+                         "200,000); see docs/interop.md section 5")
     sp.add_argument("--scenarios", type=int_range(1, MAX_SCENARIOS), default=10)
     sp.add_argument("--seed", type=seed_int, default=0)
     sp.add_argument("--time", type=finite_float(0, MAX_SIM_TIME, lo_open=True), default=700.0,
@@ -322,8 +337,9 @@ def _args_conform(sp):
     sp.add_argument("--drops", action="store_true", help="add faulty-gripper drop regions to some scenarios")
     sp.add_argument("--no-path", action="store_true", help="skip the path check against the explored system")
     _args_scene(sp)
-    _args_max_states(sp, default=2_000_000)
+    _args_max_states(sp)
     _args_json(sp, "the scenarios and the verdict")
+    _args_html(sp, "the scenarios, and the first nonconforming one (else the first) as a run with the cell's pictures")
 
 
 def _args_import(sp):
@@ -510,6 +526,16 @@ def _main(argv) -> int:
     return int(result or 0)
 
 
+def cli_conform(args) -> int:
+    """``btfsm conform``: ``--log RUN`` checks a recorded run (``btfsm.verify.runlog``, no
+    simulator needed); otherwise the simulated scenarios of ``btfsm.sim.cli``."""
+    if args.log is not None:
+        return _handler("btfsm.verify.runlog:cli_conform_log")(args)
+    if args.max_states is None:
+        args.max_states = 2_000_000
+    return _handler("btfsm.sim.cli:cli_conform")(args)
+
+
 def cli_validate(args) -> int:
     """``btfsm validate MODEL [--strict] [--json]``: the text report is ``btfsm.files.cli_validate``."""
     from .files import cli_validate as validate_text
@@ -686,6 +712,11 @@ def cli_replay(args) -> int:
     from .formats import FormatError, printable
     from .trace import replay
 
+    html = getattr(args, "html", None)
+    if html:
+        from .html import require_dot
+
+        require_dot()
     model = load_cli_model(args)
     if str(args.trace).endswith(".json"):
         from btfsm.verify.counterexample import load_counterexample, replay_counterexample
@@ -696,10 +727,17 @@ def cli_replay(args) -> int:
             raise UsageError(str(exc)) from None
         ok, text = replay_counterexample(ce, model)
         print(printable(text))
+        cell = None
         if args.cell:
             from btfsm.sim.replay import replay_for_cli
 
-            print(replay_for_cli(model, ce.to_json(), args))
+            out = replay_for_cli(model, ce.to_json(), args, record=bool(html))
+            text, cell = (out if html else (out, None))
+            print(text)
+        if html:
+            from .html import replay_page, write_page
+
+            print(f"html: {write_page(html, model, **replay_page(model, args.trace, ok, text, ce=ce, cell=cell))}")
         return 0 if ok else 1
     if args.cell:
         raise UsageError("--cell replays counterexamples (.json), not traces")
@@ -708,11 +746,15 @@ def cli_replay(args) -> int:
     except FormatError as exc:
         raise UsageError(str(exc)) from None
     if result is None:
-        print(f"replay: {printable(args.trace)} reproduces exactly on {model.name}")
-        return 0
-    tick, why = result
-    print(f"replay: differs at tick {tick}: {printable(why)}")
-    return 1
+        text = f"replay: {printable(args.trace)} reproduces exactly on {model.name}"
+    else:
+        text = f"replay: differs at tick {result[0]}: {printable(result[1])}"
+    print(text)
+    if html:
+        from .html import replay_page, write_page
+
+        print(f"html: {write_page(html, model, **replay_page(model, args.trace, result is None, text))}")
+    return 0 if result is None else 1
 
 
 if __name__ == "__main__":
