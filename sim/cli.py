@@ -225,7 +225,8 @@ def cli_conform(args) -> int:
             drop = f", drop region {sc.drop_regions[0]}" if sc.drop_regions else ""
             print(f"scenario {i}: seed {sc.seed} in scene {scene.name}{drop}: {res.ticks} ticks, "
                   f"{'completed' if res.completed else 'not completed'}, lost {res.lost}, {status}"
-                  + (f"\n  first mismatch at {res.mismatch}" if res.mismatch else ""))
+                  + (f"\n  first mismatch at {res.mismatch}\n  replay: btfsm sim {args.model} --scene {scene.file} "
+                     f"--seed {sc.seed}" if res.mismatch else ""))
         elif not as_json:
             status = "ok" if res.mismatch is None else "MISMATCH"
             print(f"scenario {i}: seed {sc.seed}, {len(sc.detections)} belt parts, "
