@@ -388,7 +388,7 @@ class SceneBinding:
             have, want = vars[var], self.world.query(kind, name)
             diff = int(want) - int(have)
             if not lo <= diff <= hi:
-                out.append(f"{var} is {have} but {kind}({name}) is {want}")
+                out.append(f"{var} is {have} but {kind}({', '.join(name) if isinstance(name, tuple) else name}) is {want}")
         return out
 
 

@@ -125,17 +125,21 @@ class Scene:
             length = math.hypot(p1[0] - p0[0], p1[1] - p0[1])
             if length <= _EPS:
                 raise self.error(where, "'from' and 'to' are the same point")
-            ptype = self._type(b.get("part_type", DEFAULT_PART), f"{where}.part_type")
+            ptypes = b.get("part_type", DEFAULT_PART)
+            ptypes = [ptypes] if isinstance(ptypes, str) else list(ptypes)
+            for i, pt in enumerate(ptypes):
+                self._type(pt, f"{where}.part_type" + (f"[{i}]" if len(ptypes) > 1 else ""))
+            ptype = ptypes[0]
             arr = b.get("arrivals", {})
             kinds = [k for k in ("schedule", "period", "random") if k in arr]
             if len(kinds) > 1:
                 raise self.error(f"{where}.arrivals", f"give one of schedule, period or random, not {' and '.join(kinds)}")
             self.belts[name] = {"name": name, "from": p0, "to": p1, "length": length, "speed": float(b["speed"]),
                                 "width": float(b.get("width", 0.3)), "end": b.get("end", "lost"),
-                                "part_type": ptype, "arrivals": dict(arr), "height": float(b.get("height", 0.0)),
+                                "part_type": ptype, "part_types": ptypes, "arrivals": dict(arr), "height": float(b.get("height", 0.0)),
                                 "friction": b.get("friction")}
             step = self.belts[name]["speed"] * self.dt
-            smallest = min(self.part_types.values())
+            smallest = min(self.part_types[pt] for pt in ptypes)
             if step > smallest / 2:
                 raise self.error(f"{where}.speed", f"a part on the belt moves {step:g} m per step of dt = {self.dt:g} s, "
                                  f"more than half the smallest part radius ({smallest:g} m): parts would pass "
@@ -251,17 +255,26 @@ class Scene:
         return (cx + ex * r["reach"] / d, cy + ey * r["reach"] / d)
 
     def world_query(self, text: str, where: str) -> tuple:
-        """``holding(ROBOT)``, ``count(AREA)``, ``sensor(NAME)`` or ``door(NAME)`` as (kind, name)."""
+        """``holding(ROBOT)``, ``count(AREA)``, ``sensor(NAME)`` or ``door(NAME)`` as (kind,
+        name); ``count(AREA, TYPE)`` and ``sensor(NAME, TYPE)`` count only parts of a type:
+        (kind, (name, type))."""
         kind, _, rest = str(text).partition("(")
         name = rest[:-1] if rest.endswith(")") else None
+        kind = kind.strip()
         tables = {"holding": ("robot", self.robots), "count": ("area", self.areas),
                   "sensor": ("sensor", self.sensors), "door": ("door", self.doors)}
-        what, table = tables.get(kind.strip(), (None, None))
+        what, table = tables.get(kind, (None, None))
         if table is None or name is None:
-            raise self.error(where, f"expected holding(ROBOT), count(AREA), sensor(NAME) or door(NAME), got '{text}'")
+            raise self.error(where, "expected holding(ROBOT), count(AREA[, TYPE]), sensor(NAME[, TYPE]) or door(NAME), "
+                                    f"got '{text}'")
+        name, _, ptype = (s.strip() for s in name.partition(","))
         if name not in table:
             raise self.error(where, f"no {what} named '{name}' (known: {_names(table)})")
-        return kind.strip(), name
+        if not ptype:
+            return kind, name
+        if kind not in ("count", "sensor"):
+            raise self.error(where, f"only count(AREA, TYPE) and sensor(NAME, TYPE) take a part type, got '{text}'")
+        return kind, (name, self._type(ptype, where))
 
 
 def _names(d) -> str:
@@ -413,7 +426,7 @@ class World:
         self.parts: list = []
         self.members: dict = {}  # Place -> [part ids], insertion-ordered
         self.log: list = []  # (time, part id, from, to)
-        self.events: list = []  # (time, sensor, event name, part id) raised, in order
+        self.events: list = []  # (time, sensor, event name, part id, part type) raised, in order
         self.doors = {n: (1.0 if d["open"] else 0.0) for n, d in scene.doors.items()}  # openness 0..1
         self.door_goal = {n: (1.0 if d["open"] else 0.0) for n, d in scene.doors.items()}
         self.robots = {n: _Robot(n, spec) for n, spec in scene.robots.items()}
@@ -422,6 +435,7 @@ class World:
         self._sensed_log = -1
         self.arrivals = {n: self._arrival_times(b) for n, b in scene.belts.items()}
         self.pending = {n: 0 for n in scene.belts}  # arrivals due but waiting for space
+        self._spawned = {n: 0 for n in scene.belts}  # parts put on each belt so far
         self._build_space()
         self._next_arrival = -math.inf
         for name, a in scene.areas.items():
@@ -846,7 +860,13 @@ class World:
     def tool_in(self, region) -> bool:
         return any(_inside(region, (r.x, r.y)) for r in self.robots.values())
 
-    def query(self, kind: str, name: str):
+    def query(self, kind: str, name):
+        """The world's value for a check: ``name`` is a name, or (name, part type) for
+        ``count`` and ``sensor`` (only parts of that type)."""
+        if isinstance(name, tuple):
+            name, ptype = name
+            ids = self.members.get(Place("AREA", name), ()) if kind == "count" else self.inside[name]
+            return sum(1 for pid in ids if self.parts[pid].type == ptype)
         if kind == "holding":
             return self.robots[name].holding is not None
         if kind == "count":
@@ -891,11 +911,14 @@ class World:
                 self.pending[name] += 1
             if self.pending[name]:
                 b = self.scene.belts[name]
-                gap = 2 * self.scene.part_types[b["part_type"]]
+                types = b["part_types"]
+                ptype = types[self._spawned[name] % len(types)]  # several types arrive in turn
+                gap = 2 * max(self.scene.part_types[pt] for pt in types)
                 if all(self.parts[i].s > gap for i in self.members.get(Place("BELT", name), ())):
                     self.pending[name] -= 1
+                    self._spawned[name] += 1
                     x, y = b["from"]
-                    self._new_part(b["part_type"], x, y, Place("BELT", name))
+                    self._new_part(ptype, x, y, Place("BELT", name))
         # the next step that has something to do here: now while a part waits for space, else the next arrival
         self._next_arrival = (-math.inf if any(self.pending.values()) else
                               min((ts[0] for ts in self.arrivals.values() if ts), default=math.inf))
@@ -1098,9 +1121,9 @@ class World:
             if now == old:
                 continue
             if s["on_enter"]:
-                self.events.extend((self.time, name, s["on_enter"], pid) for pid in sorted(now - old))
+                self.events.extend((self.time, name, s["on_enter"], pid, parts[pid].type) for pid in sorted(now - old))
             if s["on_exit"]:  # a part taken by a gripper does not "leave": it is taken
-                self.events.extend((self.time, name, s["on_exit"], pid) for pid in sorted(old - now)
+                self.events.extend((self.time, name, s["on_exit"], pid, parts[pid].type) for pid in sorted(old - now)
                                    if self.parts[pid].place.kind != "GRIPPER")
             self.inside[name] = now
 

@@ -215,3 +215,28 @@ def test_validate_recognises_a_scene_and_refuses_unstable_physics(tmp_path):
     bad.write_text("robots: {r: {base: [0, 0], reach: 1, home: [0.5, 0]}}\npart_types: {p: {radius: 0.03, friction: -1}}\n")
     r = run(bad)
     assert r.returncode == 2 and "part_types.p.friction: must be > 0" in r.stderr and "Traceback" not in r.stderr
+
+
+# --------------------------------------------------------------------------- part types
+def test_typed_sensors_checks_and_events_and_the_sorter_conforms():
+    from btfsm.files import load_data, load_model
+    from btfsm.sim.conformance import conform
+    from btfsm.sim.scene import load_scene
+
+    scene = load_scene("models/scenes/sorter.yaml")
+    assert scene.world_query("count(red_bin, red)", "x") == ("count", ("red_bin", "red"))
+    w = World(scene)
+    for _ in range(1000):
+        w.step()
+    # red and blue arrive in turn and queue at the end stop; only the red sensor sees the red one
+    assert [p.type for p in w.parts] == ["red", "blue", "red", "blue"]
+    assert [e[1:3] + (e[4],) for e in w.events] == [("red_at_end", "red_arrives", "red")]
+    assert w.query("sensor", ("red_at_end", "red")) == 1 and w.query("sensor", ("red_at_end", "blue")) == 0
+    out = conform(load_model("models/examples/sorter.yaml"), 2, 0, 200.0, scene=scene)
+    assert not out.failed and all(r.completed for r in out.results)
+    data = load_data("models/scenes/sorter.yaml")
+    data["checks"] = [{"var": "holding", "world": "holding(arm, red)"}]
+    import pytest
+
+    with pytest.raises(ModelError, match=r"checks\[0\].world: only count\(AREA, TYPE\) and sensor"):
+        scene_from_data(data)
