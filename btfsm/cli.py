@@ -62,7 +62,7 @@ MAX_SCENARIOS = 100_000
 MAX_FRAMES = 100_000
 
 #: Third-party modules that only some commands need (``pip install 'btfsm[sim]'``).
-OPTIONAL_MODULES = {"matplotlib", "PIL", "dask", "distributed", "pyarrow", "numpy", "tqdm"}
+OPTIONAL_MODULES = {"matplotlib", "PIL", "dask", "distributed", "pyarrow", "numpy", "tqdm", "pymunk"}
 
 
 class CliParser(argparse.ArgumentParser):

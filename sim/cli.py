@@ -119,6 +119,11 @@ def _sim_scene(args, model, scene) -> int:
           f"areas: {counts or '-'}; lost {run.lost}")
     if run.mismatch is not None:
         print(f"conformance: {run.mismatch}")
+    incidents = seen["world"].incidents if "world" in seen else []
+    for time, kind, pid, cause in incidents[:20]:  # what physics did uncommanded
+        print(f"incident: t={time:.2f} s {kind} of part {pid}: {cause}")
+    if len(incidents) > 20:
+        print(f"incident: ... {len(incidents) - 20} more")
     if args.render:
         from .scene_render import render_scene
 

@@ -488,6 +488,7 @@ class World:
             r.body = pymunk.Body(body_type=pymunk.Body.KINEMATIC)
             r.body.position = (r.x, r.y)
             space.add(r.body)
+        self._added = True  # bodies added or shapes removed since the last step (see ``step``)
         self._disturbed: dict = {}  # part id -> None: resting parts that something touched (insertion-ordered)
         space.on_collision(_PART, _PART, begin=self._touch, pre_solve=self._pressed)
         space.on_collision(_PART, _WALL, pre_solve=self._pressed)
@@ -529,6 +530,7 @@ class World:
         kind, name = place
         if kind == "LOST":
             self.space.remove(part.shape, body)
+            self._added = True
             self._disturbed.pop(part.id, None)
             return
         if kind == "GRIPPER":
@@ -608,6 +610,7 @@ class World:
         shape = pm.Circle(body, part.radius)
         shape.friction, shape.collision_type = part.friction, _PART
         self.space.add(body, shape)
+        self._added = True
         part.body, part.shape, part.cb = body, shape, body._body
         self.parts.append(part)
         if place.kind == "AREA" and sc.areas[place.name]["slots"]:
@@ -879,29 +882,34 @@ class World:
     def step(self, n: int = 1) -> None:
         space, dt, robots = self.space, self.dt, tuple(self.robots.values())
         cp_step, cp_space = self._cp_step, space._space
+        doors, belts, sinks, sensors = bool(self.doors), bool(self.scene.belts), bool(self.scene.sinks), bool(self.scene.sensors)
         for _ in range(n):
             self.steps += 1
             if self.steps * dt + _EPS >= self._next_arrival:
                 self._arrive()
-            if self.doors:
+            if doors:
                 self._doors()
             for r in robots:
                 if r.holding is None:
                     self._drive(r)
                 else:
                     self._robot(r)
-            if space._bodies_to_check or space._removed_shapes:
-                space.step(dt)  # pymunk's checks and its bookkeeping of removed shapes
+            if self._added:  # pymunk's checks of new bodies and its bookkeeping of removed shapes
+                space.step(dt)
+                self._added = False
             else:
                 cp_step(cp_space, dt)  # the same Chipmunk step without pymunk's per-call overhead
             for r in robots:
                 if r.holding is not None:
                     self._held(r)
-            self._belts()
+            if belts:
+                self._belts()
             if self._disturbed:
                 self._resting()
-            self._sinks()
-            self._sense()
+            if sinks:
+                self._sinks()
+            if sensors:
+                self._sense()
 
     def _arrive(self) -> None:
         t = self.time + _EPS

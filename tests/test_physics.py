@@ -45,6 +45,25 @@ def test_a_held_part_slips_when_the_tool_accelerates_harder_than_the_grip_allows
     assert 0.3 < p.x < 0.4 and p.place == Place("AREA", "src") and w.query("holding", "arm") is False
 
 
+def test_a_held_part_slips_in_a_sharp_turn_a_preempted_move_makes():
+    """A move re-targeted while under way (a preemption) starts the new move from rest: the
+    tool turns at once, and the 2 kg part, moving at 1 m/s, cannot be turned by 12 N."""
+    outcomes = []
+    for max_force in (12.0, 400.0):
+        w = World(scene_from_data(_arm_scene(max_force=max_force, acceleration=4.0)))
+        assert w.attach("arm")
+        w.move_to("arm", (-0.4, 0.0), 0.5)
+        for _ in range(80):
+            w.step()
+        assert w.robots["arm"].holding == 0  # at half speed: 2 m/s^2, 4 N < 12 N: carried so far
+        w.move_to("arm", (0.0, 0.4), 0.5)  # the turn
+        for _ in range(200):
+            w.step()
+            w.check_invariant()
+        outcomes.append([i[1] for i in w.incidents])
+    assert outcomes == [["slip"], []]
+
+
 def test_the_same_move_with_a_strong_enough_grip_or_a_gentle_acceleration_carries_the_part():
     for data in (_arm_scene(max_force=20.0), _arm_scene(max_force=5.0, acceleration=2.0)):
         w = World(scene_from_data(data))
