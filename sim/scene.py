@@ -973,7 +973,7 @@ class World:
             prof = r.prof
             f = 1.0 if prof.dist <= 0.0 or t >= prof.total else prof.at(t) / prof.dist
             nx, ny = r.x0 + (r.x1 - r.x0) * f, r.y0 + (r.y1 - r.y0) * f
-            if self.door_at((nx, ny)) is not None:
+            if self.doors and self.door_at((nx, ny)) is not None:
                 r.moving, r.blocked = False, True  # stop short of a closed door
             else:
                 r.x, r.y = nx, ny

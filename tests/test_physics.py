@@ -104,6 +104,20 @@ def test_a_fence_across_a_belt_pushes_parts_off_its_side():
     assert 0.4 < w.parts[0].x < 0.7
 
 
+def test_parts_pushed_out_of_their_slots_leave_the_tray_count():
+    data = {"dt": 0.01, "areas": {"tray": {"region": [-0.1, -0.1, 0.1, 0.1], "slots": [[0, 0], [0.04, 0]],
+                                           "slot_tolerance": 0.005, "parts": 2}},
+            "robots": {"r": {"base": [0, 1], "reach": 0.2, "home": [0, 0.9]}}}
+    w = World(scene_from_data(data))
+    assert w.count("tray") == 2  # two 3 cm discs 4 cm apart: they overlap and push each other away
+    for _ in range(100):
+        w.step()
+        w.check_invariant()
+    assert [i[1] for i in w.incidents] == ["pushed_out_of_slot", "pushed_out_of_slot"]
+    assert "by part" in w.incidents[0][3] and w.count("tray") == 0
+    assert [p.place for p in w.parts] == [FLOOR, FLOOR]
+
+
 def test_a_part_released_away_from_a_free_slot_is_off_target():
     data = _arm_scene(max_force=50.0)
     data["areas"]["dst"]["slots"] = [[-0.45, 0.0]]
