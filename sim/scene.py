@@ -465,6 +465,7 @@ class World:
         self._layer = {pl: 1 << (i % 31) for i, pl in enumerate(names)}
         self._belt_body, self._belt_vel = {}, {}
         self._belt_places = [Place("BELT", b) for b in sc.belts]
+        self._sensor_regions = [s["region"] for s in sc.sensors.values()]
         self._belt_rows = [(Place("BELT", n), *b["from"], (b["to"][0] - b["from"][0]) / b["length"],
                             (b["to"][1] - b["from"][1]) / b["length"], b["length"], b["width"] / 2, b["end"] == "lost")
                            for n, b in sc.belts.items()]
@@ -1114,6 +1115,15 @@ class World:
             movers = [pid for b in self._belt_places for pid in self.members.get(b, ())] + list(self._disturbed)
             if not movers:
                 return
+            if not any(self.inside.values()):  # the usual case: no sensor sees a part, and no mover entered one
+                parts = self.parts
+                for pid in movers:
+                    p = parts[pid]
+                    x, y = p.x, p.y
+                    if any(x0 <= x <= x1 and y0 <= y <= y1 for x0, y0, x1, y1 in self._sensor_regions):
+                        break
+                else:
+                    return
         parts = self.parts
         for name, s in self.scene.sensors.items():
             x0, y0, x1, y1 = s["region"]
