@@ -190,7 +190,7 @@ class KittingBinding(Binding):
     def _collect(self) -> None:
         ev = self.world.events
         while self._seen < len(ev):
-            _t, sensor, _name, pid = ev[self._seen]
+            _t, sensor, _name, pid = ev[self._seen][:4]
             self._seen += 1
             if sensor == self.sensor and pid not in self._seen_ids:
                 self._seen_ids.add(pid)

@@ -119,6 +119,11 @@ def _sim_scene(args, model, scene) -> int:
           f"areas: {counts or '-'}; lost {run.lost}")
     if run.mismatch is not None:
         print(f"conformance: {run.mismatch}")
+    incidents = seen["world"].incidents if "world" in seen else []
+    for time, kind, pid, cause in incidents[:20]:  # what physics did uncommanded
+        print(f"incident: t={time:.2f} s {kind} of part {pid}: {cause}")
+    if len(incidents) > 20:
+        print(f"incident: ... {len(incidents) - 20} more")
     if args.render:
         from .scene_render import render_scene
 
@@ -237,7 +242,8 @@ def cli_conform(args) -> int:
             drop = f", drop region {sc.drop_regions[0]}" if sc.drop_regions else ""
             print(f"scenario {i}: seed {sc.seed} in scene {scene.name}{drop}: {res.ticks} ticks, "
                   f"{'completed' if res.completed else 'not completed'}, lost {res.lost}, {status}"
-                  + (f"\n  first mismatch at {res.mismatch}" if res.mismatch else ""))
+                  + (f"\n  first mismatch at {res.mismatch}\n  replay: btfsm sim {args.model} --scene {scene.file} "
+                     f"--seed {sc.seed}" if res.mismatch else ""))
         elif not as_json:
             status = "ok" if res.mismatch is None else "MISMATCH"
             print(f"scenario {i}: seed {sc.seed}, {len(sc.detections)} belt parts, "
