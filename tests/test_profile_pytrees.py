@@ -20,7 +20,7 @@ from hypothesis import HealthCheck, given, settings
 
 py_trees = pytest.importorskip("py_trees")
 
-from btfsm import (Action, ForceFailure, ForceSuccess, Guard, Inverter, MemoryFallback,  # noqa: E402
+from btfsm import (Action, ForceFailure, ForceSuccess, Guard, Inverter, KeepRunningUntilFailure, MemoryFallback,  # noqa: E402
                    MemorySequence, ModelError, Parallel, ReactiveFallback, ReactiveSequence,
                    Repeat, Retry, Status)
 from btfsm.interop.pytrees import PytreesImportWarning, from_pytrees, to_pytrees  # noqa: E402
@@ -219,9 +219,49 @@ def test_from_pytrees_unknown_leaf_warns_and_refuses_what_it_cannot_model():
     timeout = py_trees.decorators.Timeout("slow", py_trees.behaviours.Running("r"), duration=1.0)
     with pytest.raises(ModelError, match=r"tree\.slow: py_trees decorator Timeout has no btfsm counterpart"):
         from_pytrees(py_trees.composites.Selector("root", memory=False, children=[timeout]))
-    forever = py_trees.decorators.Repeat("forever", py_trees.behaviours.Success("s"), num_success=-1)
-    with pytest.raises(ModelError, match=r"tree\.forever"):
-        from_pytrees(forever)
+    with pytest.raises(ModelError, match=r"tree\.slow"):  # a BehaviourTree is read as its root
+        from_pytrees(py_trees.trees.BehaviourTree(timeout))
+    with pytest.raises(ModelError, match=r"tree: expected a py_trees behaviour or BehaviourTree, got int"):
+        from_pytrees(3)
+
+
+def test_from_pytrees_counts_as_py_trees_compares_them():
+    """py_trees' Retry fails when its failure count reaches num_failures ("<"): any count
+    <= 1 is Retry(1). Its Repeat succeeds when the count *equals* num_success: -1, 0 or a
+    count that is not a whole number is never reached (repeat for ever, KeepRunningUntilFailure).
+    Peer-tested in tests/test_peer_pytrees.py."""
+    D, B = py_trees.decorators, py_trees.behaviours
+    for k, attempts in ((0, 1), (-3, 1), (1, 1), (3, 3), (2.5, 3)):
+        assert from_pytrees(D.Retry("r", B.Failure("f"), num_failures=k)).tree.attempts == attempts
+    for k in (-1, 0, 2.5):
+        assert type(from_pytrees(D.Repeat("r", B.Success("s"), num_success=k)).tree) is KeepRunningUntilFailure
+    assert from_pytrees(D.Repeat("r", B.Success("s"), num_success=2)).tree.times == 2
+    with pytest.raises(ModelError, match=r"tree\.r: Retry num_failures inf"):
+        from_pytrees(D.Retry("r", B.Failure("f"), num_failures=float("inf")))
+    with pytest.raises(ModelError, match=r"tree\.r: Retry num_failures 'x' is not a number"):
+        from_pytrees(D.Retry("r", B.Failure("f"), num_failures="x"))
+
+
+def test_from_pytrees_keeps_names_and_resolves_collisions():
+    B, C, D = py_trees.behaviours, py_trees.composites, py_trees.decorators
+    root = C.Sequence("root", memory=False, children=[
+        B.Success("a"), B.Success("a_2"), B.Success("a"),
+        D.EternalGuard("Tür offen", B.Running("Tür offen"), condition=lambda: True),
+        D.EternalGuard("g 1", B.Running("x"), condition=lambda: True),
+        D.EternalGuard("g_1", B.Running("y"), condition=lambda: True),
+        B.Success(""), B.Success("line\nbreak"), B.Success("${x}")])
+    m = from_pytrees(root, leaves={"Tür offen": ["running", "success"]})
+    names = [n.name for n in m.tree.children]
+    assert names == ["a", "a_2", "a_3", "Tür offen", "g 1", "g_1", "unnamed", "line_break", "$_{x}"]
+    guard = m.tree.children[3]
+    assert guard.child.name == "Tür offen_2" and {o.status.name for o in guard.child.outcomes} == {"RUNNING", "SUCCESS"}
+    # the leaf's entry is not read as the guard's condition: the guard is a free variable
+    assert [v.name for v in m.variables] == ["Tur_offen_open", "g_1_open", "g_1_open_2"]
+    assert [str(g.condition.id) for g in m.tree.children[3:6]] == ["Tur_offen_open", "g_1_open", "g_1_open_2"]
+    m2 = from_pytrees(root.children[3], guards={"Tür offen": "false"}, leaves={"Tür offen": "running"})
+    assert not m2.variables and m2.tree.condition.value is False
+    with pytest.raises(ModelError, match=r"tree\.Tür offen\.condition: syntax error"):
+        from_pytrees(root.children[3], guards={"Tür offen": "x >"})
 
 
 def test_from_pytrees_guard_becomes_a_free_variable():
@@ -229,7 +269,7 @@ def test_from_pytrees_guard_becomes_a_free_variable():
     m = from_pytrees(guard)
     assert isinstance(m.tree, Guard) and [v.name for v in m.variables] == ["door_ok_open"]
     assert [e.name for e in m.environment] == ["door_ok_open"]
-    m2 = from_pytrees(guard, leaves={"door ok": "false"})
+    m2 = from_pytrees(guard, leaves={"door ok": "false"})  # still read: no leaf has that name
     assert isinstance(m2.tree, Guard) and not m2.variables
 
 
