@@ -62,6 +62,7 @@ MAX_DEPTH = 100  # nesting of YAML/JSON values
 MAX_TEMPLATE_DEPTH = 16
 MAX_INT = 2 ** 63  # integers in a model file lie within -MAX_INT..MAX_INT
 MAX_EXPANDED = 100_000  # items produced by templates
+MAX_TEXT = MAX_FILE_BYTES  # characters of text produced by template placeholders
 
 
 _CONTROL = {c: f"\\x{c:02x}" for c in list(range(32)) + [127, 0x85]}
@@ -428,7 +429,7 @@ class _Expander:
     """Expands ``use`` entries (see docs/model-files.md, "Templates")."""
 
     def __init__(self, file):
-        self.file, self.templates, self.produced, self.copied = file, {}, 0, 0
+        self.file, self.templates, self.produced, self.copied, self.chars = file, {}, 0, 0, 0
 
     def fail(self, path, problem, obj=None, key=None):
         return _err(path, problem + _where(obj, key), self.file)
@@ -650,6 +651,14 @@ class _Expander:
         whole = _PLACEHOLDER.fullmatch(s)
         if whole:  # a lone placeholder takes the value itself (a list, a number...)
             return self._copy(binding[whole.group(1)], path)
+
+        size = len(s)  # the text's length once replaced, known before it is built (string bombs)
+        for m in _PLACEHOLDER.finditer(s):
+            val = binding[m.group(1)]
+            size += (len(val) if isinstance(val, str) else len(str(val)) + 1) - len(m.group(0))
+        self.chars += size
+        if size > MAX_TEXT or self.chars > MAX_TEXT:
+            raise self.fail(path, f"templates produce more than {MAX_TEXT} characters of text")
 
         def rep(m):
             val = binding[m.group(1)]
@@ -1409,6 +1418,10 @@ def python_model_ref(text: str) -> "tuple | None":
     return None
 
 
+#: modules of btfsm's command line: calling their functions as a model would run btfsm again
+_COMMAND_LINES = frozenset({"btfsm.cli", "btfsm.__main__", "btfsm.sim.cli", "btfsm.pytest_plugin"})
+
+
 def load_python_model(where: str, func: str, *, shown: "str | None" = None) -> Model:
     """Call ``func`` of the Python file or module ``where`` (the user's explicit choice to
     run their code) and return the Model it builds; anything else is a one-line ModelError."""
@@ -1447,6 +1460,8 @@ def load_python_model(where: str, func: str, *, shown: "str | None" = None) -> M
     fn = getattr(module, func, None)
     if not callable(fn):
         raise _err("", f"'{where}' has no function '{func}'", shown)
+    if getattr(fn, "__module__", None) in _COMMAND_LINES:
+        raise _err("", f"{func}() is btfsm's own command line, not a function that returns a Model", shown)
     try:
         model = fn()
     except ModelError as exc:

@@ -1,0 +1,63 @@
+"""Edges of the command line found by the hostile battery (issue 18, point 6) and by
+trying btfsm as a new user would (point 7): each ends with the documented exit code and
+one line."""
+from __future__ import annotations
+
+import pytest
+
+import btfsm.cli as cli
+from btfsm.files import dump_model, load_model
+
+
+def _run(argv, capsys):
+    try:
+        code = cli.main([str(a) for a in argv])
+    except SystemExit as exc:
+        code = exc.code
+    got = capsys.readouterr()
+    return code, got.out, got.err
+
+
+# ---------------------------------------------------------------- kitting binding: outcome sets
+
+def _ariac_with(tmp_path, old, new):
+    pytest.importorskip("numpy")
+    path = tmp_path / "m.yaml"
+    dump_model(load_model("ariac-preemptive"), path)
+    text = path.read_text()
+    assert old in text
+    path.write_text(text.replace(old, new, 1))
+    return path
+
+
+@pytest.mark.parametrize("old, new, message", [
+    ("  - success: {gripper_full: true}\n    name: attached\n", "  - failure: {gripper_full: true}\n    name: attached\n",
+     "primitives.grasp: declares no success outcome, but the kitting binding reports success when the part attaches"),
+    ("  record_pose:\n  - success: {}\n", "  record_pose:\n  - failure: {}\n",
+     "primitives.record_pose: declares no success outcome"),
+    ("  move:\n  - running: {}\n    name: moving\n", "  move:\n",
+     "primitives.move: declares no running outcome, but the kitting binding reports running while the arm moves"),
+], ids=["grasp-no-success", "record-pose-only-failure", "move-no-running"])
+@pytest.mark.parametrize("command", ["sim", "conform"])
+def test_kitting_binding_refuses_outcome_sets_it_cannot_serve(tmp_path, capsys, old, new, message, command):
+    path = _ariac_with(tmp_path, old, new)
+    code, out, err = _run([command, path], capsys)
+    assert code == 2, err
+    assert message in err and len(err.strip().splitlines()) == 1, err
+
+
+def test_the_paper_models_pass_the_outcome_check():
+    pytest.importorskip("numpy")
+    from btfsm.sim.binding import check_outcomes
+    for name in ("ariac-preemptive", "ariac-baseline", "original"):
+        check_outcomes(load_model(name))  # no error
+
+
+# ---------------------------------------------------------------- validate btfsm's own entry point
+
+@pytest.mark.parametrize("ref", ["btfsm.cli:main", "btfsm.__main__:main", "btfsm.cli:_main"])
+def test_validate_of_btfsms_own_command_line_is_one_line(capsys, ref):
+    code, out, err = _run(["validate", ref], capsys)
+    assert code == 2
+    assert err.strip() == f"btfsm validate: error: {ref}: {ref.split(':')[1]}() is btfsm's own command line, " \
+                          "not a function that returns a Model"
