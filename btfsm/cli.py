@@ -673,6 +673,10 @@ def cli_replay(args) -> int:
     from .formats import FormatError, printable
     from .trace import replay
 
+    if args.cell:
+        from btfsm.sim.cli import needs, picture_modules
+
+        needs(*picture_modules(args))  # before any work, not after the replay
     model = load_cli_model(args)
     if str(args.trace).endswith(".json"):
         from btfsm.verify.counterexample import load_counterexample, replay_counterexample

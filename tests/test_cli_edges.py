@@ -57,3 +57,49 @@ def test_validate_of_btfsms_own_command_line_is_one_line(capsys, ref):
     assert code == 2
     assert err.strip() == f"btfsm validate: error: {ref}: {ref.split(':')[1]}() is btfsm's own command line, " \
                           "not a function that returns a Model"
+
+
+# ---------------------------------------------------------------- optional packages, checked first
+
+@pytest.fixture
+def without(monkeypatch):
+    """without("matplotlib", ...): those packages look uninstalled to ``find_spec``; no
+    trial may run (a command that checks its packages first never gets there)."""
+    import importlib.util
+
+    from btfsm.sim import experiment, sweep, trial
+
+    real = importlib.util.find_spec
+
+    def hide(*names):
+        monkeypatch.setattr(importlib.util, "find_spec", lambda name, *a: None if name in names else real(name, *a))
+
+    def no_work(*a, **k):
+        raise AssertionError("the command started its work before checking its packages")
+    for mod, fn in ((experiment, "run_experiment"), (sweep, "run_sweep"), (trial, "run_trial")):
+        monkeypatch.setattr(mod, fn, no_work)
+    return hide
+
+
+@pytest.mark.parametrize("argv, missing", [
+    (["experiment", "--trials", "1", "--out", "{tmp}/x"], "matplotlib"),
+    (["sweep", "--engine", "inline", "--out", "{tmp}/s"], "matplotlib"),
+    (["sweep", "--scheduler", "tcp://127.0.0.1:1", "--out", "{tmp}/s"], "distributed"),
+    (["sim", "ariac-preemptive", "--render", "{tmp}/a.png"], "matplotlib"),
+    (["sim", "ariac-preemptive", "--gif", "{tmp}/a.gif"], "PIL"),
+    (["replay", "{tmp}/ce.json", "ariac-preemptive", "--cell", "--render", "{tmp}/a.png"], "matplotlib"),
+], ids=["experiment", "sweep", "sweep-scheduler", "sim-render", "sim-gif", "replay-render"])
+def test_optional_packages_are_checked_before_any_work(tmp_path, capsys, without, argv, missing):
+    pytest.importorskip("numpy")
+    without(missing)
+    code, err = _err([a.replace("{tmp}", str(tmp_path)) for a in argv], capsys)
+    assert code == 2, err
+    assert f"needs the Python package '{missing}'" in err and len(err.strip().splitlines()) == 1, err
+
+
+def test_sweep_without_dask_says_it_runs_processes(tmp_path, capsys, without):
+    pytest.importorskip("numpy")
+    without("distributed")
+    code, err = _err(["sweep", "--out", tmp_path / "s", "--workers", "2"], capsys)
+    assert code == 70 and "started its work" in err  # the stub stopped the run itself
+    assert "on processes (2 worker(s); Dask is not installed" in err and "Dask cluster" not in err
