@@ -103,3 +103,16 @@ def test_sweep_without_dask_says_it_runs_processes(tmp_path, capsys, without):
     code, err = _err(["sweep", "--out", tmp_path / "s", "--workers", "2"], capsys)
     assert code == 70 and "started its work" in err  # the stub stopped the run itself
     assert "on processes (2 worker(s); Dask is not installed" in err and "Dask cluster" not in err
+
+
+# ---------------------------------------------------------------- scene replay: events in time order
+
+def test_scene_replay_prints_its_events_in_time_order():
+    pytest.importorskip("numpy")
+    from btfsm.sim.replay import SceneReplay
+
+    r = SceneReplay("m", "s", ["a", "b"], injected=[(0.0, {"arm": "x"}, "a", 1), (4.3, {"arm": "y"}, "b", 2)],
+                    taken=[(0.5, 1)], lost=[(0.3, 7), (4.3, 2)])
+    times = [float(line.split("=")[1].split("s:")[0]) for line in r.text().splitlines() if line.startswith("  t =")]
+    assert times == [0.0, 0.3, 0.5, 4.3, 4.3]
+    assert r.text().index("'b' (part 2") < r.text().index("part 2 LOST")  # the injection first at a tie
