@@ -1097,7 +1097,9 @@ class _Reader:
                 continue
             if not isinstance(items, list):
                 raise self.fail(f"{path}.{key}", f"expected a list, got {_kind(items)}", spec, key)
-            out.extend(build(x, f"{path}.{key}[{i}]", items, i) for i, x in enumerate(items))
+            for i, x in enumerate(items):
+                built = build(x, f"{path}.{key}[{i}]", items, i)
+                out.extend(built if isinstance(built, list) else [built])
         f = FSM(name, states=states, goals=goals, edges=tuple(e for e, _ in edges),
                 markers=tuple(m for m, _ in markers), **kw)
         for built, (_, where) in zip(f.edges, edges):
@@ -1153,10 +1155,23 @@ class _Reader:
             kw["goals"] = self.names(obj["goals"], f"{path}.goals", obj, "goals", "goals", allow_all=True)
         if "id" in obj:
             kw["id"] = self.string(obj["id"], f"{path}.id", obj, "id")
-        e = Edge(self.string(obj["from"], f"{path}.from", obj, "from", "a state id"),
-                 self.string(obj["to"], f"{path}.to", obj, "to", "a state id"),
-                 guard=self.opt_expr(obj, "guard", path), effects=self.effects(obj.get("effects"), f"{path}.effects", obj, "effects"), **kw)
-        return e, (path, parent, key)
+        target = self.string(obj["to"], f"{path}.to", obj, "to", "a state id")
+        guard, effects = self.opt_expr(obj, "guard", path), self.effects(obj.get("effects"), f"{path}.effects", obj, "effects")
+        sources = obj["from"]
+        if not isinstance(sources, list):
+            return Edge(self.string(sources, f"{path}.from", obj, "from", "a state id"), target, guard=guard,
+                        effects=effects, **kw), (path, parent, key)
+        # from: [a, b]: one edge per source, alike in everything else (ids: ID/SOURCE when given)
+        if not sources:
+            raise self.fail(f"{path}.from", "expected a state id or a non-empty list of state ids", obj, "from")
+        out = []
+        for k, src in enumerate(sources):
+            sid = self.string(src, f"{path}.from[{k}]", sources, k, "a state id")
+            if sid in sources[:k]:
+                raise self.fail(f"{path}.from[{k}]", f"state '{sid}' is listed twice", sources, k)
+            one = dict(kw, id=f"{kw['id']}/{sid}") if "id" in kw and len(sources) > 1 else kw
+            out.append((Edge(sid, target, guard=guard, effects=effects, **one), (path, parent, key)))
+        return out
 
     def marker(self, obj, path, parent, key):
         self.trigger_fields(obj, path, ("state", "goals", "when", "on", "outcome", "guard", "id"), ("state",), "a marker {state: S, ...}")
