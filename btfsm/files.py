@@ -761,6 +761,7 @@ _NODE_FIELDS = {
     "SequenceWithMemory": ("children",), "ParallelAll": ("max_failures", "children"),
     "IfThenElse": ("children",), "WhileDoElse": ("children",),
     "KeepRunningUntilFailure": ("child",), "RunOnce": ("then_skip", "child"),
+    "FailureIsRunning": ("child",), "RunningIsFailure": ("child",), "RunningIsSuccess": ("child",),
     "Inverter": ("child",), "ForceSuccess": ("child",), "ForceFailure": ("child",),
     "Retry": ("attempts", "child"), "Repeat": ("times", "child"), "Guard": ("condition", "child"),
     "Effects": ("on_start", "on_success", "on_failure", "on_halt", "child"),
@@ -771,6 +772,7 @@ _NODE_REQUIRED = {"Guard": ("condition", "child"), "Condition": ("expr",), "Skil
                   "Inverter": ("child",), "ForceSuccess": ("child",), "ForceFailure": ("child",),
                   "Retry": ("child",), "Repeat": ("child",), "Effects": ("child",),
                   "KeepRunningUntilFailure": ("child",), "RunOnce": ("child",),
+                  "FailureIsRunning": ("child",), "RunningIsFailure": ("child",), "RunningIsSuccess": ("child",),
                   "IfThenElse": ("children",), "WhileDoElse": ("children",)}
 TRIGGER_KEYS = ("when", "on", True)  # "on" and True (YAML 1.1's reading of on:) are older spellings
 TOP_FIELDS = ("name", "description", "semantics", "tick_rate", "variables", "primitives", "fsms", "tree",

@@ -16,8 +16,9 @@ from hypothesis import strategies as st
 
 pytest.importorskip("py_trees")
 
-from btfsm import (ForceFailure, ForceSuccess, Guard, Inverter, KeepRunningUntilFailure,  # noqa: E402
-                   MemoryFallback, MemorySequence, Parallel, ReactiveFallback, ReactiveSequence, Repeat, Retry)
+from btfsm import (FailureIsRunning, ForceFailure, ForceSuccess, Guard, Inverter, KeepRunningUntilFailure,  # noqa: E402
+                   MemoryFallback, MemorySequence, Parallel, ReactiveFallback, ReactiveSequence, Repeat, Retry,
+                   RunningIsFailure, RunningIsSuccess)
 from pytrees_peer import (STATUS, KeyedBehaviour, build_pytrees, leaf, run_btfsm, run_imported,  # noqa: E402
                           run_pytrees, tick_pytrees)
 
@@ -42,7 +43,8 @@ def peer_trees(draw, max_depth=3):
     def node(depth):
         kinds = ["leaf"] * 3
         if depth > 0:
-            kinds += ["RSeq", "MSeq", "RFb", "MFb", "Par", "Par", "Inv", "FS", "FF", "Retry", "Repeat", "Guard", "Forever"]
+            kinds += ["RSeq", "MSeq", "RFb", "MFb", "Par", "Par", "Inv", "FS", "FF", "Retry", "Repeat", "Guard", "Forever",
+                      "FIR", "RIF", "RIS"]
         k = draw(st.sampled_from(kinds))
         if k == "leaf":
             n = name("a")
@@ -69,6 +71,8 @@ def peer_trees(draw, max_depth=3):
             return Repeat(n, child, draw(st.integers(1, 3)))
         if k == "Forever":
             return KeepRunningUntilFailure(n, child)
+        if k in ("FIR", "RIF", "RIS"):
+            return {"FIR": FailureIsRunning, "RIF": RunningIsFailure, "RIS": RunningIsSuccess}[k](n, child)
         if k == "Guard":
             table[n] = answers("SSF")
             return Guard(n, child, f"{n}_open")
@@ -93,13 +97,24 @@ HOSTILE_NAMES = ["a", "a_2", "a_3", "a", "Tür offen", "g 1", "g_1", "g-1", "", 
                  "é" * 300, "if", "true", "1", "ok", "ok_2", "\u200b"]
 
 
+def _swap(old, new):
+    """Put behaviour ``new`` where ``old`` is in its tree (py_trees has no call for it)."""
+    new.peer_key = old.peer_key
+    parent = old.parent
+    new.parent = parent
+    if parent is not None:
+        parent.children[parent.children.index(old)] = new
+        if getattr(parent, "decorated", None) is old:
+            parent.decorated = new
+
+
 @settings(max_examples=IMPORTED_TREES, derandomize=True, deadline=None, database=None,
           suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])
 @given(peer_trees(), st.data())
 def test_imported_trees_with_hostile_names_match_real_py_trees(case, data):
     """The user's path: a tree built in py_trees (renamed with names drawn from
-    HOSTILE_NAMES; Retry(num_failures=1) also written 0 or -2; Repeat forever written -1, 0
-    or 2.5; sometimes a BehaviourTree instead of its root) is imported with from_pytrees
+    HOSTILE_NAMES; Retry(num_failures=1) also written 0 or -2; Repeat forever written -1, 0,
+    2.5 or as SuccessIsRunning; sometimes a BehaviourTree instead of its root) is imported with from_pytrees
     and ticked by btfsm; it must do what real py_trees does with it."""
     import py_trees
     tree, table = case
@@ -107,7 +122,7 @@ def test_imported_trees_with_hostile_names_match_real_py_trees(case, data):
     clock = [0]
     root = build_pytrees(tree, table, log, clock)
     leaves: dict = {}
-    for b in root.iterate():
+    for b in list(root.iterate()):
         if not isinstance(b, KeyedBehaviour):
             b.peer_key = b.name
         if data.draw(st.booleans()):
@@ -115,7 +130,11 @@ def test_imported_trees_with_hostile_names_match_real_py_trees(case, data):
         if isinstance(b, py_trees.decorators.Retry) and b.num_failures == 1:
             b.num_failures = data.draw(st.sampled_from([1, 0, -2]))
         if isinstance(b, py_trees.decorators.Repeat) and b.num_success == -1:
-            b.num_success = data.draw(st.sampled_from([-1, 0, 2.5]))
+            b.num_success = data.draw(st.sampled_from([-1, 0, 2.5, "SuccessIsRunning"]))
+            if b.num_success == "SuccessIsRunning":  # the same rule, py_trees' other spelling
+                new = py_trees.decorators.SuccessIsRunning(name=b.name, child=b.decorated)
+                _swap(b, new)
+                root = new if b is root else root
     for b in root.iterate():
         if isinstance(b, KeyedBehaviour):
             leaves.setdefault(b.name, set()).update(STATUS[a].name.lower() for a in table[b.key])

@@ -26,6 +26,8 @@ py_trees 2.6                                    btfsm
 ``Retry(num_failures=k)``                       ``Retry(attempts=max(1, ceil(k)))``
 ``Repeat(num_success=k)``, k a whole number >= 1 ``Repeat(times=k)``
 ``Repeat(num_success=k)``, any other k (-1, 0)   ``KeepRunningUntilFailure`` (for ever)
+``SuccessIsRunning``                            ``KeepRunningUntilFailure``
+``FailureIsRunning``, ``RunningIs{Failure,Success}`` the btfsm decorators of those names
 ``EternalGuard``                                ``Guard``
 ``PassThrough``, ``Count`` (read only)           the child itself (they change no status)
 =============================================== =========================================
@@ -34,7 +36,7 @@ py_trees compares its counts as its code says: ``Retry`` fails when the failures
 counted reach ``num_failures`` (``<``), so 0 or -3 fail at the first failure like 1;
 ``Repeat`` succeeds when its count *equals* ``num_success``, which -1, 0 or 2.5 never do.
 Everything else (docs/interop.md lists each refusal and why: ``Timeout``, wall-clock
-time; ``OneShot``; ``RunningIsFailure`` and the other status remaps; ...) is refused with
+time; ``OneShot``; ...) is refused with
 a ``ModelError`` naming the node. ``from_pytrees`` raises nothing else, whatever the tree.
 
 >>> import py_trees
@@ -62,9 +64,9 @@ except ImportError as exc:  # pragma: no cover - exercised only without py_trees
     raise ImportError("btfsm.interop.pytrees needs py_trees 2.x: pip install 'py_trees>=2.2' "
                       "(or the btfsm 'test' / 'bench' extras)") from exc
 
-from ..bt import (Action, Condition, Effects, ForceFailure, ForceSuccess, Guard, Inverter,
+from ..bt import (Action, Condition, Effects, FailureIsRunning, ForceFailure, ForceSuccess, Guard, Inverter,
                   KeepRunningUntilFailure, MemoryFallback, MemorySequence, Node, Parallel, ReactiveFallback,
-                  ReactiveSequence, Repeat, Retry, SkillRequest)
+                  ReactiveSequence, Repeat, Retry, RunningIsFailure, RunningIsSuccess, SkillRequest)
 from ..errors import ModelError
 from ..expr import as_expr
 from ..model import EnvChoice, EnvEvent, Model
@@ -187,6 +189,11 @@ def to_pytrees(model: Model, behaviours: "Callable | dict | None" = None,
             return py_trees.decorators.Repeat(name=n.name, child=build(n.child), num_success=n.times)
         if type(n) is KeepRunningUntilFailure:
             return py_trees.decorators.Repeat(name=n.name, child=build(n.child), num_success=-1)
+        remaps = {FailureIsRunning: py_trees.decorators.FailureIsRunning,
+                  RunningIsFailure: py_trees.decorators.RunningIsFailure,
+                  RunningIsSuccess: py_trees.decorators.RunningIsSuccess}
+        if type(n) in remaps:
+            return remaps[type(n)](name=n.name, child=build(n.child))
         if isinstance(n, Effects):
             raise ModelError(where, "Effects has no py_trees counterpart (py_trees behaviours write the blackboard in code)")
         raise ModelError(where, f"{type(n).__name__} has no py_trees counterpart")
@@ -453,6 +460,12 @@ def _import(root, names, leaves, guards, leaf_names, name, semantics):
                 return ForceSuccess(nm, child)
             if type(b) is D.SuccessIsFailure:
                 return ForceFailure(nm, child)
+            if type(b) is D.SuccessIsRunning:  # SUCCESS -> RUNNING, the rest as is
+                return KeepRunningUntilFailure(nm, child)
+            remaps = {D.FailureIsRunning: FailureIsRunning, D.RunningIsFailure: RunningIsFailure,
+                      D.RunningIsSuccess: RunningIsSuccess}
+            if type(b) in remaps:
+                return remaps[type(b)](nm, child)
             if type(b) is D.Retry:
                 # py_trees counts failures and fails when the count reaches num_failures (a
                 # "<" test): any count <= 1 fails at the first failure, as Retry(1) does
