@@ -236,6 +236,10 @@ def test_from_pytrees_counts_as_py_trees_compares_them():
     for k in (-1, 0, 2.5):
         assert type(from_pytrees(D.Repeat("r", B.Success("s"), num_success=k)).tree) is KeepRunningUntilFailure
     assert from_pytrees(D.Repeat("r", B.Success("s"), num_success=2)).tree.times == 2
+    assert from_pytrees(D.Repeat("r", B.Success("s"), num_success=True)).tree.times == 1  # True == 1 in py_trees
+    assert type(from_pytrees(D.SuccessIsRunning("r", B.Success("s"))).tree) is KeepRunningUntilFailure
+    with pytest.raises(ModelError, match=r"^leaves: expected a mapping of behaviour names, got int"):
+        from_pytrees(B.Success("s"), leaves=3)
     with pytest.raises(ModelError, match=r"tree\.r: Retry num_failures inf"):
         from_pytrees(D.Retry("r", B.Failure("f"), num_failures=float("inf")))
     with pytest.raises(ModelError, match=r"tree\.r: Retry num_failures 'x' is not a number"):

@@ -56,6 +56,7 @@ import math
 import re
 import unicodedata
 import warnings
+from collections.abc import Mapping
 from typing import Callable
 
 try:
@@ -371,7 +372,9 @@ def _is_status_word(x) -> bool:
 
 def _count(x, what, where):
     """A py_trees count (``num_failures``, ``num_success``): a number, else ModelError."""
-    if isinstance(x, bool) or not isinstance(x, (int, float)):
+    if isinstance(x, bool):  # py_trees compares it as the number it is (True == 1)
+        return int(x)
+    if not isinstance(x, (int, float)):
         raise ModelError(where, f"{what} {x!r} is not a number")
     return x
 
@@ -395,6 +398,9 @@ def from_pytrees(root, leaves: "dict | None" = None, name: "str | None" = None,
     btfsm can carry them (``node_names``); duplicates get ``_2``, ``_3``... Nodes with no
     counterpart raise ``ModelError`` naming the node; nothing else is raised for any
     input."""
+    for arg, given in (("leaves", leaves), ("guards", guards)):
+        if given is not None and not isinstance(given, Mapping):
+            raise ModelError(arg, f"expected a mapping of behaviour names, got {type(given).__name__}")
     leaves = dict(leaves or {})
     guards = dict(guards or {})
     try:
