@@ -54,6 +54,8 @@ class LogOracle:
 
     def outcome(self, site):
         name = self.key.get(site.node, site.node)
+        if name not in self.table:  # a blackboard write (one outcome), not a logged leaf
+            return 0
         a = STATUS[self.table[name][self.t]]
         if not self.running.get(name):
             self.log.append(("start", name))

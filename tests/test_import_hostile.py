@@ -38,22 +38,30 @@ class Custom(py_trees.behaviour.Behaviour):
 
 
 @st.composite
-def pytrees_tree(draw, depth=3):
+def pytrees_tree(draw, depth=3, blackboard=False):
     """A py_trees tree; every leaf is a ``Running``/``Success``/``Failure`` or a custom leaf."""
     B, C, D = py_trees.behaviours, py_trees.composites, py_trees.decorators
     name = draw(st.sampled_from(NAMES))
-    kinds = ["leaf", "custom"] + (["seq", "sel", "par", "inv", "retry", "repeat", "guard", "pass"] if depth else [])
+    kinds = ["leaf", "custom"] + (["check", "set"] if blackboard else []) + (["seq", "sel", "par", "inv", "retry", "repeat", "guard", "pass"] if depth else [])
     k = draw(st.sampled_from(kinds))
     if k == "leaf":
         return draw(st.sampled_from([B.Running, B.Success, B.Failure]))(name=name)
     if k == "custom":
         return Custom(name)
+    if k in ("check", "set"):
+        import operator
+        key = draw(st.sampled_from(NAMES[:8] + ["k.a"]))
+        value = draw(st.sampled_from([1, 2, "a", True, None, lambda: 1]))
+        if k == "set":
+            return B.SetBlackboardVariable(name, key, value, overwrite=draw(st.booleans()))
+        op = draw(st.sampled_from([operator.eq, operator.lt, operator.contains]))
+        return B.CheckBlackboardVariableValue(name, py_trees.common.ComparisonExpression(key, value, op))
     if k in ("seq", "sel", "par"):
-        kids = [draw(pytrees_tree(depth - 1)) for _ in range(draw(st.integers(1, 3)))]
+        kids = [draw(pytrees_tree(depth - 1, blackboard)) for _ in range(draw(st.integers(1, 3)))]
         if k == "par":
             return C.Parallel(name, policy=py_trees.common.ParallelPolicy.SuccessOnAll(), children=kids)
         return (C.Sequence if k == "seq" else C.Selector)(name, memory=draw(st.booleans()), children=kids)
-    child = draw(pytrees_tree(depth - 1))
+    child = draw(pytrees_tree(depth - 1, blackboard))
     if k == "inv":
         return D.Inverter(name, child)
     if k == "retry":
@@ -71,12 +79,13 @@ LEAF_SPECS = st.sampled_from([["success", "failure"], "running", ["running", "su
 
 @pytest.mark.filterwarnings("ignore::btfsm.interop.pytrees.PytreesImportWarning")
 @SETTINGS
-@given(pytrees_tree(), st.dictionaries(st.sampled_from(NAMES), LEAF_SPECS, max_size=4),
-       st.dictionaries(st.sampled_from(NAMES), LEAF_SPECS, max_size=2), st.booleans())
-def test_from_pytrees_raises_only_model_errors(root, leaves, guards, wrap):
+@given(pytrees_tree(blackboard=True), st.dictionaries(st.sampled_from(NAMES), LEAF_SPECS, max_size=4),
+       st.dictionaries(st.sampled_from(NAMES), LEAF_SPECS, max_size=2), st.booleans(),
+       st.dictionaries(st.sampled_from(NAMES[:8] + [3]), st.sampled_from([1, "a", True, [1], None]), max_size=2))
+def test_from_pytrees_raises_only_model_errors(root, leaves, guards, wrap, blackboard):
     subject = py_trees.trees.BehaviourTree(root) if wrap else root
     try:
-        model = from_pytrees(subject, leaves=leaves, guards=guards)
+        model = from_pytrees(subject, leaves=leaves, guards=guards, blackboard=blackboard)
     except ModelError as exc:
         assert "\n" not in str(exc)
         return

@@ -97,15 +97,29 @@ HOSTILE_NAMES = ["a", "a_2", "a_3", "a", "Tür offen", "g 1", "g_1", "g-1", "", 
                  "é" * 300, "if", "true", "1", "ok", "ok_2", "\u200b"]
 
 
+def _blackboard_behaviour(data, name):
+    import operator
+
+    import py_trees
+    key, value = data.draw(st.sampled_from(["x", "y"])), data.draw(st.integers(0, 2))
+    if data.draw(st.booleans()):
+        return py_trees.behaviours.SetBlackboardVariable(name, key, value, overwrite=True)
+    op = data.draw(st.sampled_from([operator.eq, operator.ne, operator.lt, operator.ge]))
+    return py_trees.behaviours.CheckBlackboardVariableValue(name, py_trees.common.ComparisonExpression(key, value, op))
+
+
 def _swap(old, new):
     """Put behaviour ``new`` where ``old`` is in its tree (py_trees has no call for it)."""
-    new.peer_key = old.peer_key
+    new.peer_key = getattr(old, "peer_key", None)
     parent = old.parent
     new.parent = parent
     if parent is not None:
         parent.children[parent.children.index(old)] = new
         if getattr(parent, "decorated", None) is old:
             parent.decorated = new
+        chosen = getattr(getattr(parent, "policy", None), "children", None)  # SuccessOnSelected
+        if chosen and any(c is old for c in chosen):
+            chosen[[id(c) for c in chosen].index(id(old))] = new
 
 
 @settings(max_examples=IMPORTED_TREES, derandomize=True, deadline=None, database=None,
@@ -114,7 +128,8 @@ def _swap(old, new):
 def test_imported_trees_with_hostile_names_match_real_py_trees(case, data):
     """The user's path: a tree built in py_trees (renamed with names drawn from
     HOSTILE_NAMES; Retry(num_failures=1) also written 0 or -2; Repeat forever written -1, 0,
-    2.5 or as SuccessIsRunning; sometimes a BehaviourTree instead of its root) is imported with from_pytrees
+    2.5 or as SuccessIsRunning; some leaves replaced by CheckBlackboardVariableValue and
+    SetBlackboardVariable on keys x and y; sometimes a BehaviourTree instead of its root) is imported with from_pytrees
     and ticked by btfsm; it must do what real py_trees does with it."""
     import py_trees
     tree, table = case
@@ -122,9 +137,16 @@ def test_imported_trees_with_hostile_names_match_real_py_trees(case, data):
     clock = [0]
     root = build_pytrees(tree, table, log, clock)
     leaves: dict = {}
-    for b in list(root.iterate()):
+    py_trees.blackboard.Blackboard.clear()
+    for i, b in enumerate(list(root.iterate())):
         if not isinstance(b, KeyedBehaviour):
             b.peer_key = b.name
+        elif data.draw(st.integers(0, 3)) == 0:  # py_trees' blackboard behaviours, on keys x and y
+            new = _blackboard_behaviour(data, f"bb{i}")
+            _swap(b, new)
+            new.peer_key = "blackboard"  # not a table row: the oracle is not asked, nothing is logged
+            root = new if b is root else root
+            continue
         if data.draw(st.booleans()):
             b.name = data.draw(st.sampled_from(HOSTILE_NAMES))
         if isinstance(b, py_trees.decorators.Retry) and b.num_failures == 1:

@@ -23,6 +23,7 @@ py_trees = pytest.importorskip("py_trees")
 from btfsm import (Action, ForceFailure, ForceSuccess, Guard, Inverter, KeepRunningUntilFailure, MemoryFallback,  # noqa: E402
                    MemorySequence, ModelError, Parallel, ReactiveFallback, ReactiveSequence,
                    Repeat, Retry, Status)
+from btfsm.expr import Const, to_text  # noqa: E402
 from btfsm.interop.pytrees import PytreesImportWarning, from_pytrees, to_pytrees  # noqa: E402
 from pytrees_peer import build_model, leaf, run_btfsm, run_pytrees  # noqa: E402
 from test_peer_pytrees import peer_trees  # noqa: E402
@@ -244,6 +245,34 @@ def test_from_pytrees_counts_as_py_trees_compares_them():
         from_pytrees(D.Retry("r", B.Failure("f"), num_failures=float("inf")))
     with pytest.raises(ModelError, match=r"tree\.r: Retry num_failures 'x' is not a number"):
         from_pytrees(D.Retry("r", B.Failure("f"), num_failures="x"))
+
+
+def test_from_pytrees_blackboard_behaviours():
+    """CheckBlackboardVariableValue is a Condition, SetBlackboardVariable an Action writing
+    the value, over a variable per key and a flag that it exists (peer-tested in
+    tests/test_peer_pytrees.py). What depends on Python code or on existence is refused."""
+    import operator
+    B, CE = py_trees.behaviours, py_trees.common.ComparisonExpression
+    root = py_trees.composites.Sequence("root", memory=False, children=[
+        B.SetBlackboardVariable("set", "mode", "a b", overwrite=True),
+        B.CheckBlackboardVariableValue("is c", CE("mode", "c", operator.ne)),
+        B.CheckBlackboardVariableValue("n big", CE("n", 4, operator.ge))])
+    m = from_pytrees(root, blackboard={"n": 5})
+    assert [(v.name, v.kind, v.init) for v in m.variables] == [
+        ("mode", "enum", "a b"), ("mode_exists", "bool", False), ("n", "int", 5), ("n_exists", "bool", True)]
+    assert dict(m.tree.children[0].outcomes[0].effects) == {"mode": Const("a b"), "mode_exists": Const(True)}
+    assert [to_text(c.expr) for c in m.tree.children[1:]] == ["mode_exists and mode != 'c'", "n_exists and n >= 4"]
+    refused = [
+        (B.SetBlackboardVariable("s", "k", 1, overwrite=False), "overwrite=False"),
+        (B.SetBlackboardVariable("s", "k", lambda: 1, overwrite=True), "computed by Python code"),
+        (B.CheckBlackboardVariableValue("s", CE("k.a", 1, operator.eq)), "no nested attributes"),
+        (B.CheckBlackboardVariableValue("s", CE("k", 1, operator.contains)), "btfsm models ==, !="),
+        (py_trees.composites.Sequence("r", memory=False, children=[
+            B.SetBlackboardVariable("s", "k", 1, overwrite=True), B.SetBlackboardVariable("t", "k", "x", True)]),
+         "several kinds")]
+    for b, why in refused:
+        with pytest.raises(ModelError, match=why):
+            from_pytrees(b)
 
 
 def test_from_pytrees_keeps_names_and_resolves_collisions():

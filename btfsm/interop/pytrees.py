@@ -29,6 +29,8 @@ py_trees 2.6                                    btfsm
 ``SuccessIsRunning``                            ``KeepRunningUntilFailure``
 ``FailureIsRunning``, ``RunningIs{Failure,Success}`` the btfsm decorators of those names
 ``EternalGuard``                                ``Guard``
+``CheckBlackboardVariableValue`` (a constant)    ``Condition`` over the key's variable
+``SetBlackboardVariable(overwrite=True)``         ``Action`` whose SUCCESS writes the constant
 ``PassThrough``, ``Count`` (read only)           the child itself (they change no status)
 =============================================== =========================================
 
@@ -53,6 +55,7 @@ from __future__ import annotations
 
 import keyword
 import math
+import operator
 import re
 import unicodedata
 import warnings
@@ -69,11 +72,11 @@ from ..bt import (Action, Condition, Effects, FailureIsRunning, ForceFailure, Fo
                   KeepRunningUntilFailure, MemoryFallback, MemorySequence, Node, Parallel, ReactiveFallback,
                   ReactiveSequence, Repeat, Retry, RunningIsFailure, RunningIsSuccess, SkillRequest)
 from ..errors import ModelError
-from ..expr import as_expr
+from ..expr import Const, as_expr
 from ..model import EnvChoice, EnvEvent, Model
 from ..primitives import Outcome, Primitive
 from ..status import Status
-from ..world import RESERVED_NAMES, Bool, check_label
+from ..world import RESERVED_NAMES, Bool, Enum, Int, check_label
 
 __all__ = ["from_pytrees", "node_names", "to_pytrees", "AnswerBehaviour", "PytreesImportWarning"]
 
@@ -379,8 +382,81 @@ def _count(x, what, where):
     return x
 
 
+_OPERATORS = {operator.eq: "==", operator.ne: "!=", operator.lt: "<", operator.le: "<=", operator.gt: ">",
+              operator.ge: ">="}
+
+
+def _constant(generator, where, what):
+    """The constant a py_trees blackboard behaviour was given (it keeps it in a lambda);
+    ModelError when it was given a callable (Python code, which btfsm does not run)."""
+    cells = getattr(generator, "__closure__", None) or ()
+    if getattr(generator, "__qualname__", "").endswith("__init__.<locals>.<lambda>") and len(cells) == 1:
+        value = cells[0].cell_contents
+        if not callable(value):
+            return value
+    raise ModelError(where, f"{what} is computed by Python code; btfsm models constant values only")
+
+
+def _blackboard_vars(order, names, initial, idents):
+    """{key: (value var, set-flag var, [Var, Var])} for the keys the tree's
+    CheckBlackboardVariableValue / SetBlackboardVariable behaviours use: one variable of
+    the values written and compared (bool, int or enum of strings) and a bool that says
+    whether the key exists (py_trees' check fails on a key that does not)."""
+    B = py_trees.behaviours
+    values: dict = {}
+    for b in order:
+        where = f"tree.{names[id(b)]}"
+        if type(b) is B.CheckBlackboardVariableValue:
+            key, v = b.check.variable, _constant(b.check.value_generator, where, "the compared value")
+            if b.check.operator not in _OPERATORS:
+                raise ModelError(where, f"comparison {getattr(b.check.operator, '__name__', b.check.operator)!r}: "
+                                        "btfsm models ==, !=, <, <=, >, >= (the operator module's eq ... ge)")
+        elif type(b) is B.SetBlackboardVariable:
+            key, v = b.variable_name, _constant(b.variable_value_generator, where, "the value written")
+            if not b.overwrite:
+                raise ModelError(where, "SetBlackboardVariable(overwrite=False) succeeds or fails on whether the "
+                                        "key exists; btfsm models overwrite=True (write a check before it)")
+        else:
+            continue
+        values.setdefault(key, []).append((v, where))
+    for key, v in (initial or {}).items():
+        values.setdefault(key, []).append((v, f"blackboard.{key}"))
+    for key, vals in values.items():
+        if not isinstance(key, str) or "." in key or not key:
+            raise ModelError(vals[0][1], f"blackboard variable {key!r}: btfsm models plain keys (no nested attributes)")
+    out = {}
+    for key, vals in values.items():
+        kinds = {bool if isinstance(v, bool) else int if isinstance(v, int) else str if isinstance(v, str) else None
+                 for v, _ in vals}
+        if len(kinds) != 1 or None in kinds:
+            raise ModelError(vals[0][1], f"blackboard variable '{key}' takes values of several kinds or of a kind "
+                                         "btfsm does not model (one of bool, int, str)")
+        name = _ident(key, idents)
+        flag = _ident(f"{name}_exists", idents)
+        known = key in (initial or {})
+        init = initial[key] if known else None
+        kind = kinds.pop()
+        if kind is bool:
+            var = Bool(name, bool(init))
+        elif kind is int:
+            nums = [v for v, _ in vals]
+            var = Int(name, min(nums), max(nums), init if known else min(nums))
+        else:
+            texts = tuple(dict.fromkeys(v for v, _ in vals))
+            var = Enum(name, texts, init if known else texts[0])
+        out[key] = (name, flag, [var, Bool(flag, known)])
+    return out
+
+
+def _literal(v) -> str:
+    if isinstance(v, bool):
+        return "true" if v else "false"
+    return repr(v) if isinstance(v, str) else str(v)
+
+
 def from_pytrees(root, leaves: "dict | None" = None, name: "str | None" = None,
-                 semantics: str = "pytrees", guards: "dict | None" = None) -> Model:
+                 semantics: str = "pytrees", guards: "dict | None" = None,
+                 blackboard: "dict | None" = None) -> Model:
     """A btfsm ``Model`` of the py_trees tree under ``root`` (a behaviour, or a
     ``py_trees.trees.BehaviourTree``: its root).
 
@@ -394,11 +470,16 @@ def from_pytrees(root, leaves: "dict | None" = None, name: "str | None" = None,
     made from the guard's name, unique) that the environment sets freely before each tick
     (an ``EnvChoice``), unless ``guards`` maps the guard's name to an expression over those
     variables (a ``leaves`` entry that is an expression string, not a status, still does,
-    when no leaf has that name). Node names are the py_trees names, kept as written where
+    when no leaf has that name). py_trees' ``CheckBlackboardVariableValue`` (a constant
+    compared with ``==``, ``!=``, ``<``, ``<=``, ``>``, ``>=``) is a ``Condition`` and
+    ``SetBlackboardVariable(overwrite=True)`` of a constant an ``Action`` that writes it,
+    over one model variable per key (named after it; bool, int over the values used, or
+    an enum of strings) and a bool ``<key>_exists``: a key starts unset (a check fails)
+    unless ``blackboard`` gives its initial value. Node names are the py_trees names, kept as written where
     btfsm can carry them (``node_names``); duplicates get ``_2``, ``_3``... Nodes with no
     counterpart raise ``ModelError`` naming the node; nothing else is raised for any
     input."""
-    for arg, given in (("leaves", leaves), ("guards", guards)):
+    for arg, given in (("leaves", leaves), ("guards", guards), ("blackboard", blackboard)):
         if given is not None and not isinstance(given, Mapping):
             raise ModelError(arg, f"expected a mapping of behaviour names, got {type(given).__name__}")
     leaves = dict(leaves or {})
@@ -408,14 +489,19 @@ def from_pytrees(root, leaves: "dict | None" = None, name: "str | None" = None,
         root = _root_of(root)
         leaf_names = {b.name for b in root.iterate() if not getattr(b, "children", None)
                       and not isinstance(b, py_trees.decorators.Decorator)}
-        return _import(root, names, leaves, guards, leaf_names, name, semantics)
+        return _import(root, names, leaves, guards, leaf_names, name, semantics, dict(blackboard or {}))
     except RecursionError:
         raise ModelError("tree", "the tree is nested too deeply to import") from None
 
 
-def _import(root, names, leaves, guards, leaf_names, name, semantics):
+def _import(root, names, leaves, guards, leaf_names, name, semantics, blackboard):
     variables, environment = [], []
     idents: set = set()
+    mapped = [b for b in root.iterate() if b.name not in leaves and id(b) in names]
+    bb = _blackboard_vars(mapped, names, blackboard, idents)
+    for _, _, pair in bb.values():
+        variables.extend(pair)
+    B = py_trees.behaviours
 
     def build(b) -> Node:
         C, D = py_trees.composites, py_trees.decorators
@@ -492,6 +578,14 @@ def _import(root, names, leaves, guards, leaf_names, name, semantics):
             raise ModelError(where, f"py_trees decorator {type(b).__name__} has no btfsm counterpart")
         if isinstance(b, C.Composite):
             raise ModelError(where, f"py_trees composite {type(b).__name__} has no btfsm counterpart")
+        if type(b) is B.CheckBlackboardVariableValue and b.name not in leaves:
+            var, flag, _ = bb[b.check.variable]
+            value = _constant(b.check.value_generator, where, "the compared value")
+            return Condition(nm, f"{flag} and {var} {_OPERATORS[b.check.operator]} {_literal(value)}")
+        if type(b) is B.SetBlackboardVariable and b.name not in leaves:
+            var, flag, _ = bb[b.variable_name]
+            value = _constant(b.variable_value_generator, where, "the value written")
+            return Action(nm, outcomes=(Outcome(Status.SUCCESS, effects={var: Const(value), flag: Const(True)}),))
         if b.name in leaves:
             outs = _outcomes_of(leaves[b.name], where)
         else:
