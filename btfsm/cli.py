@@ -96,8 +96,9 @@ COMMANDS = {
 }
 
 #: Per command: the argument names that are output paths (checked against the inputs).
-OUTPUTS = {"show": ("output",), "run": ("trace",), "replay": ("render", "gif"), "check": ("counterexample_dir",), "bound": ("output",),
-           "export": ("output",), "sim": ("render", "gif"), "experiment": ("out",), "sweep": ("out",), "import": ("output",)}
+OUTPUTS = {"show": ("output",), "run": ("trace",), "replay": ("render", "gif", "html"), "check": ("counterexample_dir", "html"),
+           "bound": ("output",), "export": ("output",), "sim": ("render", "gif"), "experiment": ("out",), "sweep": ("out",),
+           "import": ("output",), "conform": ("html",)}
 INPUTS = {"replay": ("trace", "model"), "import": ("model", "leaves")}
 
 
@@ -131,6 +132,12 @@ def _args_scene(sp):
     sp.add_argument("--scene", metavar="FILE", type=input_file, default=None,
                     help="run in this scene file (docs/cell.md) instead of the kitting cell; default: the "
                          "model's own scene (MODEL.scene.yaml beside it, or a shipped scene named after it)")
+
+
+def _args_html(sp, what):
+    sp.add_argument("--html", metavar="HTML", type=output_file(".html", ".htm"), default=None,
+                    help=f"also write one self-contained HTML page: {what}, stepped tick by tick over the tree "
+                         "and the FSMs (needs Graphviz; btfsm/html.py)")
 
 
 def _args_json(sp, what="the result"):
@@ -178,6 +185,7 @@ def _args_replay(sp):
     sp.add_argument("--gif", metavar="GIF", type=output_file(".gif"), help="with --cell: write an animation")
     sp.add_argument("--time", type=finite_float(0, MAX_SIM_TIME, lo_open=True), default=120.0,
                     help="with --cell: time limit (simulated s)")
+    _args_html(sp, "the counterexample or trace (with --cell: and the cell run, with pictures)")
 
 
 def _args_check(sp):
@@ -187,6 +195,7 @@ def _args_check(sp):
     _args_max_states(sp)
     _args_budgets(sp)
     sp.add_argument("--counterexample-dir", type=output_dir, help="write each counterexample as JSON into this folder")
+    _args_html(sp, "the verdicts and each counterexample")
     sp.add_argument("--quiet", "-q", action="store_true", help="no warnings and no information lines, only verdicts and failures")
     sp.add_argument("--verbose", "-v", action="store_true", help="list every warning, determinism gap and note")
     sp.add_argument("--goal-level", choices=("open", "tree"), default="open",
@@ -313,6 +322,7 @@ def _args_conform(sp):
     _args_scene(sp)
     _args_max_states(sp, default=2_000_000)
     _args_json(sp, "the scenarios and the verdict")
+    _args_html(sp, "the scenarios, and the first nonconforming one (else the first) as a run with the cell's pictures")
 
 
 def _args_import(sp):
@@ -677,6 +687,11 @@ def cli_replay(args) -> int:
         from btfsm.sim.cli import needs, picture_modules
 
         needs(*picture_modules(args))  # before any work, not after the replay
+    html = getattr(args, "html", None)
+    if html:
+        from .html import require_dot
+
+        require_dot()
     model = load_cli_model(args)
     if str(args.trace).endswith(".json"):
         from btfsm.verify.counterexample import load_counterexample, replay_counterexample
@@ -687,10 +702,17 @@ def cli_replay(args) -> int:
             raise UsageError(str(exc)) from None
         ok, text = replay_counterexample(ce, model)
         print(printable(text))
+        cell = None
         if args.cell:
             from btfsm.sim.replay import replay_for_cli
 
-            print(replay_for_cli(model, ce.to_json(), args))
+            out = replay_for_cli(model, ce.to_json(), args, record=bool(html))
+            text, cell = (out if html else (out, None))
+            print(text)
+        if html:
+            from .html import replay_page, write_page
+
+            print(f"html: {write_page(html, model, **replay_page(model, args.trace, ok, text, ce=ce, cell=cell))}")
         return 0 if ok else 1
     if args.cell:
         raise UsageError("--cell replays counterexamples (.json), not traces")
@@ -699,11 +721,15 @@ def cli_replay(args) -> int:
     except FormatError as exc:
         raise UsageError(str(exc)) from None
     if result is None:
-        print(f"replay: {printable(args.trace)} reproduces exactly on {model.name}")
-        return 0
-    tick, why = result
-    print(f"replay: differs at tick {tick}: {printable(why)}")
-    return 1
+        text = f"replay: {printable(args.trace)} reproduces exactly on {model.name}"
+    else:
+        text = f"replay: differs at tick {result[0]}: {printable(result[1])}"
+    print(text)
+    if html:
+        from .html import replay_page, write_page
+
+        print(f"html: {write_page(html, model, **replay_page(model, args.trace, result is None, text))}")
+    return 0 if result is None else 1
 
 
 if __name__ == "__main__":

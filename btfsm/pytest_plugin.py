@@ -111,6 +111,8 @@ class PropertyItem(pytest.Item):
 
         report = self.parent.report()
         result = report.result(self.prop)
+        if result.not_applicable is not None:
+            pytest.skip(f"{self.prop}: not applicable ({result.not_applicable})")
         if result.holds is not True:
             raise PropertyFailed(failure_text(type(report)(report.model, [result], report.systems,
                                                            report.seconds, report.semantics)))

@@ -28,7 +28,7 @@ from pathlib import Path
 from .bt import (Action, Composite, Condition, Decorator, Effects, ForceFailure, ForceSuccess, Guard, Inverter,
                  MemoryFallback, MemorySequence, Parallel, ReactiveFallback, ReactiveSequence, Repeat,
                  Retry, SkillRequest)
-from .cli import UsageError
+from .errors import UsageError
 from .escape import dot_string
 from .expr import to_text
 from .fsm import FSM

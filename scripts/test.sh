@@ -3,13 +3,15 @@
 # Usage: bash scripts/test.sh [pytest args]
 set -euo pipefail
 cd "$(dirname "$0")/.."
-# SPIN (cross-check tests) and Graphviz (svg/png pictures) come from Debian's packages.
-if ! command -v spin >/dev/null || ! command -v dot >/dev/null; then
+# SPIN (cross-check tests), Graphviz (svg/png pictures, the HTML report) and chromium with
+# its driver (the HTML report's browser test, tests/test_html.py) come from Debian's packages.
+if ! command -v spin >/dev/null || ! command -v dot >/dev/null || ! command -v chromium >/dev/null \
+   || ! command -v chromedriver >/dev/null; then
   if [ "$(id -u)" = 0 ] && command -v apt-get >/dev/null; then
-    (apt-get update -qq && apt-get install -y -qq spin graphviz gcc) >/dev/null 2>&1 \
-      || echo "note: could not install spin/graphviz; tests that need them are skipped" >&2
+    (apt-get update -qq && apt-get install -y -qq spin graphviz gcc chromium chromium-driver) >/dev/null 2>&1 \
+      || echo "note: could not install spin/graphviz/chromium; tests that need them are skipped" >&2
   else
-    echo "note: spin/graphviz missing and not root; tests that need them are skipped" >&2
+    echo "note: spin/graphviz/chromium missing and not root; tests that need them are skipped" >&2
   fi
 fi
 PY=${PYTHON:-python3}

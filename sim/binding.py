@@ -26,6 +26,7 @@ from dataclasses import dataclass
 
 from btfsm.errors import ModelError
 
+from .protocol import Binding
 from .scene import Place
 
 __all__ = ["KittingBinding", "Dialect", "ARIAC", "ORIGINAL", "DIALECTS", "dialect_of", "unsupported",
@@ -141,7 +142,7 @@ def check_outcomes(model) -> None:
                                  "a scene with a bind section (docs/cell.md)")
 
 
-class KittingBinding:
+class KittingBinding(Binding):
     """The ARIAC models' primitives and belt events in a scene world (see the module text).
 
     Constructed by ``btfsm.sim.library.bind_model`` from the scene's ``binding`` section:

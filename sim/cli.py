@@ -216,18 +216,30 @@ def cli_conform(args) -> int:
 
     from .conformance import conform, variant_of
 
+    html = getattr(args, "html", None)
+    if html:
+        from btfsm.html import require_dot
+
+        require_dot()
     model = load_cli_model(args)
     as_json = getattr(args, "json", False)
     scene = _scene_of(args, model)
     if scene is None:
         variant_of(model)  # a model the cell cannot run is an error before anything is explored
     rows = []
+    views = None
+    if html:
+        from .cell_view import ConformViews
+
+        views = ConformViews(model)
 
     def explored(states):
         if not as_json:
             print(f"{model.name}: checked system has {states:,} states; monitoring runtime paths against it")
 
     def show(i, sc, res):
+        if views is not None:
+            views.result(i, sc, res)
         if scene is not None:
             rows.append({"scenario": i, "seed": sc.seed, "scene": scene.name, "ticks": res.ticks,
                          "drop_regions": [list(d) for d in sc.drop_regions],
@@ -252,7 +264,7 @@ def cli_conform(args) -> int:
 
     time_limit = args.time if scene is None or args.time != 700.0 else None  # a scene's own limit by default
     out = conform(model, args.scenarios, args.seed, time_limit, args.drops, path=not args.no_path,
-                  max_states=args.max_states, on_explored=explored, on_result=show, scene=scene)
+                  max_states=args.max_states, on_explored=explored, on_result=show, scene=scene, views=views)
     if out.incomplete:
         print(f"btfsm conform: incomplete: exploring {model.name} hit --max-states {args.max_states:,}; "
               f"raise it or use --no-path", file=sys.stderr)
@@ -264,6 +276,12 @@ def cli_conform(args) -> int:
                          default=str))
     else:
         print(f"{len(rows) - failed} of {len(rows)} scenarios conform")
+    if html:
+        from btfsm.html import write_page
+
+        write_page(html, model, **views.page(rows))
+        if not as_json:
+            print(f"html: {html}")
     return 1 if failed else 0
 
 

@@ -74,42 +74,19 @@ class ScenarioResult:
     notes: list = field(default_factory=list)
 
 
-def run_scenario(scenario: Scenario, model=None, monitor: "PathMonitor | None" = None) -> ScenarioResult:
-    """Run the scenario in the ARIAC scene; stop at the first mismatch."""
-    from btfsm.errors import ConformanceError, DomainError
-
+def run_scenario(scenario: Scenario, model=None, monitor: "PathMonitor | None" = None, on_tick=None) -> ScenarioResult:
+    """Run the scenario in the ARIAC scene; stop at the first mismatch. ``on_tick(rt,
+    world)``: called after each tick that conforms."""
     from .experiment import TrialSpec
-    from .trial import build_model, build_trial
+    from .trial import run_kitting
 
     spec = TrialSpec(scenario.variant, 0, parts=scenario.parts, time_limit=scenario.time_limit)
-    model = model or build_model(spec)
-    model, world, binding, rt = build_trial(spec, model, seed=scenario.seed, detections=scenario.detections,
-                                            faults=tuple(scenario.drop_regions))
-    tray_slot = model.program.scope[binding.d.tray_var].index
-    steps = max(1, round(spec.physics_rate / model.tick_rate))
-    ticks = 0
-    while world.time < scenario.time_limit:
-        before = rt.state
-        try:
-            step = rt.tick(binding.events(before))
-        except (ConformanceError, DomainError) as exc:
-            return ScenarioResult(scenario, ticks, False, Mismatch(ticks, world.time, "conformance", str(exc)))
-        problems = binding.after_tick(rt)
-        if problems:
-            return ScenarioResult(scenario, ticks, False, Mismatch(ticks, world.time, "abstraction", "; ".join(problems)))
-        if monitor is not None:
-            why = monitor.check(before, step.state)
-            if why:
-                return ScenarioResult(scenario, ticks, False, Mismatch(ticks, world.time, "path", why))
-        ticks += 1
-        if step.state[tray_slot] >= scenario.parts and binding.tray_count() >= scenario.parts:
-            break
-        world.step(steps)
-        try:
-            world.check_invariant()
-        except AssertionError as exc:
-            return ScenarioResult(scenario, ticks, False, Mismatch(ticks, world.time, "accounting", str(exc)))
-    return ScenarioResult(scenario, ticks, binding.tray_count() >= scenario.parts, None, world.lost)
+    world, binding, _hooks, end = run_kitting(spec, model, seed=scenario.seed, detections=scenario.detections,
+                                              faults=tuple(scenario.drop_regions), monitor=monitor,
+                                              check_invariant=True, stop_at_mismatch=True, on_tick=on_tick)
+    if end.mismatch is not None:
+        return ScenarioResult(scenario, end.ticks, False, end.mismatch)
+    return ScenarioResult(scenario, end.ticks, binding.tray_count() >= scenario.parts, None, world.lost)
 
 
 def random_scenarios(n: int, seed: int = 0, variant: str = "preemptive", parts: int = 4,
@@ -179,7 +156,7 @@ class Conformance:
 
 def conform(model, scenarios: int = 10, seed: int = 0, time_limit: float = 700.0, drops: bool = False,
             path: bool = True, max_states: "int | None" = 2_000_000, on_explored=None, on_result=None,
-            scene=None) -> Conformance:
+            scene=None, views=None) -> Conformance:
     """Run ``scenarios`` seeded random scenarios of ``model`` in the cell under the
     conformance monitor (the path check against the explored system unless ``path`` is
     false). ``on_explored(states)`` is called once the checked system is explored,
@@ -191,14 +168,15 @@ def conform(model, scenarios: int = 10, seed: int = 0, time_limit: float = 700.0
     seed of the scene's random arrivals and faults); ``time_limit`` None means the
     scene's ``time_limit``; ``drops`` adds, to about half the scenarios, a fault region
     (10 cm square, drop probability 1) on the straight line between two of the scene's
-    frames, where the robot is likely to carry parts."""
+    frames, where the robot is likely to carry parts. ``views(index)``: an ``on_tick(rt,
+    world)`` callback for that scenario, or None (``cell_view.ConformViews``)."""
     if scene is None and not is_kitting_model(model):
         from .scene_trial import scene_for
 
         scene = scene_for(model)
     if scene is not None:
         return _conform_scene(model, scene, scenarios, seed, time_limit, path, max_states, on_explored, on_result,
-                              drops)
+                              drops, views)
     variant = variant_of(model)
     monitor, checked, incomplete = _explore_monitor(model, path, max_states, on_explored)
     if incomplete:
@@ -209,7 +187,7 @@ def conform(model, scenarios: int = 10, seed: int = 0, time_limit: float = 700.0
     cases = random_scenarios(scenarios, seed, variant, parts=parts, time_limit=time_limit, drops=drops)
     results = []
     for i, sc in enumerate(cases):
-        res = run_scenario(sc, model, monitor)
+        res = run_scenario(sc, model, monitor, on_tick=views(i) if views is not None else None)
         results.append(res)
         if on_result is not None:
             on_result(i, sc, res)
@@ -231,7 +209,7 @@ def _explore_monitor(model, path, max_states, on_explored):
 
 
 def _conform_scene(model, scene, scenarios, seed, time_limit, path, max_states, on_explored, on_result,
-                   drops=False):
+                   drops=False, views=None):
     import copy
 
     from .library import bind_model
@@ -262,7 +240,8 @@ def _conform_scene(model, scene, scenarios, seed, time_limit, path, max_states, 
         scenes.append(where)
     results = []
     for i, sc in enumerate(cases):
-        run = run_scene(model, scenes[i], sc.seed, limit, monitor=monitor, check_invariant=True)
+        run = run_scene(model, scenes[i], sc.seed, limit, monitor=monitor, check_invariant=True,
+                        on_tick=views(i) if views is not None else None)
         res = ScenarioResult(sc, run.ticks, run.completed, run.mismatch, run.lost)
         results.append(res)
         if on_result is not None:

@@ -56,6 +56,8 @@ import re
 from btfsm.errors import DomainError, ModelError
 from btfsm.status import FAILURE, RUNNING, SUCCESS
 
+from .protocol import Binding
+
 __all__ = ["LIBRARY", "bind_model", "SceneBinding"]
 
 _R, _S, _F = int(RUNNING), int(SUCCESS), int(FAILURE)
@@ -271,7 +273,7 @@ def _import(path, where, scene):
     return obj
 
 
-class SceneBinding:
+class SceneBinding(Binding):
     """Per call site: the library primitive, its arguments and the outcome map; the
     runtime implementations; the sensor events queued for the model; the checks."""
 
@@ -381,14 +383,20 @@ def bind_model(scene, model, world):
     trial when something does not fit. A scene with a ``binding`` section (``python:
     package.module:Class`` and ``args``) is bound by that class instead:
     ``Class(scene, model, world, **args)``, an object with ``implementations()``,
-    ``events(state)`` and ``after_tick(runtime) -> [problem]`` (it raises ModelError for
-    a model it cannot run)."""
+    ``events(state)`` and ``after_tick(runtime) -> [problem]`` (``protocol.Binding``;
+    it raises ModelError for a model it cannot run)."""
     if scene.binding is not None:
         cls = _import(scene.binding["python"], "binding.python", scene)
         try:
-            return cls(scene, model, world, **scene.binding.get("args", {}))
+            b = cls(scene, model, world, **scene.binding.get("args", {}))
         except TypeError as exc:
             raise scene.error("binding.args", str(exc)) from None
+        if not isinstance(b, Binding):
+            missing = [m for m in ("implementations", "events", "after_tick") if not callable(getattr(b, m, None))]
+            raise scene.error("binding.python", f"'{scene.binding['python']}' made an object without "
+                                                f"{', '.join(missing)} (a binding needs implementations(), "
+                                                "events(state) and after_tick(runtime))")
+        return b
     b = SceneBinding(scene, model, world)
     prog = model.program
     prims = model.all_primitives()

@@ -1,4 +1,5 @@
-"""The paper's trial protocol as data: a trial's parameters and its result.
+"""The paper's trial protocol as data (a trial's parameters and its result), and the
+interface every binding of a model to a scene world implements (:class:`Binding`).
 
 dTa for trial k is 30 + 0.2 k seconds; each trial is seeded from (variant, k) only.
 
@@ -10,8 +11,9 @@ dTa for trial k is 30 + 0.2 k seconds; each trial is seeded from (variant, k) on
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import Protocol, runtime_checkable
 
-__all__ = ["VARIANTS", "arrival_period", "TrialSpec", "TrialResult", "Mismatch"]
+__all__ = ["VARIANTS", "arrival_period", "TrialSpec", "TrialResult", "Mismatch", "Binding"]
 
 VARIANTS = ("preemptive", "baseline")
 
@@ -65,7 +67,8 @@ class TrialResult:
 
 @dataclass
 class Mismatch:
-    """The first disagreement of a conformance run: its tick, time, kind and what."""
+    """The first disagreement of a conformance run: its tick (0-based, the runtime's
+    ``clock.tick`` when it ran; ``btfsm.sim.loop``), the world's time, kind and what."""
 
     tick: int
     time: float
@@ -74,3 +77,27 @@ class Mismatch:
 
     def __str__(self) -> str:
         return f"tick {self.tick} (t = {self.time:.2f} s): {self.kind} mismatch: {self.what}"
+
+
+@runtime_checkable
+class Binding(Protocol):
+    """What the tick loop (``btfsm.sim.loop``) needs of a binding of a model to a scene
+    world: a scene's ``bind`` table (``library.SceneBinding``, built by
+    ``library.bind_model``) or a Python class named by the scene's ``binding`` section
+    (``binding.KittingBinding``). Such a class is constructed as ``Class(scene, model,
+    world, **args)`` and raises ``ModelError`` for a model it cannot run."""
+
+    def implementations(self) -> dict:
+        """Primitive name -> implementation (a callable or an object with ``tick(call)``
+        and optionally ``halt(call)``), as ``btfsm.runtime.Runtime`` takes them."""
+        ...
+
+    def events(self, state) -> list:
+        """The environment events (names) of the next tick, given the model's state
+        before it; an event is given once."""
+        ...
+
+    def after_tick(self, rt) -> list:
+        """Bookkeeping after a tick, then the disagreements between the model's variables
+        and the world (empty when they agree)."""
+        ...

@@ -13,6 +13,8 @@ from __future__ import annotations
 import json
 from dataclasses import dataclass, field
 
+from .loop import Hooks, run_loop, start
+
 __all__ = ["CellReplay", "triggers_of", "replay_in_cell", "SceneReplay", "scene_triggers", "replay_in_scene",
            "replay_for_cli"]
 
@@ -42,6 +44,7 @@ class CellReplay:
     paced: int = 0  # ticks of the counterexample the replay was paced to (0: not paced)
     held: int = 0  # ticks a primitive that had finished in the cell was held RUNNING to follow it
     diverged: "tuple | None" = None  # (tick, counterexample's FSM state, the cell's) where pacing stopped
+    mismatch: "str | None" = None  # the runtime refused a tick of the cell: the replay stopped there
 
     def text(self) -> str:
         lines = [f"cell replay of a counterexample on {self.model}: {len(self.triggers)} environment event(s)"]
@@ -59,6 +62,8 @@ class CellReplay:
             st, t0, t1 = self.frozen
             lines.append(f"  the arm stayed in '{st}' from t = {t0:.1f} s to t = {t1:.1f} s ({t1 - t0:.1f} s without a move)")
         lines.append("  last FSM states: " + "; ".join(f"{t:.1f} s {s} ({g or '-'})" for t, s, g in self.timeline[-4:]))
+        if self.mismatch:
+            lines.append(f"  stopped: {self.mismatch}")
         if self.kind == "response":  # a late response loses the belt part in the cell, or it does not
             lines.append("  the cell shows the late response: a belt part was lost" if self.lost else
                          "  the cell does not show the late response: no belt part was lost")
@@ -154,18 +159,75 @@ class _Pacer:
         return Paced()
 
 
+class _CellHooks(Hooks):
+    """The cell replay's counts: the arm FSM's timeline and longest stay, the injections
+    (at the counterexample's FSM states, or paced to its ticks), the animation frames, and
+    the end ``settle`` seconds after the last injected part left the belt."""
+
+    def __init__(self, fsm, beam, result, pending, pacer, arrive_at, frames, settle, on_tick=None):
+        self.fsm, self.beam, self.result, self.pending, self.pacer = fsm, beam, result, pending, pacer
+        self.arrive_at, self.frames, self.settle, self.on_tick = arrive_at, frames, settle, on_tick
+        self.last, self.since, self.done_at = None, 0.0, None
+
+    def _stay(self, st, world) -> None:
+        """The FSM stayed in ``st`` from ``since`` until now: keep the longest stay."""
+        frozen = self.result.frozen
+        if frozen is None or world.time - self.since > frozen[2] - frozen[1]:
+            self.result.frozen = (st, round(self.since, 2), round(world.time, 2))
+
+    def before(self, rt, world) -> None:
+        result, pacer, pending = self.result, self.pacer, self.pending
+        st, goal = rt.fsm_state(self.fsm)
+        if (st, goal) != self.last:
+            result.timeline.append((round(world.time, 2), st, goal))
+            if self.last is None or st != self.last[0]:
+                if self.last is not None:
+                    self._stay(self.last[0], world)
+                self.since = world.time
+            self.last = (st, goal)
+        due = (pending and (pacer.at(*self.arrive_at[len(result.injected)]) if pacer is not None and pacer.active()
+                            else pending[0][0] == st))
+        if due:
+            pid = world.spawn(self.beam)
+            result.injected.append((round(world.time, 2), st, pid))
+            pending.pop(0)
+        if pacer is not None:
+            pacer.now = st
+
+    def after(self, rt, world, step, before) -> None:
+        if self.pacer is not None:
+            self.pacer.after(rt.fsm_state(self.fsm)[0])
+        if self.on_tick is not None:
+            self.on_tick(rt, world)
+        if self.frames is not None and rt.clock.tick % 5 == 0 and len(self.frames) < 2000:
+            self.frames.append(world.snapshot())
+        injected = [pid for _, _, pid in self.result.injected]
+        if (not self.pending and injected and self.done_at is None
+                and all(world.parts[p].place.kind != "BELT" for p in injected)):
+            self.done_at = world.time
+
+    def done(self, rt, world, step) -> bool:
+        return self.done_at is not None and world.time >= self.done_at + self.settle
+
+    def finish(self, world) -> None:
+        if self.last is not None:
+            self._stay(self.last[0], world)
+        injected = [pid for _, _, pid in self.result.injected]
+        self.result.lost = [(round(t, 2), pid) for t, pid, _src, dst in world.log
+                            if pid in injected and dst.kind == "LOST"]
+
+
 def replay_in_cell(model, ce, *, time_limit: float = 120.0, render: "str | None" = None, gif: "str | None" = None,
-                   settle: float = 20.0, pace: "bool | None" = None) -> CellReplay:
+                   settle: float = 20.0, pace: "bool | None" = None, on_tick=None) -> CellReplay:
     """Run ``model`` in the ARIAC scene, raising the counterexample's events in its FSM states.
 
     ``pace`` (default: for a ``response`` counterexample, whose timing is the point): the
     events happen at the counterexample's ticks and a primitive the cell finishes before
     the counterexample does is held running until the counterexample's tick (the arm waits
     where its move ended); the cell's arm cannot be made faster than it is. Stops
-    ``settle`` seconds after the last injected part was lost or picked, or at
-    ``time_limit``."""
-    from btfsm.runtime import Runtime
-
+    ``settle`` seconds after the last injected part was lost or picked, at ``time_limit``,
+    or when the runtime refuses a tick (``mismatch``). ``on_tick(rt, world)``: called after
+    each tick (``cell_view.CellView``)."""
     from .experiment import TrialSpec
     from .trial import build_trial
 
@@ -176,56 +238,27 @@ def replay_in_cell(model, ce, *, time_limit: float = 120.0, render: "str | None"
         ce = ce["counterexample"]
     kind = (ce.get("violation") or {}).get("kind", "")
     spec = TrialSpec("preemptive", 1, time_limit=time_limit)
-    model, world, binding, rt = build_trial(spec, model, detections=())
-    d = binding.d
-    pending = [t for t in triggers_of(ce, d.fsm) if t[1] == "arrive"]
-    result = CellReplay(model.name, list(pending), kind=kind)
-    pacer = None
+    pacer = arrive_at = None
     if pace if pace is not None else kind == "response":
-        pacer = _Pacer(fsm_states_of(ce, d.fsm))
-        rt = Runtime(model, {k: pacer.wrap(v) for k, v in binding.implementations().items()}, record=True)
+        from .binding import dialect_of
+
+        pacer = _Pacer(fsm_states_of(ce, dialect_of(model).fsm))
         # a part for the counterexample's tick i reaches the sensor in the world steps before
         # the cell's tick at the same point of the same visit
         arrive_at = [pacer.position(i) for i, step in enumerate(ce["steps"], start=1)
                      for ev in step.get("env", ()) if ev == "arrive"]
         arrive_at = [(v, max(0, c - 1)) for v, c in arrive_at]
-        result.paced = pacer.ticks
-    steps = max(1, round(spec.physics_rate / model.tick_rate))
+    model, world, binding, rt = build_trial(spec, model, detections=(), wrap=pacer.wrap if pacer else None)
+    d = binding.d
+    pending = [t for t in triggers_of(ce, d.fsm) if t[1] == "arrive"]
+    result = CellReplay(model.name, list(pending), kind=kind, paced=pacer.ticks if pacer else 0)
     frames = [] if gif else None
-    since, last, done_at = 0.0, None, None
-    beam = world.scene.sensors[binding.sensor]["region"]
-    while world.time < time_limit:
-        st, goal = rt.fsm_state(d.fsm)
-        if (st, goal) != last:
-            result.timeline.append((round(world.time, 2), st, goal))
-            if last is None or st != last[0]:
-                since = world.time
-            last = (st, goal)
-        due = (pending and (pacer.at(*arrive_at[len(result.injected)]) if pacer is not None and pacer.active()
-                            else pending[0][0] == st))
-        if due:
-            pid = world.spawn(beam)
-            result.injected.append((round(world.time, 2), st, pid))
-            pending.pop(0)
-        if pacer is not None:
-            pacer.now = st
-        rt.tick(binding.events(rt.state))
-        binding.after_tick(rt)
-        if pacer is not None:
-            pacer.after(rt.fsm_state(d.fsm)[0])
-        world.step(steps)
-        if frames is not None and rt.clock.tick % 5 == 0 and len(frames) < 2000:
-            frames.append(world.snapshot())
-        stay = (st, since, world.time)
-        if result.frozen is None or stay[2] - stay[1] > result.frozen[2] - result.frozen[1]:
-            result.frozen = (st, round(since, 2), round(world.time, 2))
-        injected = [pid for _, _, pid in result.injected]
-        result.lost = [(round(t, 2), pid) for t, pid, _src, dst in world.log if pid in injected and dst.kind == "LOST"]
-        if (not pending and injected and done_at is None
-                and all(world.parts[p].place.kind != "BELT" for p in injected)):
-            done_at = world.time
-        if done_at is not None and world.time >= done_at + settle:
-            break
+    hooks = _CellHooks(d.fsm, world.scene.sensors[binding.sensor]["region"], result, pending, pacer, arrive_at,
+                       frames, settle, on_tick)
+    end = run_loop(rt, world, binding, time_limit, hooks, stop_at_mismatch=False)
+    hooks.finish(world)
+    if end.ended_by is not None:
+        result.mismatch = str(end.ended_by)
     if pacer is not None:
         result.held, result.diverged = pacer.held, pacer.diverged
     result.end_time = round(world.time, 2)
@@ -295,67 +328,72 @@ def scene_triggers(ce: dict, fsms) -> list:
     return out
 
 
+class _SceneReplayHooks(Hooks):
+    """The scene replay's counts: the FSMs' timeline, the injections at the
+    counterexample's FSM states, and the end ``settle`` seconds after the last one."""
+
+    def __init__(self, scene, binding, fsms, result, pending, settle, on_tick=None):
+        self.binding, self.fsms, self.result, self.pending, self.settle = binding, fsms, result, pending, settle
+        self.on_tick = on_tick
+        self.sensors, self.exits = {}, set()
+        for s in scene.sensors.values():
+            if s.get("on_enter"):
+                self.sensors.setdefault(s["on_enter"], s["region"])
+            if s.get("on_exit"):
+                self.exits.add(s["on_exit"])
+        self.last, self.done_at, self.injected = None, None, []
+
+    def before(self, rt, world) -> None:
+        now = {f: rt.fsm_state(f)[0] for f in self.fsms}
+        if now != self.last:
+            self.result.timeline.append((round(world.time, 2), dict(now)))
+            self.last = now
+        pending = self.pending
+        if pending and all(now.get(f) == s for f, s in pending[0][0].items() if s is not None):
+            states, ev = pending.pop(0)
+            if ev in self.exits and ev not in self.sensors:
+                pid = "world"  # a part leaving: it happens in the world, or it does not
+            else:
+                pid = world.spawn(self.sensors[ev]) if ev in self.sensors else None
+                if pid is None:
+                    self.binding.backlog.append(ev)
+                else:
+                    self.injected.append(pid)
+            self.result.injected.append((round(world.time, 2), states, ev, pid))
+            if not pending:
+                self.done_at = world.time
+
+    def after(self, rt, world, step, before) -> None:
+        if self.on_tick is not None:
+            self.on_tick(rt, world)
+
+    def done(self, rt, world, step) -> bool:
+        return self.done_at is not None and world.time >= self.done_at + self.settle
+
+
 def replay_in_scene(model, ce, scene, *, time_limit: float = 120.0, seed: "int | None" = None,
-                    render: "str | None" = None, settle: float = 20.0) -> SceneReplay:
+                    render: "str | None" = None, settle: float = 20.0, on_tick=None) -> SceneReplay:
     """Run ``model`` in ``scene`` with the scene's own arrivals switched off, and make
     each of the counterexample's environment events happen in the FSM states where the
     counterexample had it: a part is put where the sensor that raises the event will
     see it (upstream on a belt crossing its region, or in the area under it); an event
     no sensor raises is given to the model directly. Stops ``settle`` seconds after the
-    last injection, at the first conformance error, or at ``time_limit``."""
-    from btfsm.errors import ConformanceError, DomainError
-    from btfsm.runtime import Runtime
-
-    from .library import bind_model
-    from .scene import World
-
+    last injection, at the first conformance error, or at ``time_limit``. ``on_tick(rt,
+    world)``: called after each tick (``cell_view.CellView``)."""
     if isinstance(ce, str):
         with open(ce, encoding="utf-8") as fh:
             ce = json.load(fh)
     if "counterexample" in ce:
         ce = ce["counterexample"]
     fsms = [f.name for f in model.fsms]
-    world = World(scene, seed)
-    for name in world.arrivals:
-        world.arrivals[name] = []
-    binding = bind_model(scene, model, world)
-    rt = Runtime(model, binding.implementations())
+    world, binding, rt = start(scene, model, seed, arrivals=False, record=on_tick is not None)
     pending = scene_triggers(ce, fsms)
     result = SceneReplay(model.name, scene.name, list(pending))
-    steps = max(1, round(1.0 / (model.tick_rate * scene.dt)))
-    sensors, exits = {}, set()
-    for name, s in scene.sensors.items():
-        if s.get("on_enter"):
-            sensors.setdefault(s["on_enter"], s["region"])
-        if s.get("on_exit"):
-            exits.add(s["on_exit"])
-    last, done_at, injected = None, None, []
-    while world.time < time_limit:
-        now = {f: rt.fsm_state(f)[0] for f in fsms}
-        if now != last:
-            result.timeline.append((round(world.time, 2), dict(now)))
-            last = now
-        if pending and all(now.get(f) == s for f, s in pending[0][0].items() if s is not None):
-            states, ev = pending.pop(0)
-            if ev in exits and ev not in sensors:
-                pid = "world"  # a part leaving: it happens in the world, or it does not
-            else:
-                pid = world.spawn(sensors[ev]) if ev in sensors else None
-                if pid is None:
-                    binding.backlog.append(ev)
-                else:
-                    injected.append(pid)
-            result.injected.append((round(world.time, 2), states, ev, pid))
-            if not pending:
-                done_at = world.time
-        try:
-            rt.tick(binding.events(rt.state))
-        except (ConformanceError, DomainError) as exc:
-            result.mismatch = str(exc)
-            break
-        world.step(steps)
-        if done_at is not None and world.time >= done_at + settle:
-            break
+    hooks = _SceneReplayHooks(scene, binding, fsms, result, pending, settle, on_tick)
+    end = run_loop(rt, world, binding, time_limit, hooks, stop_at_mismatch=False)
+    if end.ended_by is not None:
+        result.mismatch = str(end.ended_by)
+    injected = hooks.injected
     result.lost = [(round(t, 2), pid) for t, pid, _src, dst in world.log if pid in injected and dst is not None
                    and dst.kind == "LOST"]
     result.taken = [(round(t, 2), pid) for t, pid, _src, dst in world.log if pid in injected and dst is not None
@@ -369,9 +407,11 @@ def replay_in_scene(model, ce, scene, *, time_limit: float = 120.0, seed: "int |
     return result
 
 
-def replay_for_cli(model, ce_json: dict, args) -> str:
+def replay_for_cli(model, ce_json: dict, args, record: bool = False):
     """``btfsm replay CE.json MODEL --cell [--scene FILE]``: the kitting cell for the
-    paper's models, else the scene (``--scene`` or the model's default scene)."""
+    paper's models, else the scene (``--scene`` or the model's default scene). Returns the
+    text; with ``record`` (``--html``), ``(text, run)``: the cell run as a view run
+    (``cell_view.CellView``), pictures included."""
     from btfsm.errors import UsageError
 
     from .binding import dialect_of, unsupported
@@ -379,13 +419,27 @@ def replay_for_cli(model, ce_json: dict, args) -> str:
     from .scene_trial import scene_for
 
     path = getattr(args, "scene", None)
+    view = None
     if path is None and dialect_of(model) is not None:
-        return replay_in_cell(model, ce_json, time_limit=args.time, render=args.render, gif=args.gif).text()
-    path = path or scene_for(model, args.model)
-    if path is None:
-        why = unsupported(model)
-        raise UsageError(f"{model.name}: the kitting cell cannot run this model ({why}) and it has no scene: "
-                         "give --scene FILE (docs/cell.md)")
-    if args.gif:
-        raise UsageError("--gif is not available for a scene replay yet (use --render)")
-    return replay_in_scene(model, ce_json, load_scene(path), time_limit=args.time, render=args.render).text()
+        if record:
+            from .cell_view import CellView
+
+            view = CellView(model, f"{model.name} in the kitting cell")
+        out = replay_in_cell(model, ce_json, time_limit=args.time, render=args.render, gif=args.gif, on_tick=view)
+    else:
+        path = path or scene_for(model, args.model)
+        if path is None:
+            why = unsupported(model)
+            raise UsageError(f"{model.name}: the kitting cell cannot run this model ({why}) and it has no scene: "
+                             "give --scene FILE (docs/cell.md)")
+        if args.gif:
+            raise UsageError("--gif is not available for a scene replay yet (use --render)")
+        scene = load_scene(path)
+        if record:
+            from .cell_view import CellView
+
+            view = CellView(model, f"{model.name} in scene {scene.name}")
+        out = replay_in_scene(model, ce_json, scene, time_limit=args.time, render=args.render, on_tick=view)
+    if not record:
+        return out.text()
+    return out.text(), view.run(summary=out.text().splitlines()[0])

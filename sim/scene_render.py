@@ -10,7 +10,7 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 from matplotlib.patches import Circle, FancyArrow, Polygon, Rectangle
 
-__all__ = ["draw_world", "render_scene", "write_gif"]
+__all__ = ["draw_world", "render_scene", "write_gif", "picture_png", "new_figure"]
 
 _COLOUR = {"GRIPPER": "tab:red", "BELT": "tab:blue", "AREA": "tab:green", "FLOOR": "black"}
 
@@ -90,6 +90,32 @@ def render_scene(scene, snap: dict, path, title: "str | None" = None) -> str:
     fig.tight_layout()
     fig.savefig(path, format="png")
     return str(path)
+
+
+def picture_png(scene, snap: dict, title: "str | None" = None, fig=None) -> bytes:
+    """One snapshot as small PNG bytes (64 colours), for pages that inline their pictures
+    (``btfsm.html``); ``fig``: a figure to draw on again (from ``_figure()``)."""
+    import io
+
+    from PIL import Image
+
+    fig = fig or _figure()
+    ax = fig.axes[0] if fig.axes else fig.add_subplot(1, 1, 1)
+    ax.clear()
+    draw_world(ax, scene, snap, title)
+    if not getattr(fig, "laid_out", False):  # one layout for every picture (as write_gif)
+        fig.tight_layout()
+        fig.laid_out = True
+    fig.canvas.draw()
+    rgb = Image.frombuffer("RGBA", fig.canvas.get_width_height(), fig.canvas.buffer_rgba()).convert("RGB")
+    out = io.BytesIO()
+    rgb.quantize(colors=64, method=Image.Quantize.FASTOCTREE).save(out, format="PNG")
+    return out.getvalue()
+
+
+def new_figure():
+    """A figure for ``picture_png`` to draw on again and again."""
+    return _figure()
 
 
 def write_gif(scene, snaps, path, fps: float = 2.0, title: "str | None" = None, progress: bool = True) -> int:

@@ -1,8 +1,8 @@
 """Run a model in a scene: the checked model drives the scene's world through the
 runtime and the primitive library (``btfsm.sim.library``), with the scene's checks.
 
-The BT ticks at the model's ``tick_rate``; between two ticks the world takes
-``1 / (tick_rate * dt)`` steps. A run ends when the model's ``terminal`` predicate holds,
+The BT ticks at the model's ``tick_rate`` in the one tick loop (``btfsm.sim.loop``:
+0-based tick numbers, the world stepped to the next tick's time). A run ends when the model's ``terminal`` predicate holds,
 at the time limit, or (with ``stop_at_first``) at the first mismatch: a runtime
 conformance error (an outcome or event the model does not allow), a scene check that
 fails (``abstraction``), a transition the checked system does not have (``path``, when a
@@ -10,9 +10,9 @@ fails (``abstraction``), a transition the checked system does not have (``path``
 """
 from __future__ import annotations
 
-from btfsm.signals import check as check_signals
-
 from dataclasses import dataclass, field
+
+from .loop import Hooks, run_loop, start
 
 __all__ = ["SceneRun", "run_scene", "scene_for"]
 
@@ -47,53 +47,25 @@ def scene_for(model, model_ref: "str | None" = None) -> "str | None":
     return builtin_scene(model.name.replace("-", "_"))
 
 
+class _SceneHooks(Hooks):
+    def __init__(self, terminal, on_tick):
+        self.terminal, self.on_tick = terminal, on_tick
+
+    def after(self, rt, world, step, before) -> None:
+        if self.on_tick is not None:
+            self.on_tick(rt, world)
+
+    def done(self, rt, world, step) -> bool:
+        return self.terminal is not None and self.terminal(list(step.state))
+
+
 def run_scene(model, scene, seed: "int | None" = None, time_limit: "float | None" = None, *,
               monitor=None, check_invariant: bool = False, on_tick=None) -> SceneRun:
     """Run ``model`` in ``scene`` (a Scene) once; the first mismatch ends the run."""
-    from btfsm.errors import ConformanceError, DomainError
-    from btfsm.runtime import Runtime
-
-    from .protocol import Mismatch
-    from .library import bind_model
-    from .scene import World
-
-    world = World(scene, seed)
-    binding = bind_model(scene, model, world)
-    rt = Runtime(model, binding.implementations())
+    world, binding, rt = start(scene, model, seed)
     limit = scene.time_limit if time_limit is None else time_limit
-    steps = max(1, round(1.0 / (model.tick_rate * scene.dt)))
-    terminal = model.program.terminal
-    ticks, mismatch, done = 0, None, False
-    while world.time < limit:
-        check_signals()  # an interrupt swallowed in a destructor still stops the trial
-        before = rt.state
-        try:
-            step = rt.tick(binding.events(before))
-        except (ConformanceError, DomainError) as exc:
-            mismatch = Mismatch(ticks, world.time, "conformance", str(exc))
-            break
-        problems = binding.after_tick(rt)
-        if problems:
-            mismatch = Mismatch(ticks, world.time, "abstraction", "; ".join(problems))
-            break
-        if monitor is not None:
-            why = monitor.check(before, step.state)
-            if why:
-                mismatch = Mismatch(ticks, world.time, "path", why)
-                break
-        ticks += 1
-        if on_tick is not None:
-            on_tick(rt, world)
-        if terminal is not None and terminal(list(step.state)):
-            done = True
-            break
-        world.step(steps)
-        if check_invariant:
-            try:
-                world.check_invariant()
-            except AssertionError as exc:
-                mismatch = Mismatch(ticks, world.time, "accounting", str(exc))
-                break
+    end = run_loop(rt, world, binding, limit, _SceneHooks(model.program.terminal, on_tick), monitor=monitor,
+                   check_invariant=check_invariant)
     counts = {name: world.count(name) for name in scene.areas}
-    return SceneRun(model.name, scene.name, world.seed, ticks, round(world.time, 6), done, world.lost,
-                    counts, mismatch, world.digest())
+    return SceneRun(model.name, scene.name, world.seed, end.ticks, round(world.time, 6), end.reason == "done",
+                    world.lost, counts, end.mismatch, world.digest())

@@ -3,24 +3,23 @@
 The cell is ``models/scenes/ariac.yaml`` with the trial's parameters written into it
 (:func:`ariac_scene`: the step, the belt's speed and end, the arrival times) and the
 kitting binding (``btfsm.sim.binding.KittingBinding``). The BT ticks at the model's
-``tick_rate`` (10 Hz) through ``btfsm.runtime.Runtime``; between two ticks the world takes
-``physics_rate / tick_rate`` fixed steps (240 Hz). After every tick the binding's
-abstraction check compares the model's variables with the world.
+``tick_rate`` (10 Hz) through ``btfsm.runtime.Runtime`` in the one tick loop
+(``btfsm.sim.loop.run_loop``); the world steps at ``physics_rate`` (240 Hz, 24 steps per
+tick). After every tick the binding's abstraction check compares the model's variables
+with the world.
 """
 from __future__ import annotations
 
 import copy
 from functools import lru_cache
 
-from btfsm.signals import check as check_signals
-
 from btfsm.bt import SkillRequest
-from btfsm.runtime import Runtime
 
+from .loop import Hooks, run_loop, start
 from .protocol import TrialResult, TrialSpec
 from .scene import LOST
 
-__all__ = ["run_trial", "build_trial", "build_model", "ariac_scene", "ARIAC_SCENE"]
+__all__ = ["run_trial", "run_kitting", "KittingHooks", "build_trial", "build_model", "ariac_scene", "ARIAC_SCENE"]
 
 ARIAC_SCENE = "ariac"  # models/scenes/ariac.yaml
 
@@ -69,47 +68,60 @@ def build_model(spec: TrialSpec):
     return make(n_tray=spec.parts)
 
 
-def build_trial(spec: TrialSpec, model=None, *, seed: "int | None" = None, detections=None, faults=()):
-    """(model, world, binding, runtime) for a trial, ready to run."""
-    from .library import bind_model
-    from .scene import World
-
+def build_trial(spec: TrialSpec, model=None, *, seed: "int | None" = None, detections=None, faults=(), wrap=None):
+    """(model, world, binding, runtime) for a trial, ready to run; ``wrap`` wraps each
+    primitive implementation (``loop.start``)."""
     model = model or build_model(spec)
     scene = ariac_scene(spec, detections, faults)
-    world = World(scene, spec.seed if seed is None else seed)
-    binding = bind_model(scene, model, world)
-    runtime = Runtime(model, binding.implementations(), record=True)
+    world, binding, runtime = start(scene, model, spec.seed if seed is None else seed, record=True, wrap=wrap)
     return model, world, binding, runtime
 
 
-def run_trial(spec: TrialSpec, model=None, on_tick=None) -> TrialResult:
-    """Run one trial to completion (``parts`` on the tray) or to the time limit."""
-    model, world, binding, rt = build_trial(spec, model)
-    prog = model.program
-    tray_slot = prog.scope[binding.d.tray_var].index
-    skills = {n.name: prog.nodes[n.name].flag for n in model.nodes() if isinstance(n, SkillRequest)}
-    steps_per_tick = max(1, round(spec.physics_rate / model.tick_rate))  # the BT's rate is the model's
-    starts = halts = ticks = 0
-    error = ""
-    while world.time < spec.time_limit:
-        check_signals()  # an interrupt swallowed in a destructor still stops the trial
-        before = rt.state
-        step = rt.tick(binding.events(before))
-        ticks += 1
-        problems = binding.after_tick(rt)
+class KittingHooks(Hooks):
+    """A kitting run's counts: skills started and halted (preempted); done once the
+    model's tray variable and the tray both hold ``parts``; ``on_tick(rt, world)`` after
+    every tick."""
+
+    def __init__(self, model, binding, parts: int, on_tick=None):
+        prog = model.program
+        self.binding, self.parts, self.on_tick = binding, parts, on_tick
+        self.tray_slot = prog.scope[binding.d.tray_var].index
+        self.skills = {n.name: prog.nodes[n.name].flag for n in model.nodes() if isinstance(n, SkillRequest)}
+        self.starts = self.halts = 0
+
+    def after(self, rt, world, step, before) -> None:
+        skills = self.skills
         for ev in step.events:
             if ev[0] == "status" and ev[1] in skills and not before[skills[ev[1]]]:
-                starts += 1
+                self.starts += 1
             elif ev[0] == "halt" and ev[1] in skills:
-                halts += 1
-        if problems and not error:
-            error = f"t={world.time:.2f}s tick {ticks}: " + "; ".join(problems)
-        if on_tick is not None:
-            on_tick(rt, world)
-        if step.state[tray_slot] >= spec.parts and binding.tray_count() >= spec.parts:
-            break
-        world.step(steps_per_tick)
-    return trial_result(spec, world, binding, starts, halts, ticks, error)
+                self.halts += 1
+        if self.on_tick is not None:
+            self.on_tick(rt, world)
+
+    def done(self, rt, world, step) -> bool:
+        return step.state[self.tray_slot] >= self.parts and self.binding.tray_count() >= self.parts
+
+
+def run_kitting(spec: TrialSpec, model=None, *, seed: "int | None" = None, detections=None, faults=(),
+                monitor=None, check_invariant: bool = False, stop_at_mismatch: bool = False, on_tick=None):
+    """Run ``spec`` in the ARIAC scene: (world, binding, KittingHooks, LoopEnd)."""
+    model, world, binding, rt = build_trial(spec, model, seed=seed, detections=detections, faults=faults)
+    hooks = KittingHooks(model, binding, spec.parts, on_tick)
+    end = run_loop(rt, world, binding, spec.time_limit, hooks, monitor=monitor, check_invariant=check_invariant,
+                   stop_at_mismatch=stop_at_mismatch)
+    return world, binding, hooks, end
+
+
+def run_trial(spec: TrialSpec, model=None, on_tick=None) -> TrialResult:
+    """Run one trial to completion (``parts`` on the tray) or to the time limit. The
+    first abstraction mismatch is recorded in ``conformance_error`` and the trial goes
+    on; a conformance error (the runtime refuses a tick) ends it and is recorded too."""
+    world, binding, h, end = run_kitting(spec, model, on_tick=on_tick)
+    error = str(end.mismatch or "")
+    if end.ended_by is not None and end.ended_by is not end.mismatch:
+        error += f"; then {end.ended_by}"
+    return trial_result(spec, world, binding, h.starts, h.halts, end.ticks, error)
 
 
 def trial_result(spec, world, binding, starts, halts, ticks, error) -> TrialResult:

@@ -42,12 +42,28 @@ def huge_counter() -> Model:
 BOOM = free_inputs()
 COUNTER = huge_counter()
 ENGINES = ("traced", "scalar", "auto")
-SLACK = 6.0  # seconds over a time budget allowed on a loaded 2-core machine
+HANG = 120.0  # seconds: only a guard against a hang; a budget's effect is asserted on the budgets' clock
+
+
+@pytest.fixture
+def ticking_clock(monkeypatch):
+    """The budgets' clock (``btfsm.verify.search.clock``) advances 10 ms per reading, so a
+    time budget ends after a fixed number of readings whatever the machine's load: the
+    tests assert that engines read it, and how much work they do meanwhile, not seconds."""
+    import btfsm.verify.search as search
+
+    now = [0.0]
+
+    def tick():
+        now[0] += 0.01
+        return now[0]
+    monkeypatch.setattr(search, "clock", tick)
+    return now
 
 
 @pytest.mark.parametrize("engine", ENGINES)
 @pytest.mark.parametrize("budget,limit", [("states", 500), ("transitions", 700), ("seconds", 0.5)])
-def test_free_inputs_stop_at_every_budget_on_every_engine(engine, budget, limit):
+def test_free_inputs_stop_at_every_budget_on_every_engine(engine, budget, limit, ticking_clock):
     t = time.monotonic()
     ts = explore(BOOM, engine=engine, **{f"max_{budget}": limit})
     took = time.monotonic() - t
@@ -58,18 +74,21 @@ def test_free_inputs_stop_at_every_budget_on_every_engine(engine, budget, limit)
         assert ts.stopped == budget
     assert ts.n_states <= (limit if budget == "states" else 10**9)
     assert ts.n_transitions <= (limit if budget == "transitions" else 10**9)
-    assert took < (limit if budget == "seconds" else 0) + SLACK + 4
+    assert took < HANG
+    if budget == "seconds":  # 50 readings of the clock: the work between readings is bounded
+        assert ts.n_transitions < 2_000_000
 
 
 @pytest.mark.parametrize("engine", ENGINES)
-def test_huge_counter_stops_at_every_budget(engine):
+def test_huge_counter_stops_at_every_budget(engine, ticking_clock):
     ts = explore(COUNTER, engine=engine, max_states=300)
     assert (ts.n_states, ts.stopped) == (300, "states")
     ts = explore(COUNTER, engine=engine, max_transitions=250)
     assert (ts.n_transitions, ts.stopped) == (250, "transitions")
     t = time.monotonic()
     ts = explore(COUNTER, engine=engine, max_seconds=0.3)
-    assert ts.stopped == "seconds" and not ts.complete and time.monotonic() - t < 0.3 + SLACK
+    assert ts.stopped == "seconds" and not ts.complete and time.monotonic() - t < HANG
+    assert ts.n_states < 100_000  # 30 readings of the clock
 
 
 @pytest.mark.parametrize("budget", [1, 7, 100, 1000, 5000])
@@ -106,19 +125,19 @@ FSM_BOOM = fsm_free_inputs()
 
 @pytest.mark.parametrize("engine", ENGINES)
 @pytest.mark.parametrize("budget,limit", [("transitions", 700), ("seconds", 0.5)])
-def test_fsm_level_free_inputs_stop_at_every_budget(engine, budget, limit):
+def test_fsm_level_free_inputs_stop_at_every_budget(engine, budget, limit, ticking_clock):
     t = time.monotonic()
     ts = explore_fsm(FSM_BOOM, "arm", engine=engine, **{f"max_{budget}": limit})
     assert not ts.complete and ts.stopped in (budget, "paths" if engine == "traced" else budget)
     assert ts.n_transitions <= (limit if budget == "transitions" else 10**9)
-    assert time.monotonic() - t < (limit if budget == "seconds" else 0) + SLACK + 4
+    assert time.monotonic() - t < HANG
 
 
 VECTOR = free_inputs(8)  # 2**8 environment answers per state, times pickplace's own
 
 
 @pytest.mark.parametrize("budget,limit", [("states", 500), ("transitions", 700), ("seconds", 0.2)])
-def test_vector_engine_budgets(budget, limit):
+def test_vector_engine_budgets(budget, limit, ticking_clock):
     t = time.monotonic()
     ts = vector.explore(VECTOR, **{f"max_{budget}": limit})
     assert not ts.complete and ts.stopped == budget
@@ -126,14 +145,14 @@ def test_vector_engine_budgets(budget, limit):
     assert ts.n_transitions <= (limit if budget == "transitions" else 10**9)
     r = vector.reach(VECTOR, **{f"max_{budget}": limit})
     assert not r.complete and r.stopped == budget
-    assert time.monotonic() - t < 2 * ((limit if budget == "seconds" else 0) + SLACK)
+    assert time.monotonic() - t < HANG
 
 
 def test_vector_engine_stops_before_a_state_that_cannot_fit():
     t = time.monotonic()
     ts = vector.explore(BOOM, max_states=500)
     assert (ts.complete, ts.stopped, ts.n_states, ts.n_transitions, ts.expanded) == (False, "rows", 1, 0, 0)
-    assert time.monotonic() - t < SLACK
+    assert time.monotonic() - t < HANG
 
 
 def test_budget_object():
@@ -157,13 +176,13 @@ CASES = [(["--max-states", "1000"], "state budget"), (["--max-transitions", "800
 
 @pytest.mark.parametrize("engine", ("auto", "traced", "scalar"))
 @pytest.mark.parametrize("flags,words", CASES)
-def test_check_ends_in_exit_3_within_its_budget(boom, capsys, engine, flags, words):
+def test_check_ends_in_exit_3_within_its_budget(boom, capsys, engine, flags, words, ticking_clock):
     t = time.monotonic()
     code = main(["check", "boom", "--property", "domain", "--engine", engine, *flags])
     out = capsys.readouterr().out
     assert code == 3, out
     assert words in out or (engine == "traced" and "path budget" in out)
-    assert time.monotonic() - t < 1 + SLACK + 4
+    assert time.monotonic() - t < HANG
 
 
 def test_check_library_call_reports_the_budget():
@@ -174,12 +193,12 @@ def test_check_library_call_reports_the_budget():
 
 
 @pytest.mark.parametrize("flags,words", CASES)
-def test_skills_ends_in_exit_3_within_its_budget(boom, capsys, flags, words):
+def test_skills_ends_in_exit_3_within_its_budget(boom, capsys, flags, words, ticking_clock):
     t = time.monotonic()
     code = main(["skills", "boom", *flags])
     err = capsys.readouterr().err
     assert code == 3 and words in err, err
-    assert time.monotonic() - t < 1 + SLACK
+    assert time.monotonic() - t < HANG
 
 
 def test_skills_library_budgets_stop_inside_one_state():
@@ -190,7 +209,7 @@ def test_skills_library_budgets_stop_inside_one_state():
 
 
 @pytest.mark.parametrize("flags", [["--max-transitions", "800"], ["--max-seconds", "1"], ["--max-states", "100"]])
-def test_dot_export_ends_in_exit_3_within_its_budget(boom, capsys, flags):
+def test_dot_export_ends_in_exit_3_within_its_budget(boom, capsys, flags, ticking_clock):
     t = time.monotonic()
     code = main(["export", "boom", "--format", "dot", *flags])
     captured = capsys.readouterr()
@@ -200,14 +219,14 @@ def test_dot_export_ends_in_exit_3_within_its_budget(boom, capsys, flags):
         assert "dot export draws at most" in captured.err and captured.out == ""
     else:
         assert code == 3 and "budget" in captured.err and captured.out == ""
-    assert time.monotonic() - t < 1 + SLACK + 4
+    assert time.monotonic() - t < HANG
 
 
 def test_dot_export_of_an_exploding_model_is_refused_in_time(boom, capsys):
     t = time.monotonic()
     code = main(["export", "boom", "--format", "dot"])
     assert code == 2 and "dot export draws at most" in capsys.readouterr().err
-    assert time.monotonic() - t < SLACK + 4
+    assert time.monotonic() - t < HANG
 
 
 @pytest.mark.parametrize("cmd", ["check", "skills", "export"])

@@ -192,9 +192,9 @@ def _prop(model):
     return check(model, ["exclusive-actions"]).results[0]
 
 
-def test_no_resources_holds_with_a_note():
+def test_no_resources_is_not_applicable():
     r = _prop(_fallback_1031("btcpp", resources=()))
-    assert r.holds is True and any("no resources declared" in n for n in r.notes)
+    assert r.holds is True and r.verdict == "not-applicable" and r.not_applicable == "no 'resources:' declared"
 
 
 def test_shortest_counterexample_replays():

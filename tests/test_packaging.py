@@ -44,7 +44,8 @@ def test_one_top_level_package(wheel):
     tops = {n.split("/")[0] for n in names}
     assert tops == {"btfsm", "btfsm-0.1.0.dist-info"}
     for sub in ("btfsm/verify/explore.py", "btfsm/models/ariac.py", "btfsm/sim/scene.py", "btfsm/models/scenes/ariac.yaml",
-                "btfsm/schema/model.schema.json", "btfsm/models/examples/two_area.yaml"):
+                "btfsm/schema/model.schema.json", "btfsm/models/examples/two_area.yaml", "btfsm/viewer/viewer.js",
+                "btfsm/viewer/viewer.css"):
         assert sub in names
 
 

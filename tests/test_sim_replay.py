@@ -1,4 +1,5 @@
 """Counterexamples replayed in the cell; the original's freeze against the corrected model."""
+import shutil
 import subprocess
 import sys
 
@@ -45,8 +46,18 @@ def test_cli_replay_cell(tmp_path):
     assert chk.returncode == 1, chk.stderr
     [ce] = list(ce_dir.glob("*.json"))
     png = tmp_path / "freeze.png"
-    rep = subprocess.run(run + ["replay", str(ce), "original-preemptive", "--cell", "--render", str(png), "--time", "70"],
+    page = tmp_path / "r.html"
+    rep = subprocess.run(run + ["replay", str(ce), "original-preemptive", "--cell", "--render", str(png), "--time", "70"]
+                         + (["--html", str(page)] if shutil.which("dot") else []),
                          capture_output=True, text=True, timeout=300)
     assert rep.returncode == 0, rep.stderr
     assert "LOST" in rep.stdout and "without a move" in rep.stdout
     assert png.exists()
+    if shutil.which("dot"):  # the HTML report: the counterexample, then the cell run with its pictures
+        from btfsm.html import read_page
+
+        runs = read_page(page)["runs"]
+        assert [r["kind"] for r in runs] == ["counterexample", "cell"]
+        cell = runs[1]
+        assert 2 <= len(cell["pictures"]) <= 40 and cell["ticks"][1].get("picture") == 0
+        assert any(t["fsm"]["movement_manager"][0] == "release on agv" for t in cell["ticks"])

@@ -87,11 +87,31 @@ def test_json_is_one_object(tmp_path, capsys):
 
 
 def test_json_incomplete_has_null_verdicts(tmp_path, capsys):
-    code, out, _ = _run(capsys, "check", _write(tmp_path, _counter()), "--json", "--max-states", "2",
+    code, out, _ = _run(capsys, "check", _write(tmp_path, _counter(workable="n == 0")), "--json", "--max-states", "2",
                         "--property", "workable-reachability")
     assert code == 3
     d = json.loads(out)
     assert d["complete"] is False and d["properties"][0]["holds"] is None
+    assert d["properties"][0]["verdict"] == "undecided"
+
+
+def test_properties_with_nothing_to_check_say_not_applicable(tmp_path, capsys):
+    """A tree without skill FSMs or declarations: only no-dead-states and lints apply;
+    the others print "not applicable (why)", never "holds", and do not fail the check."""
+    path = _write(tmp_path, _counter())
+    code, out, _ = _run(capsys, "check", path)
+    assert code == 0
+    verdicts = dict(line.split(None, 1) for line in out.splitlines()[1:] if line.startswith("  "))
+    assert verdicts.pop("no-dead-states") == "holds" and verdicts.pop("lints").endswith("warning(s)")
+    assert verdicts["goal-reachability"] == "not applicable (no skill FSM)"
+    assert verdicts["domain"] == "holds"  # n is an int variable: its writes are checked
+    del verdicts["domain"]
+    assert all(v.startswith("not applicable (") for v in verdicts.values()), verdicts
+    code, out, _ = _run(capsys, "check", path, "--json")
+    props = {p["name"]: p for p in json.loads(out)["properties"]}
+    assert props["response"]["verdict"] == "not-applicable" and props["response"]["holds"] is True
+    assert props["response"]["why"] == "no 'responses:' declared"
+    assert props["no-dead-states"]["verdict"] == "holds" and "why" not in props["no-dead-states"]
 
 
 def test_counterexample_dir_and_replay(tmp_path, capsys):

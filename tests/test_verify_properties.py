@@ -140,9 +140,40 @@ def test_invariant_violation_is_shortest():
     assert _one(_counter(invariants={"range": "n <= 3"}), "invariants").holds is True
 
 
-def test_no_invariant_holds_trivially():
+def test_no_invariant_is_not_applicable():
     res = _one(_counter(), "invariants")
-    assert res.holds is True and "no invariant" in res.notes[0]
+    assert res.holds is True and res.verdict == "not-applicable" and res.not_applicable == "no invariant declared"
+
+
+@pytest.mark.parametrize("name,bare,declared", [
+    # (property, why on a counter without FSM or declarations, a model where it applies)
+    ("workable-reachability", "no skill FSM and no 'workable' expression", lambda: _counter(workable="n == 0")),
+    ("goal-reachability", "no skill FSM", lambda: _worker(True)),
+    ("determinism", "no skill FSM", lambda: _worker(True)),
+    ("contracts", "no skill FSM", lambda: _worker(True)),
+    ("request-latency", "no skill FSM", lambda: _targeted("immediate")),
+    ("invariants", "no invariant declared", lambda: _counter(invariants={"r": "n <= 3"})),
+    ("exclusive-actions", "no 'resources:' declared",
+     lambda: Model("r", [Int("n", 0, 3)], tree=Action("inc", outcomes=[success()]), resources={"arm": ["inc"]})),
+    ("response", "no 'responses:' declared",
+     lambda: _counter(responses={"top": {"trigger": "n == 0", "response": "n == 3", "within": 10}})),
+    ("no-dead-states", None, lambda: _counter()),
+    ("lints", None, lambda: _counter()),
+])
+def test_not_applicable_table(name, bare, declared):
+    """Each property's rule for "not applicable" (docs/verification.md section 2): on a bare
+    counter it reports the reason and holds (never fails); where the model declares what it
+    needs, it is decided as usual."""
+    res = _one(_counter(), name)
+    assert res.not_applicable == bare and res.holds is True
+    assert res.verdict == ("holds" if bare is None else "not-applicable")
+    assert _one(declared(), name).not_applicable is None
+
+
+def test_domain_is_not_applicable_without_int_or_fsm():
+    m = Model("b", [Bool("b")], tree=Action("flip", outcomes=[success(b="not b")]))
+    assert _one(m, "domain").not_applicable == "no int variable and no skill FSM"
+    assert _one(_counter(), "domain").verdict == "holds"
 
 
 def test_contract_violation():
@@ -260,16 +291,16 @@ def test_immediate_retarget_holds():
     assert _one(_targeted("immediate"), "request-latency").holds is True
 
 
-def test_no_params_holds_trivially():
+def test_no_params_is_not_applicable():
     res = _one(_worker(True), "request-latency")
-    assert res.holds is True and any("trivially" in n for n in res.notes)
+    assert res.holds is True and res.not_applicable == "no FSM has parameters"
 
 
 # ---------------------------------------------------------------------- budget, report, tampering
 
 
 def test_budget_hit_gives_undecided_not_a_verdict():
-    m = _counter(invariants={"range": "n <= 3"})
+    m = _counter(invariants={"range": "n <= 3"}, workable="n <= 3")
     r = check(m, ["workable-reachability", "invariants"], max_states=2)
     assert not r.complete and r.exit_code == 3
     assert [x.holds for x in r.results] == [None, None]
@@ -511,3 +542,58 @@ def test_counterexample_file_names_differ_per_violation():
     b = _one(Model("worker", fsms=[_sink()], tree=SkillRequest("do", fsm="arm", goal="go")), "workable-reachability").counterexample
     assert a.file_name() != b.file_name() and a.file_name().startswith("worker.workable-reachability.")
     assert a.file_name() == _one(_worker(False), "workable-reachability").counterexample.file_name()  # stable
+
+
+# ---------------------------------------------------------------------- tree coverage (dead branches)
+
+
+def _nav(guard_written: bool):
+    """A guard before FollowPath; nothing writes ``path_ok`` unless ``guard_written``."""
+    env = [EnvEvent("plan", None, {"path_ok": "True"})] if guard_written else []
+    return Model("nav", [Bool("path_ok"), Bool("done")], environment=env, tree=ReactiveFallback("root", [
+        ReactiveSequence("follow", [Condition("path_valid", "path_ok"),
+                                    Action("FollowPath", outcomes=[running(), success(done="True")])]),
+        Action("Wait", outcomes=[running(), success()])]))
+
+
+def _coverage(model):
+    lint = check(model, ["lints"]).result("lints")
+    return {w["element"]: w for w in lint.info["warnings"] if w["text"].startswith(("never ticked", "ticked but"))}
+
+
+def test_dead_branch_never_ticked_with_the_run_that_shows_why():
+    found = _coverage(_nav(False))
+    assert set(found) == {"tree.path_valid", "tree.FollowPath"}
+    assert found["tree.path_valid"]["text"] == "ticked but never succeeds in any reachable state"
+    assert found["tree.FollowPath"]["text"] == ("never ticked in any reachable state ('follow' is ticked but never "
+                                                "reaches it; before it, 'path_valid' never succeeds)")
+    for w in found.values():  # the shortest run: one tick, in which the guard is ticked and fails
+        run = w["run"]
+        assert len(run["steps"]) == 1 and run["steps"][0]["choices"] == [["outcome", "Wait", "running", "RUNNING"]]
+        ok, text = replay_counterexample(run, _nav(False))
+        assert ok, text
+
+
+def test_covered_tree_has_no_dead_branch():
+    assert _coverage(_nav(True)) == {}
+
+
+def test_dead_subtree_reports_its_topmost_node_only():
+    m = Model("d", [Bool("never")], tree=ReactiveFallback("root", [
+        Action("always", outcomes=[success()]),
+        ReactiveSequence("spare", [Action("a", outcomes=[success()]), Action("b", outcomes=[success()])])]))
+    found = _coverage(m)
+    assert set(found) == {"tree.spare"} and "'root' is ticked but never reaches it" in found["tree.spare"]["text"]
+
+
+def test_a_leaf_that_cannot_succeed_by_declaration_is_not_reported():
+    m = Model("f", [Bool("b")], tree=ReactiveFallback("root", [
+        Action("fails", outcomes=[failure()]), Action("ok", outcomes=[success()])]))
+    assert _coverage(m) == {}
+
+
+def test_no_coverage_beyond_the_rerun_limit(monkeypatch):
+    import btfsm.verify.properties.lints as lints
+
+    monkeypatch.setattr(lints, "FIRE_LIMIT", 1)
+    assert _coverage(_nav(False)) == {}

@@ -33,6 +33,11 @@ def cli_check(args) -> int:
     max_transitions, max_seconds = _budgets(args, DEFAULT_MAX_TRANSITIONS)
     from btfsm.progress import ExplorationProgress
 
+    html = getattr(args, "html", None)
+    if html:
+        from btfsm.html import require_dot
+
+        require_dot()
     model = _with_response(_load(args), args)
     if getattr(args, "trigger", None) and props and "response" not in props:
         props.append("response")
@@ -58,6 +63,12 @@ def cli_check(args) -> int:
                   f"in {report.seconds:.2f} s; raise it to decide the rest)")
         for path in written:
             print(f"counterexample written: {path}")
+    if html:
+        from btfsm.html import check_page, write_page
+
+        write_page(html, model, **check_page(model, report))
+        if not args.json:
+            print(f"html report written: {html}")
     return report.exit_code
 
 

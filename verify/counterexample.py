@@ -364,7 +364,7 @@ def _replay_model(ce, model) -> tuple:
 
     prog = model.program
     impl = _Recorded()
-    rt = Runtime(model, {name: impl for name in prog.prims})
+    rt = Runtime(model, {name: impl for name in prog.prims}, record=True)
     bad = _same(prog, rt.state, ce.initial)
     if bad:
         return False, f"initial state differs: {bad}"
@@ -579,6 +579,15 @@ def _confirm(ce, model, state, last, error) -> tuple:
             how = "started while '{}' was running" if want[4] == "start" else "and '{}' are both running"
             return True, f"confirmed: tick {n}: '{want[2]}' {how.format(want[3])} (resource '{want[1]}')"
         return False, f"'{v.get('node')}' and '{v.get('other')}' do not run at once at the last tick"
+    if kind == "dead-branch":  # a tree-coverage lint's run: its last tick shows the dead node
+        v, events = ce.violation, (last.events or ()) if last is not None else ()
+        status = {e[1]: e[2] for e in events if e[0] == "status"}
+        node, parent = v.get("node"), v.get("parent")
+        if parent is not None and parent in status and node not in status:
+            return True, f"confirmed: tick {n} ticks '{parent}' and not '{node}'"
+        if parent is None and node in status and status[node] != 1:
+            return True, f"confirmed: tick {n} ticks '{node}' and it does not succeed"
+        return False, f"the last tick does not show '{node}' {'skipped' if parent is not None else 'failing'}"
     if kind == "sink":
         return _confirm_sink(ce, model, state)
     if kind == "goal-tree":

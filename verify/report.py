@@ -2,8 +2,10 @@
 
 The report prints as text for people (``format_text``) and as one JSON object for tools
 (``to_json``: ``model``, ``states``, ``transitions``, ``seconds``, ``complete``,
-``systems`` and ``properties``, each ``{name, holds, counterexample, notes, info}``;
-``holds`` is null when the property could not be decided within the state budget).
+``systems`` and ``properties``, each ``{name, holds, verdict, counterexample, notes, info}``;
+``holds`` is null when the property could not be decided within the state budget;
+``verdict`` is ``holds``, ``violated``, ``undecided`` or ``not-applicable``, the last with
+``why``: the model gives the property nothing to check, and ``holds`` is then true).
 
 >>> from btfsm import Model, Int, Action, success
 >>> m = Model("c", variables=[Int("n", 0, 2)], tree=Action("inc", outcomes=[success(n="n + 1")]))
@@ -74,6 +76,8 @@ class Report:
             verdict = {True: "holds", False: "VIOLATED", None: "undecided"}[r.holds]
             if r.name == "lints":
                 verdict = f"{len(r.notes)} warning(s)"
+            elif r.not_applicable is not None:
+                verdict = f"not applicable ({r.not_applicable})"
             elif r.holds is True and r.info.get("vacuous"):
                 verdict = "holds (vacuously: the model has no tree)"
             lines.append(f"  {r.name.ljust(width)}  {verdict}")

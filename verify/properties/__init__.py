@@ -27,7 +27,7 @@ import time
 
 from .base import Context, Result, columns_of, evaluate
 
-__all__ = ["Result", "Context", "PROPERTIES", "property_names", "evaluate", "columns_of"]
+__all__ = ["Result", "Context", "PROPERTIES", "property_names", "evaluate", "columns_of", "not_applicable"]
 
 
 def _registry() -> dict:
@@ -75,10 +75,48 @@ def property_names() -> tuple:
     return PROPERTIES
 
 
+def not_applicable(model, name: str) -> "str | None":
+    """Why property ``name`` has nothing to check in ``model`` (None: it applies).
+
+    A property that does not apply is reported as "not applicable" with this reason, not
+    as "holds" (``Result.not_applicable``; it never fails a check).
+
+    >>> from btfsm import Model, Action, success
+    >>> m = Model("t", tree=Action("a", outcomes=[success()]))
+    >>> not_applicable(m, "goal-reachability")
+    'no skill FSM'
+    >>> not_applicable(m, "no-dead-states") is None
+    True
+    """
+    fsms = bool(model.fsms)
+    if name in ("goal-reachability", "determinism", "contracts") and not fsms:
+        return "no skill FSM"
+    if name == "workable-reachability" and not fsms and model.workable is None:
+        return "no skill FSM and no 'workable' expression"
+    if name == "request-latency" and not any(f.params for f in model.fsms):
+        return "no FSM has parameters" if fsms else "no skill FSM"
+    if name == "invariants" and not model.invariants:
+        return "no invariant declared"
+    if name == "domain" and not fsms and not any(v.kind == "int" for v in model.variables):
+        return "no int variable and no skill FSM"
+    if name == "exclusive-actions" and not model.resources:
+        return "no 'resources:' declared"
+    if name == "response" and not model.responses:
+        return "no 'responses:' declared"
+    return None
+
+
 def run_property(ctx, name: str) -> Result:
-    """Decide one property by name (KeyError for an unknown name)."""
+    """Decide one property by name (KeyError for an unknown name); a property with
+    nothing to check in the model (``not_applicable``) is not run."""
     fn = _registry()[name]
     t0 = time.perf_counter()
-    res = fn(ctx)
+    why = not_applicable(ctx.model, name)
+    if name == "response" and getattr(ctx, "responses", None):
+        why = None  # requirements given beside the model
+    if why is not None:
+        res = Result(name, True, None, [], {}, not_applicable=why)
+    else:
+        res = fn(ctx)
     res.seconds = time.perf_counter() - t0
     return res

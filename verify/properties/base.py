@@ -22,11 +22,22 @@ class Result:
     notes: list = field(default_factory=list)
     info: dict = field(default_factory=dict)
     seconds: float = 0.0
+    not_applicable: "str | None" = None  # why the model gives this property nothing to check
+
+    @property
+    def verdict(self) -> str:
+        """``holds``, ``violated``, ``undecided`` or ``not-applicable``."""
+        if self.not_applicable is not None:
+            return "not-applicable"
+        return {True: "holds", False: "violated", None: "undecided"}[self.holds]
 
     def to_json(self) -> dict:
-        return {"name": self.name, "holds": self.holds,
-                "counterexample": self.counterexample.to_json() if self.counterexample is not None else None,
-                "notes": list(self.notes), "info": self.info, "seconds": round(self.seconds, 6)}
+        out = {"name": self.name, "holds": self.holds, "verdict": self.verdict,
+               "counterexample": self.counterexample.to_json() if self.counterexample is not None else None,
+               "notes": list(self.notes), "info": self.info, "seconds": round(self.seconds, 6)}
+        if self.not_applicable is not None:
+            out["why"] = self.not_applicable
+        return out
 
 
 class Context:

@@ -32,7 +32,7 @@ NAME = "exclusive-actions"
 def check(ctx) -> Result:
     model = ctx.model
     if not model.resources:
-        return Result(NAME, True, None, ["no resources declared (the model's 'resources:' key): nothing to check"])
+        return Result(NAME, True, None, [], not_applicable="no 'resources:' declared")
     groups = ", ".join(f"{name} ({', '.join(members)})" for name, members in model.resources)
     ts = ctx.model_ts()
     found = [(t, v) for t, vs in ts.violations for v in vs if v[0] == "exclusive"]

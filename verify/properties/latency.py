@@ -8,8 +8,8 @@ values, free inputs, environment), the possible results (next state, reply) must
 those of the same request from the same state with the parameters already adopted, i.e.
 of a tick that steps toward the requested goal. ``retarget: immediate`` satisfies this by
 construction; ``retarget: withdraw`` (the authors' protocol) spends the tick on
-``withdraw_goal`` and violates it whenever a withdraw is needed. FSMs without parameters
-hold trivially.
+``withdraw_goal`` and violates it whenever a withdraw is needed. Not applicable when no FSM
+has parameters.
 """
 from __future__ import annotations
 
@@ -42,7 +42,7 @@ def check(ctx) -> Result:
     checked = [f.name for f in model.fsms if f.params]
     info["fsms"] = checked
     if not checked:
-        notes.append("no FSM has parameters: holds trivially")
+        return Result("request-latency", True, None, notes, info, not_applicable="no FSM has parameters")
     if worst is None:
         return Result("request-latency", None if undecided else True, None, notes, info)
     _, ts, i, req = worst

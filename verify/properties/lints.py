@@ -4,33 +4,101 @@ The model's own warnings (``model.warnings``: structurally unreachable states, s
 or impossible edges) and the program's (``model.program.lints``), plus what exploration
 shows: FSM states the token never visits (at the end of a tick, or passing through within
 one: the ends of a fired edge), edges and markers that never fire, and goals no
-SkillRequest requests. For a model with a tree the explored model is used when it has at
+SkillRequest requests; and tree coverage (dead branches): tree nodes that are never ticked
+in any reachable state, and leaves that are ticked but never succeed although their
+declaration allows it, each with the shortest run that shows why (``--json``:
+``info.warnings[].run``). For a model with a tree the explored model is used when it has at
 most ``FIRE_LIMIT`` transitions (every transition is re-run once with recording on);
 otherwise, and for models without a tree, each FSM as an open system (which
-over-approximates what the tree can request).
+over-approximates what the tree can request), and tree coverage is not computed.
 """
 from __future__ import annotations
 
 import numpy as np
 
+from btfsm.bt import Action, Condition, SkillRequest
+from btfsm.status import Status
+
 from ..explore import successor_scripts
 from .base import Result
+
+RUNNING, SUCCESS, FAILURE = int(Status.RUNNING), int(Status.SUCCESS), int(Status.FAILURE)
 
 __all__ = ["check", "FIRE_LIMIT"]
 
 FIRE_LIMIT = 100_000
 
 
-def _fired(ts, wanted: set) -> set:
+def _fired(ts, wanted: set, ticks: "dict | None" = None) -> set:
     """(fsm, element id) of the ``wanted`` edges and markers that fire in some transition
-    of ts (stops as soon as all of them have been seen)."""
+    of ts (stops as soon as all of them have been seen). ``ticks``, when given, is filled
+    with tree coverage: ``(node, status) -> (state, script)`` of the first tick (in
+    breadth-first order, so after a shortest run) in which the node returned that status;
+    the search then goes through every transition."""
     out = set()
     for i in range(ts.expanded):
-        for _script, st, _o in successor_scripts(ts, ts.full_state(i)):
+        for script, st, _o in successor_scripts(ts, ts.full_state(i)):
             if st is not None:
-                out.update((e[1], e[2]) for e in st.events or () if e[0] == "fire")
-        if wanted <= out:
+                for e in st.events or ():
+                    if e[0] == "fire":
+                        out.add((e[1], e[2]))
+                    elif ticks is not None and e[0] == "status" and (e[1], e[2]) not in ticks:
+                        ticks[(e[1], e[2])] = (i, script)
+        if wanted <= out and ticks is None:
             break
+    return out
+
+
+def _can_succeed(prog, node) -> bool:
+    """Whether a leaf's declaration lets it return SUCCESS (composites and decorators: not
+    judged, their children are)."""
+    if isinstance(node, Action):
+        return SUCCESS in prog.prims[node.primitive].statuses()
+    return isinstance(node, (Condition, SkillRequest))
+
+
+def dead_branches(ts, ticks: dict) -> list:
+    """Tree coverage lints from ``ticks`` (``_fired``): ``(element, text, run)`` for each
+    topmost node that is never ticked in ``ts`` (its descendants are dead with it) and
+    each leaf that is ticked but never succeeds although its declaration allows it. ``run``
+    is the shortest run that shows why, as counterexample JSON: up to and including the
+    first tick in which the dead node's parent is ticked (it stops before the node), or
+    in which the leaf is ticked (it fails or runs)."""
+    from ..counterexample import path_counterexample
+
+    model, prog = ts.model, ts.model.program
+    ticked = {n for n, _ in ticks}
+    out, dead = [], set()
+
+    def run(first, summary, node, parent=None):
+        i, script = first
+        viol = {"kind": "dead-branch", "node": node, "parent": parent, "text": summary}
+        return path_counterexample(ts, ts.path_to(i), "lints", summary, viol, final_script=script).to_json()
+
+    for _path, root in model.roots():
+        stack = [(root, None)]
+        while stack:
+            n, parent = stack.pop()
+            if n.name not in ticked:
+                dead.add(n.name)
+                why = "its parent is never ticked either" if parent is None else (
+                    f"'{parent.name}' is ticked but never reaches it")
+                if parent is not None:
+                    kids = parent.children_of()
+                    stuck = [c.name for c in kids[:kids.index(n)] if c.name in ticked and (c.name, SUCCESS) not in ticks]
+                    if stuck:
+                        why += f"; before it, {', '.join(repr(x) for x in stuck)} never succeed{'s' if len(stuck) == 1 else ''}"
+                first = None if parent is None else next(
+                    (ticks[(parent.name, st)] for st in (RUNNING, SUCCESS, FAILURE) if (parent.name, st) in ticks), None)
+                text = f"never ticked in any reachable state ({why})"
+                out.append((f"tree.{n.name}", text,
+                            None if first is None else run(first, f"'{n.name}': {text}", n.name, parent.name)))
+                continue  # its descendants are dead with it
+            if not n.children_of() and (n.name, SUCCESS) not in ticks and _can_succeed(prog, n):
+                first = min(ticks[(n.name, st)] for st in (RUNNING, FAILURE) if (n.name, st) in ticks)
+                text = "ticked but never succeeds in any reachable state"
+                out.append((f"tree.{n.name}", text, run(first, f"'{n.name}': {text}", n.name)))
+            stack.extend((c, n) for c in reversed(n.children_of()))
     return out
 
 
@@ -39,11 +107,13 @@ def check(ctx) -> Result:
     warnings = [(el, text) for el, text in model.warnings] + [(el, text) for el, text in prog.lints]
     seen = {el for el, _ in warnings}
     use_model = model.tree is not None and ctx.model_ts().n_transitions <= FIRE_LIMIT and ctx.model_ts().complete
-    fired, visited = set(), {}
+    fired, visited, coverage = set(), {}, []
     wanted = {(f.name, x.id) for f in model.fsms for x in (*f.edges, *f.markers)}
     if use_model:
         ts = ctx.model_ts()
-        fired = _fired(ts, wanted)
+        ticks: dict = {}
+        fired = _fired(ts, wanted, ticks)
+        coverage = dead_branches(ts, ticks)
         for f, ids, tok, _, _ in prog.fsm_info:
             visited[f.name] = (ts, {ids[int(v)] for v in np.unique(ts.column(tok))}, "in the model")
     else:
@@ -82,6 +152,8 @@ def check(ctx) -> Result:
             for g in f.goals:
                 if g not in asked and not (f.retarget == "withdraw" and g == f.withdraw_goal and asked):
                     found.append((f"fsms.{f.name}.goals", f"goal '{g}' is never requested by a SkillRequest"))
-    allw = warnings + found
+    allw = warnings + found + [(el, text) for el, text, _ in coverage]
+    runs = {el: r for el, _, r in coverage if r is not None}
     notes = [f"{el}: {text}" for el, text in allw]
-    return Result("lints", True, None, notes, {"warnings": [{"element": el, "text": text} for el, text in allw]})
+    return Result("lints", True, None, notes, {"warnings": [{"element": el, "text": text, **(
+        {"run": runs[el]} if el in runs else {})} for el, text in allw]})
