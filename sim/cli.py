@@ -288,10 +288,8 @@ def cli_conform(args) -> int:
 def cli_sweep(args) -> int:
     """``btfsm sweep``: the experiment over a grid of trial parameters (``btfsm.sim.sweep``)."""
     from .protocol import VARIANTS
-    from .sweep import check_geometry, grid, plot_lost, run_sweep, write_table
+    from .sweep import check_geometry, dask_installed, grid, plot_lost, run_sweep, write_table
     from btfsm.outputs import ensure_output_dir
-
-    from .sweep import dask_installed
 
     needs("matplotlib")  # the figure, drawn after every trial ran
     if args.engine == "dask" and args.scheduler:
