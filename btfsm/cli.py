@@ -91,7 +91,8 @@ COMMANDS = {
     "sim": ("btfsm.sim.cli:cli_sim", "run a model in a simulated cell (its scene; the ARIAC cell for the paper's models)"),
     "experiment": ("btfsm.sim.cli:cli_experiment", "reproduce the paper's ARIAC experiment"),
     "sweep": ("btfsm.sim.cli:cli_sweep", "run the experiment over a grid of cell parameters (on Dask)"),
-    "conform": ("btfsm.sim.cli:cli_conform", "run scenarios and check runtime conformance"),
+    "conform": ("btfsm.cli:cli_conform", "run scenarios and check runtime conformance, or (--log) check a run recorded "
+                                         "by BehaviorTree.CPP or py_trees against the model"),
     "import": ("btfsm.cli:cli_import", "read a BehaviorTree.CPP XML v4 tree (+ side file); write a btfsm model file"),
 }
 
@@ -313,6 +314,11 @@ def _args_sim(sp):
 
 def _args_conform(sp):
     _args_model(sp)
+    sp.add_argument("--log", type=input_file, default=None, metavar="RUN",
+                    help="check this recorded run instead of running scenarios: a BehaviorTree.CPP FileLogger2 file "
+                         "(.btlog, checked under btcpp) or a py_trees run written by btfsm.interop.pytrees.RunRecorder "
+                         "(under pytrees); --max-states bounds the configurations the search keeps at once (default "
+                         "200,000); see docs/interop.md section 5")
     sp.add_argument("--scenarios", type=int_range(1, MAX_SCENARIOS), default=10)
     sp.add_argument("--seed", type=seed_int, default=0)
     sp.add_argument("--time", type=finite_float(0, MAX_SIM_TIME, lo_open=True), default=700.0,
@@ -320,7 +326,7 @@ def _args_conform(sp):
     sp.add_argument("--drops", action="store_true", help="add faulty-gripper drop regions to some scenarios")
     sp.add_argument("--no-path", action="store_true", help="skip the path check against the explored system")
     _args_scene(sp)
-    _args_max_states(sp, default=2_000_000)
+    _args_max_states(sp)
     _args_json(sp, "the scenarios and the verdict")
     _args_html(sp, "the scenarios, and the first nonconforming one (else the first) as a run with the cell's pictures")
 
@@ -506,6 +512,16 @@ def _main(argv) -> int:
             raise
         raise exc.at(file=model) from None
     return int(result or 0)
+
+
+def cli_conform(args) -> int:
+    """``btfsm conform``: ``--log RUN`` checks a recorded run (``btfsm.verify.runlog``, no
+    simulator needed); otherwise the simulated scenarios of ``btfsm.sim.cli``."""
+    if args.log is not None:
+        return _handler("btfsm.verify.runlog:cli_conform_log")(args)
+    if args.max_states is None:
+        args.max_states = 2_000_000
+    return _handler("btfsm.sim.cli:cli_conform")(args)
 
 
 def cli_validate(args) -> int:

@@ -194,8 +194,9 @@ def load_data(path, fmt: "str | None" = None, file_name: "str | None" = None):
     return loads_data(read_model_bytes(path, name), fmt, name)
 
 
-def read_model_bytes(path, name: "str | None" = None) -> bytes:
-    """The bytes of a model file: only a regular file, at most ``MAX_FILE_BYTES``.
+def read_model_bytes(path, name: "str | None" = None, limit: int = MAX_FILE_BYTES, what: str = "model file") -> bytes:
+    """The bytes of a model file (or another input, ``what``): only a regular file, at most
+    ``limit`` bytes (default ``MAX_FILE_BYTES``).
 
     The file is opened without blocking and checked with ``fstat`` before anything is
     read, so a FIFO, a device or a folder is refused at once instead of hanging the loader.
@@ -208,19 +209,19 @@ def read_model_bytes(path, name: "str | None" = None) -> bytes:
     try:
         st = os.fstat(fd)
         if not stat.S_ISREG(st.st_mode):
-            what = "a folder" if stat.S_ISDIR(st.st_mode) else "a FIFO" if stat.S_ISFIFO(st.st_mode) else \
+            kind = "a folder" if stat.S_ISDIR(st.st_mode) else "a FIFO" if stat.S_ISFIFO(st.st_mode) else \
                 "a device" if stat.S_ISCHR(st.st_mode) or stat.S_ISBLK(st.st_mode) else "a socket" if stat.S_ISSOCK(st.st_mode) else "not a file"
-            raise _err("", f"is {what}, not a regular model file", name)
-        if st.st_size > MAX_FILE_BYTES:
-            raise _err("", f"is {st.st_size} bytes; model files are at most {MAX_FILE_BYTES} bytes", name)
+            raise _err("", f"is {kind}, not a regular {what}", name)
+        if st.st_size > limit:
+            raise _err("", f"is {st.st_size} bytes; {what}s are at most {limit} bytes", name)
         chunks, total = [], 0
         while True:
             chunk = os.read(fd, 1 << 20)
             if not chunk:
                 break
             total += len(chunk)
-            if total > MAX_FILE_BYTES:  # grew while being read
-                raise _err("", f"is more than {MAX_FILE_BYTES} bytes; model files are at most {MAX_FILE_BYTES} bytes", name)
+            if total > limit:  # grew while being read
+                raise _err("", f"is more than {limit} bytes; {what}s are at most {limit} bytes", name)
             chunks.append(chunk)
         return b"".join(chunks)
     except OSError as exc:

@@ -1129,9 +1129,11 @@ class Program:
                     self.lints.append((f"tree.{info.node.name}", f"reactive sequence with several children that can run ({', '.join(running)}): an earlier one restarts each tick and halts the later ones; use MemorySequence"))
 
     # ------------------------------------------------------------------ running
-    def step(self, state, oracle, record: bool = False) -> Step:
-        """One BT tick: environment events, then the tree. Pure in ``state``."""
-        ctx = _Ctx(list(state), oracle, [] if record else None)
+    def step(self, state, oracle, record: "bool | list" = False) -> Step:
+        """One BT tick: environment events, then the tree. Pure in ``state``. ``record``:
+        collect the trace events (``Step.events``); a list given here receives them as they
+        happen, so an oracle holding it can see the tick so far."""
+        ctx = _Ctx(list(state), oracle, record if isinstance(record, list) else ([] if record else None))
         s = ctx.s
         blocked = self.environment_phase(s, oracle, ctx.rec)
         if blocked is not None:

@@ -53,9 +53,11 @@ a ``ModelError`` naming the node. ``from_pytrees`` raises nothing else, whatever
 """
 from __future__ import annotations
 
+import json
 import keyword
 import math
 import operator
+import os
 import re
 import unicodedata
 import warnings
@@ -78,7 +80,8 @@ from ..primitives import Outcome, Primitive
 from ..status import Status
 from ..world import RESERVED_NAMES, Bool, Enum, Int, check_label
 
-__all__ = ["from_pytrees", "node_names", "to_pytrees", "AnswerBehaviour", "PytreesImportWarning"]
+__all__ = ["from_pytrees", "node_names", "to_pytrees", "AnswerBehaviour", "PytreesImportWarning", "RunRecorder",
+           "RUN_FORMAT"]
 
 Common = py_trees.common
 _TO_PT = {Status.RUNNING: Common.Status.RUNNING, Status.SUCCESS: Common.Status.SUCCESS,
@@ -600,3 +603,79 @@ def _import(root, names, leaves, guards, leaf_names, name, semantics, blackboard
     model_name = name if name is not None else _ident(_label(root.name), set())
     return Model(model_name, variables=tuple(variables), tree=tree,
                  environment=tuple(environment), semantics=semantics)
+
+
+# ====================================================================== recorded runs
+
+RUN_FORMAT = "btfsm-pytrees-run/1"
+
+
+class RunRecorder(py_trees.visitors.VisitorBase):
+    """A py_trees visitor that records a run for ``btfsm conform --log RUN MODEL``.
+
+    Add it to a ``py_trees.trees.BehaviourTree`` (``tree.visitors.append(RunRecorder(path))``)
+    before the first ``tree.tick()``; ``close()`` it at the end. It writes JSON lines: a
+    header ``{"format": "btfsm-pytrees-run/1", "nodes": [{"name", "type", "parent"}, ...]}``
+    (the tree in pre-order, ``parent`` an earlier index, null for the root), then per tick
+    ``{"tick": k, "visited": [[node, status], ...], "running": [node, ...]}``: the nodes
+    the tick visited with the status each returned, in the order py_trees visits them
+    (each node after its children), and the nodes RUNNING when the tick ended (a node
+    stopped during the tick is not). The tree's shape must not change while it records.
+
+    >>> import io
+    >>> root = py_trees.composites.Sequence("seq", memory=True, children=[
+    ...     py_trees.behaviours.Success(name="a"), py_trees.behaviours.Running(name="b")])
+    >>> tree, out = py_trees.trees.BehaviourTree(root), io.StringIO()
+    >>> tree.visitors.append(RunRecorder(out))
+    >>> tree.tick()
+    >>> print(out.getvalue().splitlines()[1])
+    {"tick": 0, "visited": [[1, "SUCCESS"], [2, "RUNNING"], [0, "RUNNING"]], "running": [0, 2]}
+    """
+
+    def __init__(self, out):
+        super().__init__(full=False)
+        self._own = isinstance(out, (str, os.PathLike))
+        self._out = open(out, "w", encoding="utf-8") if self._own else out
+        self._index: "dict | None" = None
+        self._nodes: list = []
+        self._tick = 0
+        self._visited: list = []
+
+    def initialise(self) -> None:
+        self._visited = []
+
+    def run(self, behaviour) -> None:
+        self._visited.append((behaviour, behaviour.status))  # a later stop() may change it
+
+    def finalise(self) -> None:
+        if not self._visited:
+            return
+        if self._index is None:
+            self._header(self._visited[-1][0])  # the root is visited last
+        index = self._index
+        try:
+            visited = [[index[id(b)], status.name] for b, status in self._visited]
+        except KeyError:
+            raise ValueError("RunRecorder: the tree changed shape while it was recorded") from None
+        running = [k for k, b in enumerate(self._nodes) if b.status == Common.Status.RUNNING]
+        self._out.write(json.dumps({"tick": self._tick, "visited": visited, "running": running}) + "\n")
+        self._tick += 1
+
+    def _header(self, root) -> None:
+        nodes, rows = [], []
+
+        def walk(b, parent):
+            rows.append({"name": b.name, "type": type(b).__name__, "parent": parent})
+            nodes.append(b)
+            me = len(nodes) - 1
+            for c in b.children:
+                walk(c, me)
+        walk(root, None)
+        self._nodes, self._index = nodes, {id(b): k for k, b in enumerate(nodes)}
+        self._out.write(json.dumps({"format": RUN_FORMAT, "nodes": rows}) + "\n")
+
+    def close(self) -> None:
+        """Flush the recording (and close the file when the recorder opened it)."""
+        self._out.flush()
+        if self._own:
+            self._out.close()
