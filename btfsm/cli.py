@@ -733,6 +733,10 @@ def cli_replay(args) -> int:
     from .formats import FormatError, printable
     from .trace import replay
 
+    if args.cell:
+        from btfsm.sim.cli import needs, picture_modules
+
+        needs(*picture_modules(args))  # before any work, not after the replay
     html = getattr(args, "html", None)
     if html:
         from .html import require_dot

@@ -134,7 +134,7 @@ def _move_part_out(scene, robot, a):
     region = scene.areas[a["area"]]["region"]
     for corner in ((region[0], region[1]), (region[0], region[3]), (region[2], region[1]), (region[2], region[3])):
         if not scene.reachable(robot, corner):
-            raise scene.error("", f"area '{a['area']}' is not entirely within robot '{robot}''s reach")
+            raise scene.error("", f"area '{a['area']}' is not entirely within the reach of robot '{robot}'")
     return _move_out(scene, robot, {"frame": ((region[0] + region[2]) / 2, (region[1] + region[3]) / 2)})
 
 
@@ -262,7 +262,8 @@ def _coerce(scene, robot, kind, value, where):
         if p is None:
             raise scene.error(where, f"expected a frame name or [x, y], got {value!r}")
         if not scene.reachable(robot, p):
-            raise scene.error(where, f"({p[0]:g}, {p[1]:g}) is out of robot '{robot}''s reach")
+            what = f"frame '{value}' at" if isinstance(value, str) else "point"
+            raise scene.error(where, f"{what} ({p[0]:g}, {p[1]:g}) is out of the reach of robot '{robot}'")
         return p
     if kind == "number":
         if isinstance(value, bool) or not isinstance(value, (int, float)) or not value > 0:
