@@ -2,10 +2,10 @@
 """Simulated seconds per wall second of btfsm's scene cells, beside the shared reference pymunk cell.
 
 * ARIAC trial (the product path): the checked ARIAC model (preemptive, k = 1) in the btfsm
-  Runtime at 10 Hz, in the ARIAC scene (``models/scenes/ariac.yaml``, kinematic world at
-  240 Hz) bound by ``btfsm.sim.binding.KittingBinding``, for the first ``--sim-seconds``;
+  Runtime at 10 Hz, in the ARIAC scene (``models/scenes/ariac.yaml``, physical world (pymunk)
+  at 240 Hz) bound by ``btfsm.sim.binding.KittingBinding``, for the first ``--sim-seconds``;
 * scenes: the same kind of trial in the two-area example and the machine-tending cell
-  (kinematic, 100 Hz world steps), 10 seeds each, run to completion;
+  (physical, 100 Hz world steps), 10 seeds each, run to completion;
 * reference: ``pymunk_cell_bench.py --view top`` run as a subprocess (a pymunk kitting
   cell with a scripted controller; it excludes a 2 s warm-up from its timing, ours times
   the whole run; needs pymunk: ``pip install .[bench]``);
@@ -105,12 +105,13 @@ def main() -> None:
     result = {"sim_seconds": args.sim_seconds, "trial": trial}
     scenes = [median_run(lambda m=m, f=f: run_scene_bench(m, f), args.repeats) for m, f in SCENES]
     print("a trial of a checked model in the Runtime at 10 Hz, simulated s per wall s")
-    print(f"  {'cell':56} {'sim-s/wall-s':>12}  target >= 500x")
-    print(f"  {'scene ariac (kinematic, 240 Hz), preemptive k = 1':56} {trial['sim_s_per_wall_s']:12.1f}  "
-          f"{'met' if trial['sim_s_per_wall_s'] >= 500 else 'NOT met'}  (runs {trial['all']}; {trial['ticks']} ticks, "
+    print(f"load average (1, 5, 15 min): {os.getloadavg()}")
+    print(f"  {'cell':56} {'sim-s/wall-s':>12}  target >= 800x (ARIAC), 500x (others)")
+    print(f"  {'scene ariac (physical, 240 Hz), preemptive k = 1':56} {trial['sim_s_per_wall_s']:12.1f}  "
+          f"{'met' if trial['sim_s_per_wall_s'] >= 800 else 'NOT met'}  (runs {trial['all']}; {trial['ticks']} ticks, "
           f"{trial['skills']} skills, tray {trial['tray']})")
     for sc in scenes:
-        label = f"scene {sc['scene']} (kinematic, 100 Hz)"
+        label = f"scene {sc['scene']} (physical, 100 Hz)"
         print(f"  {label:56} {sc['sim_s_per_wall_s']:12.1f}  {'met' if sc['sim_s_per_wall_s'] >= 500 else 'NOT met'}"
               f"  (runs {sc['all']}; {sc['runs']} seeds, {sc['completed']} completed, {sc['sim_s']:.0f} sim s)")
     result["scenes"] = scenes
@@ -118,14 +119,15 @@ def main() -> None:
         ref = median_run(lambda: run_reference(args.reference, args.sim_seconds), args.repeats)
         print(f"  {'reference pymunk cell (scripted controller, 240 Hz)':56} {ref['sim_s_per_wall_s']:12.1f}  "
               f"(runs {ref['all']}; picks {ref['picks']})")
-        print(f"ratio ARIAC trial / reference: {trial['sim_s_per_wall_s'] / ref['sim_s_per_wall_s']:.2f}")
+        ratio = trial["sim_s_per_wall_s"] / ref["sim_s_per_wall_s"]
+        print(f"ratio ARIAC trial / reference: {ratio:.2f}  target >= 3: {'met' if ratio >= 3 else 'NOT met'}")
         result.update(reference=ref, ratio=trial["sim_s_per_wall_s"] / ref["sim_s_per_wall_s"])
     else:
         print(f"reference not found at {args.reference}; skipped")
     if args.experiment:
         exp = run_experiment_bench(args.workers)
         print(f"experiment: {exp['trials']} trials, {exp['sim_s']:,.0f} simulated s in {exp['wall_s']:.1f} s wall on "
-              f"{exp['workers']} workers; lost {exp['lost']}  target <= 180 s: {'met' if exp['wall_s'] <= 180 else 'NOT met'}")
+              f"{exp['workers']} workers; lost {exp['lost']}  target <= 60 s: {'met' if exp['wall_s'] <= 60 else 'NOT met'}")
         result["experiment"] = exp
     if args.json:
         with open(args.json, "w") as fh:

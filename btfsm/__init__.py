@@ -2,8 +2,8 @@
 
 The public modelling API. See docs/semantics.md for the tick rules.
 """
-from .bt import (Action, Condition, Effects, ForceFailure, ForceSuccess, Guard, IfThenElse, Inverter,
-                 KeepRunningUntilFailure, MemoryFallback, MemorySequence, Parallel, ParallelAll,
+from .bt import (Action, Condition, Effects, FailureIsRunning, ForceFailure, ForceSuccess, Guard, IfThenElse,
+                 Inverter, KeepRunningUntilFailure, RunningIsFailure, RunningIsSuccess, MemoryFallback, MemorySequence, Parallel, ParallelAll,
                  ReactiveFallback, ReactiveSequence, Repeat, Retry, RunOnce, SequenceWithMemory,
                  SkillRequest, WhileDoElse, walk)
 from .errors import ConformanceError, DomainError, ModelError
@@ -21,6 +21,7 @@ __all__ = [
     "MemoryFallback", "MemorySequence", "Parallel", "ReactiveFallback", "ReactiveSequence",
     "Repeat", "Retry", "SkillRequest", "walk",
     "IfThenElse", "KeepRunningUntilFailure", "ParallelAll", "RunOnce", "SequenceWithMemory", "WhileDoElse",
+    "FailureIsRunning", "RunningIsFailure", "RunningIsSuccess",
     "ConformanceError", "DomainError", "ModelError",
     "E", "as_expr", "parse", "to_text", "v",
     "FSM", "Edge", "Marker", "State", "EnvChoice", "EnvEvent", "Model",

@@ -3,7 +3,8 @@
 Composites: ``ReactiveSequence``, ``MemorySequence``, ``SequenceWithMemory``,
 ``ReactiveFallback``, ``MemoryFallback``, ``Parallel``, ``ParallelAll``, ``IfThenElse`` and
 ``WhileDoElse``. Decorators: ``Inverter``, ``ForceSuccess``, ``ForceFailure``, ``Retry``,
-``Repeat``, ``KeepRunningUntilFailure``, ``RunOnce``, ``Guard`` and ``Effects``. Leaves: ``Condition``,
+``Repeat``, ``KeepRunningUntilFailure``, ``RunOnce``, ``Guard``, ``Effects`` and py_trees'
+``FailureIsRunning``, ``RunningIsFailure``, ``RunningIsSuccess``. Leaves: ``Condition``,
 ``Action`` and ``SkillRequest``. Their tick rules are in docs/semantics.md and in exactly
 one implementation, ``btfsm.semantics``.
 
@@ -47,7 +48,8 @@ __all__ = [
     "ReactiveSequence", "MemorySequence", "ReactiveFallback", "MemoryFallback", "Parallel",
     "SequenceWithMemory", "ParallelAll", "IfThenElse", "WhileDoElse",
     "Inverter", "ForceSuccess", "ForceFailure", "Retry", "Repeat", "Guard", "Effects",
-    "KeepRunningUntilFailure", "RunOnce", "PipelineSequence", "RecoveryNode", "RoundRobin",
+    "KeepRunningUntilFailure", "RunOnce", "FailureIsRunning", "RunningIsFailure", "RunningIsSuccess",
+    "PipelineSequence", "RecoveryNode", "RoundRobin",
     "Condition", "Action", "SkillRequest", "walk", "NODE_TYPES",
 ]
 
@@ -197,7 +199,23 @@ class Repeat(Decorator):
 
 
 class KeepRunningUntilFailure(Decorator):
-    """Child SUCCESS -> RUNNING, FAILURE -> FAILURE, RUNNING -> RUNNING."""
+    """Child SUCCESS -> RUNNING, FAILURE -> FAILURE, RUNNING -> RUNNING (py_trees'
+    ``SuccessIsRunning`` and ``Repeat(num_success=-1)`` too)."""
+
+
+class FailureIsRunning(Decorator):
+    """py_trees' ``FailureIsRunning``: child FAILURE -> RUNNING (the child starts afresh
+    next tick), SUCCESS -> SUCCESS, RUNNING -> RUNNING."""
+
+
+class RunningIsFailure(Decorator):
+    """py_trees' ``RunningIsFailure``: child RUNNING -> FAILURE (the running child is
+    halted), SUCCESS -> SUCCESS, FAILURE -> FAILURE."""
+
+
+class RunningIsSuccess(Decorator):
+    """py_trees' ``RunningIsSuccess``: child RUNNING -> SUCCESS (the running child is
+    halted), SUCCESS -> SUCCESS, FAILURE -> FAILURE."""
 
 
 @dataclass(frozen=True)
@@ -312,4 +330,4 @@ NODE_TYPES = {cls.__name__: cls for cls in (
     ReactiveSequence, MemorySequence, ReactiveFallback, MemoryFallback, Parallel,
     SequenceWithMemory, ParallelAll, IfThenElse, WhileDoElse, PipelineSequence, RecoveryNode, RoundRobin,
     Inverter, ForceSuccess, ForceFailure, Retry, Repeat, KeepRunningUntilFailure, RunOnce, Guard, Effects,
-    Condition, Action, SkillRequest)}
+    Condition, Action, SkillRequest, FailureIsRunning, RunningIsFailure, RunningIsSuccess)}

@@ -62,7 +62,7 @@ MAX_SCENARIOS = 100_000
 MAX_FRAMES = 100_000
 
 #: Third-party modules that only some commands need (``pip install 'btfsm[sim]'``).
-OPTIONAL_MODULES = {"matplotlib", "PIL", "dask", "distributed", "pyarrow", "numpy", "tqdm"}
+OPTIONAL_MODULES = {"matplotlib", "PIL", "dask", "distributed", "pyarrow", "numpy", "tqdm", "pymunk"}
 
 
 class CliParser(argparse.ArgumentParser):
@@ -541,6 +541,8 @@ def cli_validate(args) -> int:
     from .files import cli_validate as validate_text
     from .files import load_cli_model
 
+    if _is_scene_file(args.model):
+        return _validate_scene(args)
     if not getattr(args, "json", False):
         return validate_text(args)
     model = load_cli_model(args)
@@ -551,6 +553,38 @@ def cli_validate(args) -> int:
                       "states": sum(len(f.states) for f in model.fsms), "tree_nodes": len(model.nodes()),
                       "warnings": warnings}))
     return 1 if warnings and args.strict else 0
+
+
+def _is_scene_file(path: str) -> bool:
+    """A scene file: named ``*.scene.yaml`` (``.yml``, ``.json``), or a mapping with
+    ``robots`` and without a model's ``fsms`` / ``tree``."""
+    if not isinstance(path, str) or not os.path.isfile(path):
+        return False
+    if ".scene." in os.path.basename(path):
+        return True
+    from .files import load_data
+
+    try:
+        data = load_data(path, file_name=path)
+    except Exception:  # noqa: BLE001 - not readable as data: the model loader reports it
+        return False
+    return isinstance(data, dict) and "robots" in data and not ({"fsms", "tree"} & set(data))
+
+
+def _validate_scene(args) -> int:
+    """``btfsm validate my.scene.yaml``: load and check a scene file on its own."""
+    from btfsm.sim.scene import load_scene
+
+    sc = load_scene(args.model)
+    parts = sum(n for a in sc.areas.values() for n in a["parts"].values())
+    summary = {"file": args.model, "scene": sc.name, "ok": True, "areas": len(sc.areas), "belts": len(sc.belts),
+               "walls": len(sc.walls), "sensors": len(sc.sensors), "robots": len(sc.robots), "parts": parts}
+    if getattr(args, "json", False):
+        print(json.dumps(summary))
+    else:
+        print(f"{args.model}: ok (scene {sc.name}: {len(sc.areas)} areas, {len(sc.belts)} belts, {len(sc.walls)} walls, "
+              f"{len(sc.sensors)} sensors, {len(sc.robots)} robots, {parts} parts)")
+    return 0
 
 
 def cli_import(args) -> int:
@@ -712,6 +746,10 @@ def cli_replay(args) -> int:
     from .formats import FormatError, printable
     from .trace import replay
 
+    if args.cell:
+        from btfsm.sim.cli import needs, picture_modules
+
+        needs(*picture_modules(args))  # before any work, not after the replay
     html = getattr(args, "html", None)
     if html:
         from .html import require_dot

@@ -62,6 +62,7 @@ MAX_DEPTH = 100  # nesting of YAML/JSON values
 MAX_TEMPLATE_DEPTH = 16
 MAX_INT = 2 ** 63  # integers in a model file lie within -MAX_INT..MAX_INT
 MAX_EXPANDED = 100_000  # items produced by templates
+MAX_TEXT = MAX_FILE_BYTES  # characters of text produced by template placeholders
 
 
 _CONTROL = {c: f"\\x{c:02x}" for c in list(range(32)) + [127, 0x85]}
@@ -429,7 +430,7 @@ class _Expander:
     """Expands ``use`` entries (see docs/model-files.md, "Templates")."""
 
     def __init__(self, file):
-        self.file, self.templates, self.produced, self.copied = file, {}, 0, 0
+        self.file, self.templates, self.produced, self.copied, self.chars = file, {}, 0, 0, 0
 
     def fail(self, path, problem, obj=None, key=None):
         return _err(path, problem + _where(obj, key), self.file)
@@ -652,6 +653,14 @@ class _Expander:
         if whole:  # a lone placeholder takes the value itself (a list, a number...)
             return self._copy(binding[whole.group(1)], path)
 
+        size = len(s)  # the text's length once replaced, known before it is built (string bombs)
+        for m in _PLACEHOLDER.finditer(s):
+            val = binding[m.group(1)]
+            size += (len(val) if isinstance(val, str) else len(str(val)) + 1) - len(m.group(0))
+        self.chars += size
+        if size > MAX_TEXT or self.chars > MAX_TEXT:
+            raise self.fail(path, f"templates produce more than {MAX_TEXT} characters of text")
+
         def rep(m):
             val = binding[m.group(1)]
             if isinstance(val, bool):
@@ -755,6 +764,7 @@ _NODE_FIELDS = {
     "PipelineSequence": ("children",), "RecoveryNode": ("retries", "children"),
     "RoundRobin": ("wrap_around", "children"),
     "KeepRunningUntilFailure": ("child",), "RunOnce": ("then_skip", "child"),
+    "FailureIsRunning": ("child",), "RunningIsFailure": ("child",), "RunningIsSuccess": ("child",),
     "Inverter": ("child",), "ForceSuccess": ("child",), "ForceFailure": ("child",),
     "Retry": ("attempts", "child"), "Repeat": ("times", "child"), "Guard": ("condition", "child"),
     "Effects": ("on_start", "on_success", "on_failure", "on_halt", "child"),
@@ -765,6 +775,7 @@ _NODE_REQUIRED = {"Guard": ("condition", "child"), "Condition": ("expr",), "Skil
                   "Inverter": ("child",), "ForceSuccess": ("child",), "ForceFailure": ("child",),
                   "Retry": ("child",), "Repeat": ("child",), "Effects": ("child",),
                   "KeepRunningUntilFailure": ("child",), "RunOnce": ("child",),
+                  "FailureIsRunning": ("child",), "RunningIsFailure": ("child",), "RunningIsSuccess": ("child",),
                   "IfThenElse": ("children",), "WhileDoElse": ("children",)}
 TRIGGER_KEYS = ("when", "on", True)  # "on" and True (YAML 1.1's reading of on:) are older spellings
 TOP_FIELDS = ("name", "description", "semantics", "tick_rate", "variables", "primitives", "fsms", "tree",
@@ -1092,7 +1103,9 @@ class _Reader:
                 continue
             if not isinstance(items, list):
                 raise self.fail(f"{path}.{key}", f"expected a list, got {_kind(items)}", spec, key)
-            out.extend(build(x, f"{path}.{key}[{i}]", items, i) for i, x in enumerate(items))
+            for i, x in enumerate(items):
+                built = build(x, f"{path}.{key}[{i}]", items, i)
+                out.extend(built if isinstance(built, list) else [built])
         f = FSM(name, states=states, goals=goals, edges=tuple(e for e, _ in edges),
                 markers=tuple(m for m, _ in markers), **kw)
         for built, (_, where) in zip(f.edges, edges):
@@ -1148,10 +1161,23 @@ class _Reader:
             kw["goals"] = self.names(obj["goals"], f"{path}.goals", obj, "goals", "goals", allow_all=True)
         if "id" in obj:
             kw["id"] = self.string(obj["id"], f"{path}.id", obj, "id")
-        e = Edge(self.string(obj["from"], f"{path}.from", obj, "from", "a state id"),
-                 self.string(obj["to"], f"{path}.to", obj, "to", "a state id"),
-                 guard=self.opt_expr(obj, "guard", path), effects=self.effects(obj.get("effects"), f"{path}.effects", obj, "effects"), **kw)
-        return e, (path, parent, key)
+        target = self.string(obj["to"], f"{path}.to", obj, "to", "a state id")
+        guard, effects = self.opt_expr(obj, "guard", path), self.effects(obj.get("effects"), f"{path}.effects", obj, "effects")
+        sources = obj["from"]
+        if not isinstance(sources, list):
+            return Edge(self.string(sources, f"{path}.from", obj, "from", "a state id"), target, guard=guard,
+                        effects=effects, **kw), (path, parent, key)
+        # from: [a, b]: one edge per source, alike in everything else (ids: ID/SOURCE when given)
+        if not sources:
+            raise self.fail(f"{path}.from", "expected a state id or a non-empty list of state ids", obj, "from")
+        out = []
+        for k, src in enumerate(sources):
+            sid = self.string(src, f"{path}.from[{k}]", sources, k, "a state id")
+            if sid in sources[:k]:
+                raise self.fail(f"{path}.from[{k}]", f"state '{sid}' is listed twice", sources, k)
+            one = dict(kw, id=f"{kw['id']}/{sid}") if "id" in kw and len(sources) > 1 else kw
+            out.append((Edge(sid, target, guard=guard, effects=effects, **one), (path, parent, key)))
+        return out
 
     def marker(self, obj, path, parent, key):
         self.trigger_fields(obj, path, ("state", "goals", "when", "on", "outcome", "guard", "id"), ("state",), "a marker {state: S, ...}")
@@ -1464,6 +1490,10 @@ def python_model_ref(text: str) -> "tuple | None":
     return None
 
 
+#: modules of btfsm's command line: calling their functions as a model would run btfsm again
+_COMMAND_LINES = frozenset({"btfsm.cli", "btfsm.__main__", "btfsm.sim.cli", "btfsm.pytest_plugin"})
+
+
 def load_python_model(where: str, func: str, *, shown: "str | None" = None) -> Model:
     """Call ``func`` of the Python file or module ``where`` (the user's explicit choice to
     run their code) and return the Model it builds; anything else is a one-line ModelError."""
@@ -1502,6 +1532,8 @@ def load_python_model(where: str, func: str, *, shown: "str | None" = None) -> M
     fn = getattr(module, func, None)
     if not callable(fn):
         raise _err("", f"'{where}' has no function '{func}'", shown)
+    if getattr(fn, "__module__", None) in _COMMAND_LINES:
+        raise _err("", f"{func}() is btfsm's own command line, not a function that returns a Model", shown)
     try:
         model = fn()
     except ModelError as exc:

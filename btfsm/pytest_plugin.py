@@ -2,10 +2,13 @@
 in your own test suite.
 
 * **Model files as tests** (opt-in): list glob patterns, relative to the rootdir, in the
-  ``btfsm_models`` ini option; each matching file becomes one test item per property
+  ``btfsm_models`` ini option (one per line or separated by spaces); each matching file
+  becomes one test item per property
   (``model.yaml::no-dead-states``), checked once per file. A failing item's text is the
   counterexample as ``btfsm check`` prints it; a file that does not load fails one item,
-  ``load``, with the one-line error. ``btfsm_properties`` (default: all),
+  ``load``, with the one-line error. Scene files (``FILE.scene.yaml``) and BehaviorTree.CPP
+  side files (``FILE.btfsm.yaml``) that match are not models and are skipped.
+  ``btfsm_properties`` (default: all; one per line or separated by spaces),
   ``btfsm_goal_level`` (open or tree) and ``btfsm_semantics`` tune the check.
 * **The ``btfsm`` fixture**: ``btfsm.check(model, properties=None, **options)`` and
   ``btfsm.conform(model, scenarios=10, seed=0, **options)`` (``btfsm.testing``).
@@ -25,6 +28,13 @@ import pytest
 __all__ = ["ModelFile", "PropertyItem", "btfsm"]
 
 MODEL_SUFFIXES = (".yaml", ".yml", ".json")
+#: files beside a model that are not models: its scene (docs/cell.md) and an XML tree's side file
+NOT_MODELS = (".scene", ".btfsm")
+
+
+def _words(cfg, name) -> list:
+    """An ini list option's entries, one per line or separated by spaces (both are written)."""
+    return [w for line in cfg.getini(name) for w in line.split()]
 
 
 def pytest_addoption(parser):
@@ -37,8 +47,10 @@ def pytest_addoption(parser):
 
 
 def pytest_collect_file(file_path, parent):
-    patterns = parent.config.getini("btfsm_models")
+    patterns = _words(parent.config, "btfsm_models")
     if not patterns or file_path.suffix.lower() not in MODEL_SUFFIXES:
+        return None
+    if any(file_path.stem.lower().endswith(x) for x in NOT_MODELS):
         return None
     try:
         rel = file_path.relative_to(parent.config.rootpath).as_posix()
@@ -61,7 +73,7 @@ class ModelFile(pytest.File):
         from btfsm.verify.properties import PROPERTIES
 
         cfg = self.config
-        self.properties = list(cfg.getini("btfsm_properties")) or list(PROPERTIES)
+        self.properties = _words(cfg, "btfsm_properties") or list(PROPERTIES)
         unknown = [p for p in self.properties if p not in PROPERTIES]
         if unknown:
             raise pytest.UsageError(f"btfsm_properties: unknown {', '.join(unknown)} (known: {', '.join(PROPERTIES)})")

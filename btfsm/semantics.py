@@ -19,10 +19,11 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from .bt import (Action, Condition, Effects, ForceFailure, ForceSuccess, Guard, IfThenElse, Inverter,
-                 KeepRunningUntilFailure, MemoryFallback, MemorySequence, Node, Parallel, ParallelAll,
-                 PipelineSequence, ReactiveFallback, ReactiveSequence, RecoveryNode, Repeat, Retry, RoundRobin,
-                 RunOnce, SequenceWithMemory, SkillRequest, WhileDoElse)
+from .bt import (Action, Condition, Effects, FailureIsRunning, ForceFailure, ForceSuccess, Guard, IfThenElse,
+                 Inverter, KeepRunningUntilFailure, MemoryFallback, MemorySequence, Node, Parallel, ParallelAll,
+                 PipelineSequence, RecoveryNode, RoundRobin, RunningIsFailure, RunningIsSuccess,
+                 ReactiveFallback, ReactiveSequence, Repeat, Retry, RunOnce, SequenceWithMemory,
+                 SkillRequest, WhileDoElse)
 from .errors import ModelError
 from .expr import BOOL, Scope, Slot, Type, compile_effects, compile_fn
 from .profiles import profile
@@ -249,7 +250,7 @@ class Program:
             if n.times < 1:
                 raise ModelError(f"tree.{n.name}.times", "must be at least 1")
             return n.times > 1 or info.kids[0].can_run
-        if isinstance(n, KeepRunningUntilFailure):
+        if isinstance(n, (KeepRunningUntilFailure, FailureIsRunning)):
             return True
         if isinstance(n, SequenceWithMemory) and self.profile.loop_wake_up and len(info.kids) > 1:
             return True  # RUNNING after a child that succeeded at once (the wake-up)
@@ -810,6 +811,23 @@ class Program:
             child = kids[0]
             table = (RUNNING, RUNNING, FAILURE)
             return lambda ctx: finish(table[child(ctx)], ctx)
+
+        if isinstance(n, FailureIsRunning):
+            child = kids[0]
+            table = (RUNNING, SUCCESS, RUNNING)
+            return lambda ctx: finish(table[child(ctx)], ctx)
+
+        if isinstance(n, (RunningIsFailure, RunningIsSuccess)):
+            child, kid = kids[0], info.kids[0]
+            instead = FAILURE if isinstance(n, RunningIsFailure) else SUCCESS
+
+            def tick(ctx):
+                st = child(ctx)
+                if st != RUNNING:
+                    return finish(st, ctx)
+                kid.halt(ctx)  # it finished in its parent's eyes: stopped, as py_trees stops it
+                return finish(instead, ctx)
+            return tick
 
         if isinstance(n, RunOnce):
             if n.then_skip:

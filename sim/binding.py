@@ -29,7 +29,8 @@ from btfsm.errors import ModelError
 from .protocol import Binding
 from .scene import Place
 
-__all__ = ["KittingBinding", "Dialect", "ARIAC", "ORIGINAL", "DIALECTS", "dialect_of", "unsupported"]
+__all__ = ["KittingBinding", "Dialect", "ARIAC", "ORIGINAL", "DIALECTS", "dialect_of", "unsupported",
+           "check_outcomes"]
 
 @dataclass(frozen=True)
 class Dialect:
@@ -111,6 +112,36 @@ def unsupported(model) -> str:
     return "it lacks " + ", ".join(_missing(model, ARIAC)) + " (the ARIAC dialect)"
 
 
+def _reported(d: Dialect) -> dict:
+    """{primitive: ((status, when the binding reports it), ...)}: what the cell answers."""
+    out = {d.move: (("RUNNING", "while the arm moves"), ("SUCCESS", "when it arrives")),
+           d.gripper: (("SUCCESS", "when the vacuum is switched"),),
+           d.grasp: (("RUNNING", "while it descends"), ("SUCCESS", "when the part attaches"),
+                     ("FAILURE", "when there is nothing to grasp"))}
+    for name in d.instant:
+        out[name] = (("SUCCESS", "at once (bookkeeping)"),)
+    return out
+
+
+def check_outcomes(model) -> None:
+    """ModelError naming the primitive and the outcome when ``model`` (in a kitting
+    dialect) declares a primitive without a status the kitting binding reports for it."""
+    d = dialect_of(model)
+    if d is None:
+        return
+    prims = model.all_primitives()
+    for name, needs in _reported(d).items():
+        prim = prims.get(name)
+        if prim is None:
+            continue
+        has = {o.status.name for o in prim.outcomes}
+        for status, when in needs:
+            if status not in has:
+                raise ModelError(f"primitives.{name}", f"declares no {status.lower()} outcome, but the kitting "
+                                 f"binding reports {status.lower()} {when}: declare one, or run the model in "
+                                 "a scene with a bind section (docs/cell.md)")
+
+
 class KittingBinding(Binding):
     """The ARIAC models' primitives and belt events in a scene world (see the module text).
 
@@ -125,6 +156,7 @@ class KittingBinding(Binding):
         if self.d is None:
             raise ModelError("binding", f"the kitting binding cannot run model '{model.name}' ({unsupported(model)})",
                              scene.file)
+        check_outcomes(model)
         for what, name, table in (("robot", robot, scene.robots), ("belt", belt, scene.belts),
                                   ("sensor", sensor, scene.sensors), ("area", tray, scene.areas),
                                   *(("area", b, scene.areas) for b in bins)):
@@ -190,7 +222,7 @@ class KittingBinding(Binding):
     def _collect(self) -> None:
         ev = self.world.events
         while self._seen < len(ev):
-            _t, sensor, _name, pid = ev[self._seen]
+            _t, sensor, _name, pid = ev[self._seen][:4]
             self._seen += 1
             if sensor == self.sensor and pid not in self._seen_ids:
                 self._seen_ids.add(pid)

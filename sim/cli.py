@@ -34,6 +34,22 @@ def select_ks(ks, trials) -> list:
     return sorted({round(1 + i * 39 / (trials - 1)) for i in range(trials)})
 
 
+def needs(*modules) -> None:
+    """Before any work: the ImportError the CLI reports (one line, exit 2, how to install)
+    for the first of ``modules`` that is not installed."""
+    import importlib.util
+
+    for m in modules:
+        if importlib.util.find_spec(m) is None:
+            raise ModuleNotFoundError(f"No module named '{m}'", name=m)
+
+
+def picture_modules(args) -> tuple:
+    """The packages ``--render`` (matplotlib) and ``--gif`` (matplotlib, PIL) draw with."""
+    return (("matplotlib",) if getattr(args, "render", None) or getattr(args, "gif", None) else ()) + \
+        (("PIL",) if getattr(args, "gif", None) else ())
+
+
 def cli_experiment(args) -> int:
     from dataclasses import asdict
 
@@ -41,6 +57,7 @@ def cli_experiment(args) -> int:
                              trial_specs, write_results)
     from btfsm.outputs import ensure_output_dir
 
+    needs("matplotlib")  # the figure, drawn after every trial ran
     ks = select_ks(args.k, args.trials)
     variants = tuple(dict.fromkeys(args.variant)) if args.variant else VARIANTS
     time_limit = getattr(args, "time", 1500.0)
@@ -119,6 +136,11 @@ def _sim_scene(args, model, scene) -> int:
           f"areas: {counts or '-'}; lost {run.lost}")
     if run.mismatch is not None:
         print(f"conformance: {run.mismatch}")
+    incidents = seen["world"].incidents if "world" in seen else []
+    for time, kind, pid, cause in incidents[:20]:  # what physics did uncommanded
+        print(f"incident: t={time:.2f} s {kind} of part {pid}: {cause}")
+    if len(incidents) > 20:
+        print(f"incident: ... {len(incidents) - 20} more")
     if args.render:
         from .scene_render import render_scene
 
@@ -142,6 +164,7 @@ def cli_sim(args) -> int:
     from .experiment import TrialSpec
     from .trial import run_trial
 
+    needs(*picture_modules(args))
     model = load_cli_model(args)
     if args.gif and not (args.fps > 0 and args.max_frames >= 1):
         raise UsageError("--gif needs --fps > 0 and --max-frames >= 1")
@@ -237,7 +260,8 @@ def cli_conform(args) -> int:
             drop = f", drop region {sc.drop_regions[0]}" if sc.drop_regions else ""
             print(f"scenario {i}: seed {sc.seed} in scene {scene.name}{drop}: {res.ticks} ticks, "
                   f"{'completed' if res.completed else 'not completed'}, lost {res.lost}, {status}"
-                  + (f"\n  first mismatch at {res.mismatch}" if res.mismatch else ""))
+                  + (f"\n  first mismatch at {res.mismatch}\n  replay: btfsm sim {args.model} --scene {scene.file} "
+                     f"--seed {sc.seed}" if res.mismatch else ""))
         elif not as_json:
             status = "ok" if res.mismatch is None else "MISMATCH"
             print(f"scenario {i}: seed {sc.seed}, {len(sc.detections)} belt parts, "
@@ -270,9 +294,12 @@ def cli_conform(args) -> int:
 def cli_sweep(args) -> int:
     """``btfsm sweep``: the experiment over a grid of trial parameters (``btfsm.sim.sweep``)."""
     from .protocol import VARIANTS
-    from .sweep import check_geometry, grid, plot_lost, run_sweep, write_table
+    from .sweep import check_geometry, dask_installed, grid, plot_lost, run_sweep, write_table
     from btfsm.outputs import ensure_output_dir
 
+    needs("matplotlib")  # the figure, drawn after every trial ran
+    if args.engine == "dask" and args.scheduler:
+        needs("distributed")  # a running scheduler is reached through Dask's client
     ks = select_ks(args.k, args.trials) if (args.k or args.trials) else [1]
     variants = tuple(dict.fromkeys(args.variant)) if args.variant else VARIANTS
     specs = grid(variants, ks, belt_speed=tuple(dict.fromkeys(args.belt_speed)),
@@ -285,8 +312,11 @@ def cli_sweep(args) -> int:
     except ValueError as exc:
         raise UsageError(str(exc)) from None
     ensure_output_dir(args.out)
-    where = args.scheduler or (f"an embedded Dask cluster of {args.workers} worker(s)" if args.engine == "dask" else
-                               f"{args.engine} ({args.workers} worker(s))")
+    if args.engine == "dask" and not args.scheduler and not dask_installed():
+        where = f"processes ({args.workers} worker(s); Dask is not installed: pip install 'btfsm[sim]')"
+    else:
+        where = args.scheduler or (f"an embedded Dask cluster of {args.workers} worker(s)" if args.engine == "dask"
+                                   else f"{args.engine} ({args.workers} worker(s))")
     print(f"sweep: {len(specs)} trials ({', '.join(variants)}; k = {_ks_text(ks)}) on {where}", file=sys.stderr)
     t0 = time.perf_counter()
     results = run_sweep(specs, engine=args.engine, workers=args.workers, scheduler=args.scheduler, folder=args.out,

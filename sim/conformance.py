@@ -119,11 +119,12 @@ def variant_of(model) -> str:
     UsageError naming what is missing when the kitting cell cannot run it."""
     from btfsm.errors import UsageError
 
-    from .binding import unsupported
+    from .binding import check_outcomes, unsupported
 
     missing = unsupported(model)
     if missing:
         raise UsageError(f"{model.name}: the kitting cell cannot run this model ({missing})")
+    check_outcomes(model)  # ModelError naming the primitive and the outcome the cell reports
     return "baseline" if model.name.endswith("baseline") or model.name == "original" else "preemptive"
 
 

@@ -29,6 +29,8 @@ primitive         arguments                     outcomes
 ================  ============================  ========================================
 move_to           frame, speed=1.0              running (moving), success (arrived),
                                                 failure (blocked) when a door may be shut
+carry_to          frame, speed=1.0              like move_to, and failure (dropped) when
+                                                the part held at the start is lost
 move_to_part      area, speed=1.0               running (moving), success (arrived): over
                                                 the area's first part (its centre if empty)
 grip              wait=false                    running (closing, fingers or wait),
@@ -98,6 +100,25 @@ def _move(world, robot, a):
                 lambda: world.stop(robot))
 
 
+def _carry_out(scene, robot, a):
+    return _move_out(scene, robot, a) + [(_F, "dropped")]
+
+
+def _carry(world, robot, a):
+    """``move_to`` that fails with ``dropped`` when the part held at its start is no longer
+    held (it slipped, or a fault region took it): the model learns the drop."""
+    r = world.robots[robot]
+    held = r.holding
+    move = _move(world, robot, a)
+
+    def tick():
+        if held is not None and r.holding != held:
+            world.stop(robot)
+            return "dropped"
+        return move.tick()
+    return _Act(tick, move.halt)
+
+
 def _move_part(world, robot, a):
     ids = world.parts_in(world.area_place(a["area"]))
     if ids:
@@ -113,7 +134,7 @@ def _move_part_out(scene, robot, a):
     region = scene.areas[a["area"]]["region"]
     for corner in ((region[0], region[1]), (region[0], region[3]), (region[2], region[1]), (region[2], region[3])):
         if not scene.reachable(robot, corner):
-            raise scene.error("", f"area '{a['area']}' is not entirely within robot '{robot}''s reach")
+            raise scene.error("", f"area '{a['area']}' is not entirely within the reach of robot '{robot}'")
     return _move_out(scene, robot, {"frame": ((region[0] + region[2]) / 2, (region[1] + region[3]) / 2)})
 
 
@@ -198,6 +219,7 @@ def _door(open_):
 
 LIBRARY = {lib.name: lib for lib in (
     _Lib("move_to", {"frame": ("point", None), "speed": ("number", 1.0)}, _move_out, _move),
+    _Lib("carry_to", {"frame": ("point", None), "speed": ("number", 1.0)}, _carry_out, _carry),
     _Lib("move_to_part", {"area": ("area", None), "speed": ("number", 1.0)}, _move_part_out, _move_part),
     _Lib("grip", {"wait": ("bool", False)}, _grip_out, _grip),
     _Lib("release", {}, lambda s, r, a: [(_S, "released")], _release),
@@ -240,7 +262,8 @@ def _coerce(scene, robot, kind, value, where):
         if p is None:
             raise scene.error(where, f"expected a frame name or [x, y], got {value!r}")
         if not scene.reachable(robot, p):
-            raise scene.error(where, f"({p[0]:g}, {p[1]:g}) is out of robot '{robot}''s reach")
+            what = f"frame '{value}' at" if isinstance(value, str) else "point"
+            raise scene.error(where, f"{what} ({p[0]:g}, {p[1]:g}) is out of the reach of robot '{robot}'")
         return p
     if kind == "number":
         if isinstance(value, bool) or not isinstance(value, (int, float)) or not value > 0:
@@ -286,6 +309,7 @@ class SceneBinding(Binding):
         self.idle_of = {}  # choice name -> its quiet option (no sensor raises it)
         self.prog_env = model.program.env
         self.checks = []
+        self._incidents = 0  # world incidents seen by after_tick
 
     # ---- runtime glue
     def implementations(self) -> dict:
@@ -351,8 +375,15 @@ class SceneBinding(Binding):
         return out
 
     def after_tick(self, rt) -> list:
-        """The scene's checks after a tick: what disagrees (empty when all agree)."""
-        return self.check(rt.vars) if self.checks else []
+        """The scene's checks after a tick: what disagrees (empty when all agree), each
+        disagreement followed by what physics did since the last tick (its incidents:
+        a slip, a part pushed out of its slot, ... with their causes)."""
+        out = self.check(rt.vars) if self.checks else []
+        new = self.world.incidents[self._incidents:]
+        self._incidents = len(self.world.incidents)
+        if out and new:
+            out.append("physics: " + "; ".join(f"t={t:.2f} s {kind} of part {pid}: {cause}" for t, kind, pid, cause in new))
+        return out
 
     def check(self, vars: dict) -> list:
         out = []
@@ -360,7 +391,7 @@ class SceneBinding(Binding):
             have, want = vars[var], self.world.query(kind, name)
             diff = int(want) - int(have)
             if not lo <= diff <= hi:
-                out.append(f"{var} is {have} but {kind}({name}) is {want}")
+                out.append(f"{var} is {have} but {kind}({', '.join(name) if isinstance(name, tuple) else name}) is {want}")
         return out
 
 
@@ -502,6 +533,10 @@ def bind_model(scene, model, world):
     for i, c in enumerate(scene.checks):
         if c["var"] not in names:
             raise scene.error(f"checks[{i}].var", f"the model has no variable '{c['var']}'")
+        var = model.var(c["var"])
+        if var.kind == "enum":
+            raise scene.error(f"checks[{i}].var", f"'{c['var']}' is an enum ({var.describe_domain()}): a check compares "
+                                                  "a bool or int variable with a count of the world")
         kind, nm = scene.world_query(c["world"], f"checks[{i}].world")
         lo, hi = c.get("slack", [0, 0])
         b.checks.append((c["var"], kind, nm, lo, hi))

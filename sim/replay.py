@@ -291,15 +291,16 @@ class SceneReplay:
     def text(self) -> str:
         lines = [f"scene replay of a counterexample on {self.model} in scene {self.scene}: "
                  f"{len(self.triggers)} environment event(s)"]
+        events = []  # (time, kind order, text): printed in time order, injections first at a tie
         for t, states, ev, pid in self.injected:
             how = ("left to the world: raised when a part leaves a sensor's region untaken" if pid == "world" else
                    f"part {pid} put where a sensor will see it" if pid is not None else
                    "no sensor raises it: given directly")
-            lines.append(f"  t = {t:6.1f} s: '{ev}' ({how}; FSMs at {_states_text(states)}, as in the counterexample)")
-        for t, pid in self.taken:
-            lines.append(f"  t = {t:6.1f} s: part {pid} taken by the gripper")
-        for t, pid in self.lost:
-            lines.append(f"  t = {t:6.1f} s: part {pid} LOST")
+            events.append((t, 0, f"'{ev}' ({how}; FSMs at {_states_text(states)}, as in the counterexample)"))
+        events += [(t, 1, f"part {pid} taken by the gripper") for t, pid in self.taken]
+        events += [(t, 2, f"part {pid} LOST") for t, pid in self.lost]
+        for t, _, text in sorted(events, key=lambda e: (e[0], e[1])):
+            lines.append(f"  t = {t:6.1f} s: {text}")
         if len(self.injected) < len(self.triggers):
             lines.append(f"  {len(self.triggers) - len(self.injected)} event(s) never injected: the FSMs did not reach "
                          "the counterexample's state(s)")

@@ -1,4 +1,4 @@
-"""Scene files: a 2D cell described as data, and the kinematic world that runs it.
+"""Scene files: a 2D cell described as data, and the physical world that runs it.
 
 A scene file (YAML or JSON, schema ``btfsm/schema/scene.schema.json``, described in
 docs/cell.md) names, in SI units (metres, seconds), seen from above:
@@ -23,8 +23,14 @@ docs/cell.md) names, in SI units (metres, seconds), seen from above:
 * ``bind`` and ``checks``: how a model's primitives map onto the primitive library
   (``btfsm.sim.library``) and which model variables must agree with the world.
 
-The world is kinematic (no contact dynamics): parts are discs that rest, ride a belt, or
-follow the tool. Every part is always in exactly one place: ``AREA(name)``,
+The world is physical in the plane (pymunk, seen from above, no gravity): parts are
+discs with a mass and a friction, held to their support (ground or a belt's moving body)
+by friction joints, colliding with one another and with ``walls``; the tool is a
+kinematic body on rest-to-rest profiles and the gripper holds a part with at most its
+``max_force`` (a part dragged harder slips). Heights (z) stay kinematic: a part let go
+lands on the surface under it. What physics does uncommanded is an incident
+(``World.incidents``: slip, collision, fell_off, pushed_off, pushed_out_of_slot,
+off_target, drop). Every part is always in exactly one place: ``AREA(name)``,
 ``BELT(name)``, ``GRIPPER(robot)``, ``FLOOR`` or ``LOST``; ``World.check_invariant``
 verifies it. Time is ``steps * dt`` (no wall clock); randomness comes from one
 ``random.Random`` per world seeded from the seed, so the same seed and the same commands
@@ -44,10 +50,14 @@ from typing import NamedTuple
 
 from btfsm.errors import ModelError
 
-__all__ = ["Place", "FLOOR", "LOST", "Scene", "World", "load_scene", "scene_from_data", "Profile",
+__all__ = ["Place", "FLOOR", "LOST", "INCIDENTS", "Scene", "World", "load_scene", "scene_from_data", "Profile",
            "DEFAULT_PART", "builtin_scene"]
 
 DEFAULT_PART = "part"
+DEFAULT_MASS = 0.5  # kg
+DEFAULT_FRICTION = 0.5  # coefficient of friction of a part on its support
+DEFAULT_GRIP_FORCE = 50.0  # N: the most a gripper exerts on a held part
+G = 9.81
 MAX_ARRIVALS = 100_000  # per belt and run
 _EPS = 1e-9
 
@@ -82,6 +92,13 @@ class Scene:
         self.part_types.update({k: float(v["radius"]) for k, v in data.get("part_types", {}).items()})
         self.part_heights = {DEFAULT_PART: 0.0}
         self.part_heights.update({k: float(v.get("height", 0.0)) for k, v in data.get("part_types", {}).items()})
+        ptypes = data.get("part_types", {})
+        self.part_mass = {DEFAULT_PART: DEFAULT_MASS}
+        self.part_mass.update({k: float(v.get("mass", DEFAULT_MASS)) for k, v in ptypes.items()})
+        self.part_friction = {DEFAULT_PART: DEFAULT_FRICTION}
+        self.part_friction.update({k: float(v.get("friction", DEFAULT_FRICTION)) for k, v in ptypes.items()})
+        self.part_colours = {DEFAULT_PART: None}
+        self.part_colours.update({k: v.get("colour") for k, v in ptypes.items()})
         self.areas, self.belts, self.sinks, self.doors = {}, {}, {}, {}
         self.sensors, self.faults, self.robots = {}, {}, {}
         for name, a in data.get("areas", {}).items():
@@ -101,21 +118,32 @@ class Scene:
                 raise self.error(f"{where}.parts", f"{n} parts exceed the capacity {capacity}")
             self.areas[name] = {"region": region, "parts": parts, "capacity": capacity, "slots": slots,
                                 "slot_tolerance": float(a.get("slot_tolerance", 0.03)),
-                                "height": float(a.get("height", 0.0))}
+                                "height": float(a.get("height", 0.0)), "friction": a.get("friction")}
         for name, b in data.get("belts", {}).items():
             where = f"belts.{name}"
             p0, p1 = self.point(b["from"], f"{where}.from"), self.point(b["to"], f"{where}.to")
             length = math.hypot(p1[0] - p0[0], p1[1] - p0[1])
             if length <= _EPS:
                 raise self.error(where, "'from' and 'to' are the same point")
-            ptype = self._type(b.get("part_type", DEFAULT_PART), f"{where}.part_type")
+            ptypes = b.get("part_type", DEFAULT_PART)
+            ptypes = [ptypes] if isinstance(ptypes, str) else list(ptypes)
+            for i, pt in enumerate(ptypes):
+                self._type(pt, f"{where}.part_type" + (f"[{i}]" if len(ptypes) > 1 else ""))
+            ptype = ptypes[0]
             arr = b.get("arrivals", {})
             kinds = [k for k in ("schedule", "period", "random") if k in arr]
             if len(kinds) > 1:
                 raise self.error(f"{where}.arrivals", f"give one of schedule, period or random, not {' and '.join(kinds)}")
             self.belts[name] = {"name": name, "from": p0, "to": p1, "length": length, "speed": float(b["speed"]),
                                 "width": float(b.get("width", 0.3)), "end": b.get("end", "lost"),
-                                "part_type": ptype, "arrivals": dict(arr), "height": float(b.get("height", 0.0))}
+                                "part_type": ptype, "part_types": ptypes, "arrivals": dict(arr), "height": float(b.get("height", 0.0)),
+                                "friction": b.get("friction")}
+            step = self.belts[name]["speed"] * self.dt
+            smallest = min(self.part_types[pt] for pt in ptypes)
+            if step > smallest / 2:
+                raise self.error(f"{where}.speed", f"a part on the belt moves {step:g} m per step of dt = {self.dt:g} s, "
+                                 f"more than half the smallest part radius ({smallest:g} m): parts would pass "
+                                 "through one another (lower the speed or dt)")
         for name, r in data.get("sinks", {}).items():
             self.sinks[name] = self.region(r, f"sinks.{name}")
         for name, d in data.get("doors", {}).items():
@@ -130,7 +158,11 @@ class Scene:
                 r = self.areas[r]["region"]
             else:
                 r = self.region(r, f"{where}.region")
-            self.sensors[name] = {"region": r, "on_enter": s.get("on_enter"), "on_exit": s.get("on_exit")}
+            ptype = s.get("part_type")
+            if ptype is not None:
+                self._type(ptype, f"{where}.part_type")
+            self.sensors[name] = {"region": r, "on_enter": s.get("on_enter"), "on_exit": s.get("on_exit"),
+                                  "part_type": ptype}
         for name, f in data.get("faults", {}).items():
             self.faults[name] = {"region": self.region(f["region"], f"faults.{name}.region"),
                                  "probability": float(f.get("probability", 1.0))}
@@ -146,6 +178,7 @@ class Scene:
                      "gripper": g.get("type", "vacuum"), "radius": float(g.get("radius", 0.04)),
                      "close_time": float(g.get("close_time", 0.5 if g.get("type") == "fingers" else 0.0)),
                      "grasp_tolerance": float(g.get("grasp_tolerance", 0.01)),
+                     "max_force": float(g.get("max_force", DEFAULT_GRIP_FORCE)),
                      "track_tolerance": float(r.get("track_tolerance", 0.005)), "z": None}
             if "z" in r:
                 z = r["z"]
@@ -160,6 +193,16 @@ class Scene:
             if not self.reachable(name, home):
                 raise self.error(f"{where}.home", f"({home[0]:g}, {home[1]:g}) is out of the robot's reach")
             robot["home"] = home
+        self.walls = {}
+        supports = {"FLOOR", *self.areas, *self.belts}
+        for name, w in data.get("walls", {}).items():
+            where = f"walls.{name}"
+            pts = [self.point(q, f"{where}.points[{i}]") for i, q in enumerate(w["points"])]
+            on = w.get("on")
+            if on is not None and on not in supports:
+                raise self.error(f"{where}.on", f"no area or belt named '{on}' (known: {_names(supports)})")
+            self.walls[name] = {"points": pts, "closed": bool(w.get("closed", False)),
+                                "thickness": float(w.get("thickness", 0.01)), "on": on}
         self.bind = data.get("bind", {})
         self.binding = data.get("binding")  # {python: "module:Class", args: {...}} or None
         if self.binding is not None and self.bind:
@@ -212,17 +255,26 @@ class Scene:
         return (cx + ex * r["reach"] / d, cy + ey * r["reach"] / d)
 
     def world_query(self, text: str, where: str) -> tuple:
-        """``holding(ROBOT)``, ``count(AREA)``, ``sensor(NAME)`` or ``door(NAME)`` as (kind, name)."""
+        """``holding(ROBOT)``, ``count(AREA)``, ``sensor(NAME)`` or ``door(NAME)`` as (kind,
+        name); ``count(AREA, TYPE)`` and ``sensor(NAME, TYPE)`` count only parts of a type:
+        (kind, (name, type))."""
         kind, _, rest = str(text).partition("(")
         name = rest[:-1] if rest.endswith(")") else None
+        kind = kind.strip()
         tables = {"holding": ("robot", self.robots), "count": ("area", self.areas),
                   "sensor": ("sensor", self.sensors), "door": ("door", self.doors)}
-        what, table = tables.get(kind.strip(), (None, None))
+        what, table = tables.get(kind, (None, None))
         if table is None or name is None:
-            raise self.error(where, f"expected holding(ROBOT), count(AREA), sensor(NAME) or door(NAME), got '{text}'")
+            raise self.error(where, "expected holding(ROBOT), count(AREA[, TYPE]), sensor(NAME[, TYPE]) or door(NAME), "
+                                    f"got '{text}'")
+        name, _, ptype = (s.strip() for s in name.partition(","))
         if name not in table:
             raise self.error(where, f"no {what} named '{name}' (known: {_names(table)})")
-        return kind.strip(), name
+        if not ptype:
+            return kind, name
+        if kind not in ("count", "sensor"):
+            raise self.error(where, f"only count(AREA, TYPE) and sensor(NAME, TYPE) take a part type, got '{text}'")
+        return kind, (name, self._type(ptype, where))
 
 
 def _names(d) -> str:
@@ -320,18 +372,28 @@ class Profile:
 
 
 # --------------------------------------------------------------------------- world
+_PART, _WALL = 1, 2  # collision types of parts and walls
+INCIDENTS = ("slip", "drop", "collision", "fell_off", "pushed_off", "pushed_out_of_slot", "off_target")
 class _Part:
-    __slots__ = ("id", "type", "radius", "height", "x", "y", "place", "s")
+    __slots__ = ("id", "type", "radius", "height", "x", "y", "place", "s", "body", "shape", "joints", "mass",
+                 "friction", "slot", "pushed_by", "cb")
 
     def __init__(self, pid, ptype, radius, x, y, height=0.0):
         self.id, self.type, self.radius, self.height, self.x, self.y = pid, ptype, radius, height, x, y
         self.place = None
         self.s = 0.0  # distance along the belt while on one
+        self.body = self.shape = None  # the pymunk body and its disc (x, y mirror the body's position)
+        self.cb = None  # the body's Chipmunk pointer (positions are read through it: 4x cheaper)
+        self.joints = ()  # friction joints to the support, or the grip joints to the tool
+        self.mass = self.friction = 0.0
+        self.slot = None  # (x, y) of the slot it rests on
+        self.pushed_by = None  # the last part that touched it
 
 
 class _Robot:
     __slots__ = ("name", "spec", "x", "y", "z", "x0", "y0", "z0", "x1", "y1", "z1", "prof", "k", "moving",
-                 "blocked", "holding", "closing", "armed", "faults_in", "tracking", "vel", "arrived")
+                 "blocked", "holding", "closing", "armed", "faults_in", "tracking", "vel", "arrived", "body", "peak",
+                 "last_v", "anchor")
 
     def __init__(self, name, spec):
         self.name, self.spec = name, spec
@@ -346,6 +408,10 @@ class _Robot:
         self.tracking = None  # id of the part the tool follows, or None
         self.vel = (0.0, 0.0)  # the tool's velocity while tracking
         self.arrived = False  # the last move ended at its target / the tracked part is under the tool
+        self.body = None  # the kinematic pymunk body of the tool
+        self.peak = 0.0  # the tool's largest acceleration (m/s^2) while it holds the part
+        self.last_v = (0.0, 0.0)  # the tool's velocity in the last step
+        self.anchor = (0.0, 0.0)  # where the held part's centre was, relative to the tool, when gripped
 
 
 class World:
@@ -360,18 +426,147 @@ class World:
         self.parts: list = []
         self.members: dict = {}  # Place -> [part ids], insertion-ordered
         self.log: list = []  # (time, part id, from, to)
-        self.events: list = []  # (time, sensor, event name, part id) raised, in order
+        self.events: list = []  # (time, sensor, event name, part id, part type) raised, in order
         self.doors = {n: (1.0 if d["open"] else 0.0) for n, d in scene.doors.items()}  # openness 0..1
         self.door_goal = {n: (1.0 if d["open"] else 0.0) for n, d in scene.doors.items()}
         self.robots = {n: _Robot(n, spec) for n, spec in scene.robots.items()}
         self.inside = {n: set() for n in scene.sensors}
+        self.incidents: list = []  # (time, kind, part id, cause): what physics did that nobody commanded
         self._sensed_log = -1
         self.arrivals = {n: self._arrival_times(b) for n, b in scene.belts.items()}
         self.pending = {n: 0 for n in scene.belts}  # arrivals due but waiting for space
+        self._spawned = {n: 0 for n in scene.belts}  # parts put on each belt so far
+        self._build_space()
+        self._next_arrival = -math.inf
         for name, a in scene.areas.items():
             self._fill(name, a)
         self._sense()
         self.events.clear()  # parts that start inside a sensor raise nothing
+
+    # ---- physics: one pymunk space, seen from above (no gravity; z is kinematic)
+    def _build_space(self) -> None:
+        import pymunk
+
+        self._pm = pymunk
+        from pymunk._chipmunk import lib
+
+        self._cp_step = lib.cpSpaceStep  # our collision callback never changes the space (see ``step``)
+        self._cp_pos, self._cp_set_pos, self._cp_set_vel = lib.cpBodyGetPosition, lib.cpBodySetPosition, lib.cpBodySetVelocity
+        self._cp_activate = lib.cpBodyActivate
+        sc = self.scene
+        space = self.space = pymunk.Space()
+        space.iterations = 10
+        space.collision_slop = 5e-4  # metres (pymunk's default assumes pixels)
+        space.sleep_time_threshold = 0.5  # resting parts sleep: they cost nothing until touched
+        space.idle_speed_threshold = 0.005
+        self._static = space.static_body
+        # collision layers: parts touch only parts (and walls) on the same support
+        names = [FLOOR] + [Place("AREA", a) for a in sc.areas] + [Place("BELT", b) for b in sc.belts]
+        self._layer = {pl: 1 << (i % 31) for i, pl in enumerate(names)}
+        self._belt_body, self._belt_vel = {}, {}
+        self._belt_places = [Place("BELT", b) for b in sc.belts]
+        self._sensor_regions = [s["region"] for s in sc.sensors.values()]
+        self._belt_rows = [(Place("BELT", n), *b["from"], (b["to"][0] - b["from"][0]) / b["length"],
+                            (b["to"][1] - b["from"][1]) / b["length"], b["length"], b["width"] / 2, b["end"] == "lost")
+                           for n, b in sc.belts.items()]
+        for name, b in sc.belts.items():
+            body = pymunk.Body(body_type=pymunk.Body.KINEMATIC)
+            (ax, ay), (bx, by), L = b["from"], b["to"], b["length"]
+            body.velocity = self._belt_vel[name] = ((bx - ax) / L * b["speed"], (by - ay) / L * b["speed"])
+            space.add(body)
+            self._belt_body[name] = body
+            if b["end"] == "stop":  # the end stop: a wall across the belt's end
+                ux, uy = (bx - ax) / L, (by - ay) / L
+                h = b["width"] / 2
+                self._wall([(bx - uy * h, by + ux * h), (bx + uy * h, by - ux * h)], 0.0, self._layer[Place("BELT", name)])
+        for w in sc.walls.values():
+            pts = w["points"] + ([w["points"][0]] if w["closed"] else [])
+            on = w["on"]
+            mask = (0xFFFFFFFF if on is None else self._layer[FLOOR if on == "FLOOR" else
+                                                               Place("AREA", on) if on in sc.areas else Place("BELT", on)])
+            self._wall(pts, w["thickness"] / 2, mask)
+        for r in self.robots.values():
+            r.body = pymunk.Body(body_type=pymunk.Body.KINEMATIC)
+            r.body.position = (r.x, r.y)
+            space.add(r.body)
+        self._added = True  # bodies added or shapes removed since the last step (see ``step``)
+        self._disturbed: dict = {}  # part id -> None: resting parts that something touched (insertion-ordered)
+        space.on_collision(_PART, _PART, begin=self._touch, pre_solve=self._pressed)
+        space.on_collision(_PART, _WALL, pre_solve=self._pressed)
+
+    def _wall(self, pts, radius, mask) -> None:
+        pm = self._pm
+        for a, b in zip(pts, pts[1:]):
+            seg = pm.Segment(self._static, a, b, radius)
+            seg.filter = pm.ShapeFilter(categories=mask, mask=mask)
+            seg.friction, seg.collision_type = DEFAULT_FRICTION, _WALL
+            self.space.add(seg)
+
+    def _pressed(self, arbiter, space, data) -> None:
+        """A part in contact (with a part or a wall) may move: watch it until it rests
+        (every step of the contact: a sleeping group of touching parts wakes as a whole)."""
+        for s in arbiter.shapes:
+            p = getattr(s.body, "part", None)
+            if p is not None and p.place.kind != "BELT":
+                self._disturbed[p.id] = None
+
+    def _touch(self, arbiter, space, data) -> None:
+        """Two parts touched: both may now move (they are watched until they rest)."""
+        a, b = (s.body.part for s in arbiter.shapes)
+        for p, q in ((a, b), (b, a)):
+            p.pushed_by = q.id
+            if p.place.kind != "BELT":
+                self._disturbed[p.id] = None
+        if a.place.kind == "BELT" or b.place.kind == "BELT":
+            self.incidents.append((round(self.time, 9), "collision", min(a.id, b.id),
+                                   f"parts {min(a.id, b.id)} and {max(a.id, b.id)} collide on {a.place}"))
+
+    def _support(self, part: _Part, place: Place) -> None:
+        """Put the part's body on the physics of ``place``: friction joints to its support
+        (the belt's moving body, or the ground), grip joints to a tool, out of the space when LOST."""
+        pm, body = self._pm, part.body
+        if part.joints:
+            self.space.remove(*part.joints)
+            part.joints = ()
+        kind, name = place
+        if kind == "LOST":
+            self.space.remove(part.shape, body)
+            self._added = True
+            self._disturbed.pop(part.id, None)
+            return
+        if kind == "GRIPPER":
+            r = self.robots[name]
+            tool = r.body
+            tool.position = (r.x, r.y)
+            r.anchor = (body.position.x - r.x, body.position.y - r.y)
+            pj = pm.PivotJoint(tool, body, r.anchor, (0, 0))
+            gj = pm.GearJoint(tool, body, body.angle, 1.0)
+            pj.max_force = r.spec["max_force"]
+            gj.max_force = 0.05 * r.spec["max_force"]
+            part.shape.filter = pm.ShapeFilter(categories=0, mask=0)  # a lifted part touches nothing
+            self.space.add(pj, gj)
+            part.joints = (pj, gj)
+            r.peak, r.last_v = 0.0, None  # the tool's acceleration counts from its second step with the part
+            self._disturbed.pop(part.id, None)
+            return
+        if kind == "BELT":
+            support, mu = self._belt_body[name], self.scene.belts[name]["friction"]
+        else:
+            support, mu = self._static, self.scene.areas[name]["friction"] if kind == "AREA" else None
+        mu = part.friction if mu is None else float(mu)
+        layer = self._layer[place]
+        part.shape.filter = pm.ShapeFilter(categories=layer, mask=layer)
+        body.velocity = support.velocity
+        body.angular_velocity = 0.0
+        f = mu * part.mass * G
+        pj = pm.PivotJoint(support, body, support.world_to_local(body.position), (0, 0))
+        gj = pm.GearJoint(support, body, body.angle - support.angle, 1.0)
+        pj.max_bias = gj.max_bias = 0.0
+        pj.max_force, gj.max_force = f, f * part.radius
+        self.space.add(pj, gj)
+        part.joints = (pj, gj)
+        if kind != "BELT":  # watched until it rests: it may have landed on a wall or another part
+            self._disturbed[part.id] = None
 
     @property
     def time(self) -> float:
@@ -407,8 +602,20 @@ class World:
         return []
 
     def _new_part(self, ptype, x, y, place) -> _Part:
-        part = _Part(len(self.parts), ptype, self.scene.part_types[ptype], x, y, self.scene.part_heights[ptype])
+        sc, pm = self.scene, self._pm
+        part = _Part(len(self.parts), ptype, sc.part_types[ptype], x, y, sc.part_heights[ptype])
+        part.mass, part.friction = sc.part_mass[ptype], sc.part_friction[ptype]
+        body = pm.Body(part.mass, pm.moment_for_circle(part.mass, 0.0, part.radius))
+        body.position = (x, y)
+        body.part = part
+        shape = pm.Circle(body, part.radius)
+        shape.friction, shape.collision_type = part.friction, _PART
+        self.space.add(body, shape)
+        self._added = True
+        part.body, part.shape, part.cb = body, shape, body._body
         self.parts.append(part)
+        if place.kind == "AREA" and sc.areas[place.name]["slots"]:
+            part.slot = (x, y)
         self._move(part, place)
         return part
 
@@ -431,9 +638,15 @@ class World:
         old = part.place
         if old is not None:
             self.members[old].remove(part.id)
+            if old.kind == "BELT":  # the parts queued behind it may move on
+                for pid in self.members[old]:
+                    self.parts[pid].body.activate()
         self.members.setdefault(place, []).append(part.id)
         part.place = place
+        if place.kind != "AREA" or not self.scene.areas[place.name]["slots"]:
+            part.slot = None
         self.log.append((round(self.time, 9), part.id, old, place))
+        self._support(part, place)
 
     def parts_in(self, place: Place) -> list:
         return list(self.members.get(place, ()))
@@ -484,10 +697,23 @@ class World:
         s = (x - ax) * ux + (y - ay) * uy
         return s, abs(-(x - ax) * uy + (y - ay) * ux)
 
-    def _let_go(self, part: _Part) -> None:
-        place, x, y, s = self.landing(part.x, part.y)
+    def _let_go(self, part: _Part, cause: str = "released") -> None:
+        """The part lands where it is (z is kinematic: on the surface under it), on the
+        nearest free slot of a slotted area; a part let go where no area takes it (the
+        floor, a full area, a slotted area away from a free slot) is an ``off_target``
+        incident."""
+        px, py = part.body.position
+        place, x, y, s = self.landing(px, py)
         part.x, part.y, part.s = x, y, s
+        part.body.position = (x, y)
         self._move(part, place)
+        if place.kind == "AREA" and self.scene.areas[place.name]["slots"]:
+            part.slot = (x, y)
+        if place == FLOOR and cause == "released":
+            where = next((f" in area {n} (no free slot within {a['slot_tolerance']:g} m, or full)"
+                          for n, a in self.scene.areas.items() if _inside(a["region"], (px, py))), "")
+            self.incidents.append((round(self.time, 9), "off_target", part.id,
+                                   f"let go at ({px:.3f}, {py:.3f}){where}: it lies on the FLOOR"))
 
     def spawn(self, region) -> "int | None":
         """Put a new part where it will enter ``region`` (a replay makes a sensor fire):
@@ -593,6 +819,16 @@ class World:
             r.holding = None
             self._let_go(part)
 
+    def _slip(self, r: _Robot, part: _Part) -> None:
+        """The held part slid out of the gripper: the tool accelerated harder than the
+        gripper's force can make the part follow."""
+        F, m = r.spec["max_force"], part.mass
+        r.holding, r.armed = None, False
+        cause = (f"slipped from {r.name}'s gripper: the tool accelerated at up to {r.peak:.2f} m/s^2, "
+                 f"which needs {m * r.peak:.1f} N on the {m:g} kg part; the gripper holds with at most {F:g} N")
+        self.incidents.append((round(self.time, 9), "slip", part.id, cause))
+        self._let_go(part, "slip")
+
     def gripping(self, robot: str) -> bool:
         """True while the gripper is closing (fingers) or waiting for a part (vacuum)."""
         return self.robots[robot].closing is not None
@@ -628,7 +864,13 @@ class World:
     def tool_in(self, region) -> bool:
         return any(_inside(region, (r.x, r.y)) for r in self.robots.values())
 
-    def query(self, kind: str, name: str):
+    def query(self, kind: str, name):
+        """The world's value for a check: ``name`` is a name, or (name, part type) for
+        ``count`` and ``sensor`` (only parts of that type)."""
+        if isinstance(name, tuple):
+            name, ptype = name
+            ids = self.members.get(Place("AREA", name), ()) if kind == "count" else self.inside[name]
+            return sum(1 for pid in ids if self.parts[pid].type == ptype)
         if kind == "holding":
             return self.robots[name].holding is not None
         if kind == "count":
@@ -639,15 +881,36 @@ class World:
 
     # ---- stepping
     def step(self, n: int = 1) -> None:
+        space, dt, robots = self.space, self.dt, tuple(self.robots.values())
+        cp_step, cp_space = self._cp_step, space._space
+        doors, belts, sinks, sensors = bool(self.doors), bool(self.scene.belts), bool(self.scene.sinks), bool(self.scene.sensors)
         for _ in range(n):
             self.steps += 1
-            self._arrive()
-            self._doors()
-            for r in self.robots.values():
-                self._robot(r)
-            self._belts()
-            self._sinks()
-            self._sense()
+            if self.steps * dt + _EPS >= self._next_arrival:
+                self._arrive()
+            if doors:
+                self._doors()
+            for r in robots:
+                if r.holding is None:
+                    self._drive(r)
+                else:
+                    self._robot(r)
+            if self._added:  # pymunk's checks of new bodies and its bookkeeping of removed shapes
+                space.step(dt)
+                self._added = False
+            else:
+                cp_step(cp_space, dt)  # the same Chipmunk step without pymunk's per-call overhead
+            for r in robots:
+                if r.holding is not None:
+                    self._held(r)
+            if belts:
+                self._belts()
+            if self._disturbed:
+                self._resting()
+            if sinks:
+                self._sinks()
+            if sensors:
+                self._sense()
 
     def _arrive(self) -> None:
         t = self.time + _EPS
@@ -657,11 +920,17 @@ class World:
                 self.pending[name] += 1
             if self.pending[name]:
                 b = self.scene.belts[name]
-                gap = 2 * self.scene.part_types[b["part_type"]]
+                types = b["part_types"]
+                ptype = types[self._spawned[name] % len(types)]  # several types arrive in turn
+                gap = 2 * max(self.scene.part_types[pt] for pt in types)
                 if all(self.parts[i].s > gap for i in self.members.get(Place("BELT", name), ())):
                     self.pending[name] -= 1
+                    self._spawned[name] += 1
                     x, y = b["from"]
-                    self._new_part(b["part_type"], x, y, Place("BELT", name))
+                    self._new_part(ptype, x, y, Place("BELT", name))
+        # the next step that has something to do here: now while a part waits for space, else the next arrival
+        self._next_arrival = (-math.inf if any(self.pending.values()) else
+                              min((ts[0] for ts in self.arrivals.values() if ts), default=math.inf))
 
     def _doors(self) -> None:
         for name, d in self.scene.doors.items():
@@ -671,6 +940,32 @@ class World:
                 self.doors[name] = min(goal, now + rate) if goal > now else max(goal, now - rate)
 
     def _robot(self, r: _Robot) -> None:
+        ox, oy = r.x, r.y
+        self._drive(r)
+        if r.holding is not None:  # the tool (a kinematic body) drags the held part through the grip joint
+            dt = self.dt
+            vx, vy = (r.x - ox) / dt, (r.y - oy) / dt
+            if r.last_v is not None:
+                acc = math.hypot(vx - r.last_v[0], vy - r.last_v[1]) / dt
+                if acc > r.peak:
+                    r.peak = acc
+            r.last_v = (vx, vy)
+            cb = r.body._body
+            self._cp_set_pos(cb, (ox, oy))
+            self._cp_set_vel(cb, (vx, vy))
+            self._cp_activate(self.parts[r.holding].cb)
+
+    def _held(self, r: _Robot) -> None:
+        """After the physics step: the held part's position; it slips when it slid more
+        than the gripper's radius from where it was gripped."""
+        part = self.parts[r.holding]
+        pos = self._cp_pos(part.cb)
+        part.x, part.y = pos.x, pos.y
+        ax, ay = r.anchor
+        if math.hypot(part.x - r.x - ax, part.y - r.y - ay) > r.spec["radius"]:
+            self._slip(r, part)
+
+    def _drive(self, r: _Robot) -> None:
         if r.tracking is not None:
             self._track(r)
         elif r.moving:
@@ -679,7 +974,7 @@ class World:
             prof = r.prof
             f = 1.0 if prof.dist <= 0.0 or t >= prof.total else prof.at(t) / prof.dist
             nx, ny = r.x0 + (r.x1 - r.x0) * f, r.y0 + (r.y1 - r.y0) * f
-            if self.door_at((nx, ny)) is not None:
+            if self.doors and self.door_at((nx, ny)) is not None:
                 r.moving, r.blocked = False, True  # stop short of a closed door
             else:
                 r.x, r.y = nx, ny
@@ -697,14 +992,15 @@ class World:
                     self._move(self.parts[pid], Place("GRIPPER", r.name))
         if r.holding is not None:
             part = self.parts[r.holding]
-            part.x, part.y = r.x, r.y
             for name, f in self.scene.faults.items():
                 inside = _inside(f["region"], (r.x, r.y))
                 if inside and name not in r.faults_in:
                     r.faults_in.add(name)
                     if self.rng.random() < f["probability"]:
                         r.holding, r.armed = None, False
-                        self._let_go(part)
+                        self.incidents.append((round(self.time, 9), "drop", part.id,
+                                               f"fault region {name} (injected, probability {f['probability']:g})"))
+                        self._let_go(part, "fault")
                         break
                 elif not inside:
                     r.faults_in.discard(name)
@@ -753,25 +1049,48 @@ class World:
         return (fx + ex / dist * speed, fy + ey / dist * speed)
 
     def _belts(self) -> None:
-        for name, b in self.scene.belts.items():
-            ids = self.members.get(Place("BELT", name))
+        """Belt parts ride the belt's body (friction joints) and push one another; a part
+        past a ``lost`` end is lost, one pushed off the belt's side falls to the floor."""
+        get, members = self._cp_pos, self.members
+        for place, ax, ay, ux, uy, L, half, lost in self._belt_rows:
+            ids = members.get(place)
             if not ids:
                 continue
-            (ax, ay), (bx, by), L = b["from"], b["to"], b["length"]
-            ux, uy = (bx - ax) / L, (by - ay) / L
-            ds = b["speed"] * self.dt
-            limit = L
-            for pid in sorted(ids, key=lambda i: -self.parts[i].s):  # the leading part first
+            for pid in list(ids):
                 p = self.parts[pid]
-                s = p.s + ds
-                if b["end"] == "stop":
-                    s = min(s, limit - p.radius)
-                    limit = max(s - p.radius, 0.0)
-                p.s = max(p.s, s) if b["end"] == "stop" else s
-                off = -(p.x - ax) * uy + (p.y - ay) * ux
-                p.x, p.y = ax + ux * p.s - uy * off, ay + uy * p.s + ux * off
-                if b["end"] == "lost" and p.s >= L:
+                pos = get(p.cb)
+                x, y = p.x, p.y = pos.x, pos.y
+                s = p.s = (x - ax) * ux + (y - ay) * uy
+                if lost and s >= L:
                     self._move(p, LOST)
+                elif abs(-(x - ax) * uy + (y - ay) * ux) > half or s < 0.0:
+                    self.incidents.append((round(self.time, 9), "fell_off", pid, f"pushed off belt {place.name}"
+                                           + (f" by part {p.pushed_by}" if p.pushed_by is not None else "")))
+                    p.s = min(max(s, 0.0), L)
+                    self._let_go(p, "pushed")
+
+    def _resting(self) -> None:
+        """Resting parts that something touched: pushed out of their area or slot they
+        leave it (to where they lie); once asleep they are no longer watched."""
+        for pid in list(self._disturbed):
+            p = self.parts[pid]
+            p.x, p.y = p.body.position
+            kind, name = p.place
+            by = f" by part {p.pushed_by}" if p.pushed_by is not None else ""
+            if kind == "AREA":
+                a = self.scene.areas[name]
+                if not _inside(a["region"], (p.x, p.y)):
+                    self.incidents.append((round(self.time, 9), "pushed_off", pid, f"pushed out of area {name}{by}"))
+                    self._let_go(p, "pushed")
+                elif p.slot is not None and math.hypot(p.x - p.slot[0], p.y - p.slot[1]) > a["slot_tolerance"]:
+                    self.incidents.append((round(self.time, 9), "pushed_out_of_slot", pid,
+                                           f"pushed {math.hypot(p.x - p.slot[0], p.y - p.slot[1]):.3f} m out of its "
+                                           f"slot in {name}{by} (tolerance {a['slot_tolerance']:g} m)"))
+                    self._move(p, FLOOR)
+            if p.place.kind in ("LOST", "GRIPPER", "BELT") or p.body.is_sleeping:
+                self._disturbed.pop(pid, None)
+            elif any(_inside(r, (p.x, p.y)) for r in self.scene.sinks.values()):
+                self._move(p, LOST)
 
     def _sinks(self) -> None:
         # resting parts were checked when they landed (``landing``): only belt parts move
@@ -786,27 +1105,43 @@ class World:
 
     def _sense(self) -> None:
         # parts move only on belts; other changes go through ``_move`` (which logs them)
-        moving = any(self.members.get(Place("BELT", n)) for n in self.scene.belts)
-        if not moving and len(self.log) == self._sensed_log:
+        if not self.scene.sensors:
             return
-        self._sensed_log = len(self.log)
+        full = len(self.log) != self._sensed_log  # places changed: look at every part
+        if full:
+            self._sensed_log = len(self.log)
+            movers = [pid for place, ids in self.members.items() if place.kind not in ("GRIPPER", "LOST") for pid in ids]
+        else:  # else only the parts that move (on belts, pushed) can enter or leave a sensor
+            movers = [pid for b in self._belt_places for pid in self.members.get(b, ())] + list(self._disturbed)
+            if not movers:
+                return
+            if not any(self.inside.values()):  # the usual case: no sensor sees a part, and no mover entered one
+                parts = self.parts
+                for pid in movers:
+                    p = parts[pid]
+                    x, y = p.x, p.y
+                    if any(x0 <= x <= x1 and y0 <= y <= y1 for x0, y0, x1, y1 in self._sensor_regions):
+                        break
+                else:
+                    return
+        parts = self.parts
         for name, s in self.scene.sensors.items():
             x0, y0, x1, y1 = s["region"]
-            now = set()
-            for place, ids in self.members.items():
-                if place.kind in ("GRIPPER", "LOST"):
-                    continue
-                for pid in ids:
-                    p = self.parts[pid]
-                    if x0 <= p.x <= x1 and y0 <= p.y <= y1:
-                        now.add(pid)
+            ptype = s["part_type"]
             old = self.inside[name]
+            now = set() if full else set(old)
+            for pid in movers:
+                p = parts[pid]
+                if x0 <= p.x <= x1 and y0 <= p.y <= y1 and (ptype is None or p.type == ptype):
+                    now.add(pid)
+                else:
+                    now.discard(pid)
             if now == old:
                 continue
             if s["on_enter"]:
-                self.events.extend((self.time, name, s["on_enter"], pid) for pid in sorted(now - old))
+                self.events.extend((self.time, name, s["on_enter"], pid, parts[pid].type) for pid in sorted(now - old))
             if s["on_exit"]:  # a part taken by a gripper does not "leave": it is taken
-                self.events.extend((self.time, name, s["on_exit"], pid) for pid in sorted(old - now)
+                self.events.extend((self.time, name, s["on_exit"], pid, parts[pid].type) for pid in sorted(old - now)
                                    if self.parts[pid].place.kind != "GRIPPER")
             self.inside[name] = now
 
@@ -833,6 +1168,25 @@ class World:
             elif p.place.kind == "BELT":
                 b = self.scene.belts[p.place.name]
                 assert -_EPS <= p.s <= b["length"] + _EPS, f"part {p.id} is off the end of {p.place}"
+            self._check_body(p)
+
+    def _check_body(self, p: _Part) -> None:
+        """The physics agrees with the place: a LOST part is out of the space; any other
+        has two joints, to the tool of the robot holding it (colliding with nothing) or to
+        its support (the belt's body or the ground); a resting part lies where it is recorded."""
+        in_space = p.body.space is self.space
+        assert in_space == (p.place != LOST), f"part {p.id} in {p.place} but in the space: {in_space}"
+        if p.place == LOST:
+            assert not p.joints, f"LOST part {p.id} still has joints"
+            return
+        assert len(p.joints) == 2, f"part {p.id} in {p.place} has {len(p.joints)} joints"
+        kind, name = p.place
+        want = (self.robots[name].body if kind == "GRIPPER" else self._belt_body[name] if kind == "BELT"
+                else self._static)
+        assert p.joints[0].a is want, f"part {p.id} in {p.place} is joined to the wrong body"
+        if kind != "GRIPPER":
+            bx, by = p.body.position
+            assert math.hypot(bx - p.x, by - p.y) <= 1e-6, f"part {p.id} in {p.place} moved unrecorded"
 
     def digest(self) -> str:
         """sha256 over the step count, places and float.hex of every position."""
@@ -842,7 +1196,8 @@ class World:
             vals += [r.x, r.y] + ([r.z] if r.spec["z"] is not None else [])
             h.update(f"{r.name}:{r.holding}:{r.closing}|".encode())
         for p in self.parts:
-            vals += [p.x, p.y, p.s]
+            x, y = (p.x, p.y) if p.place == LOST else p.body.position
+            vals += [x, y, p.s]
             h.update(f"{p.id}:{p.place}|".encode())
         vals += [self.doors[d] for d in sorted(self.doors)]
         h.update(f"{self.steps}|".encode() + ",".join(float(v).hex() for v in vals).encode())

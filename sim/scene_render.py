@@ -2,8 +2,9 @@
 
 Areas are grey rectangles (with their slots), belts blue bands with an arrow, sinks red,
 doors brown (hatched while not fully open), sensors green outlines, fault regions orange,
-robots a reach outline, the base or rail, and the tool point; parts are discs coloured by
-place (held: red, on a belt: blue, in an area: green, on the floor: black)."""
+robots a reach outline, the base or rail, and the tool point, walls dark lines; parts are
+discs rimmed by place (held: red, on a belt: blue, in an area: green, on the floor: black)
+and filled with their part type's ``colour`` (else the place's colour)."""
 from __future__ import annotations
 
 from matplotlib.backends.backend_agg import FigureCanvasAgg
@@ -61,10 +62,15 @@ def draw_world(ax, scene, snap: dict, title: "str | None" = None) -> None:
                  b[1] + r["reach"] * math.sin(ang - math.pi / 2 + t * math.pi / 24)) for t in range(25)]
         ax.add_patch(Polygon(pts, fill=False, edgecolor="0.7", ls=":"))
         xs += [p[0] for p in pts]; ys += [p[1] for p in pts]
-    for pid, _t, rad, x, y, place in snap["parts"]:
+    for w in scene.walls.values():
+        pts = w["points"] + ([w["points"][0]] if w["closed"] else [])
+        ax.plot([p[0] for p in pts], [p[1] for p in pts], color="0.15", lw=max(1.0, w["thickness"] * 200))
+    for pid, ptype, rad, x, y, place in snap["parts"]:
         kind = place.split("(")[0]
-        if kind != "LOST":
-            ax.add_patch(Circle((x, y), rad, color=_COLOUR.get(kind, "black")))
+        if kind != "LOST":  # filled with the part type's colour (if it has one), rimmed by where it is
+            colour = _COLOUR.get(kind, "black")
+            ax.add_patch(Circle((x, y), rad, facecolor=scene.part_colours.get(ptype) or colour, edgecolor=colour,
+                                lw=1.2))
     for name, (x, y, held) in snap["robots"].items():
         cx, cy = scene.carriage(name, (x, y))  # the arm starts at its carriage
         ax.plot([cx, x], [cy, y], color="0.2", lw=1.5)

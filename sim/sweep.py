@@ -140,7 +140,7 @@ def run_sweep(specs, *, engine: str = "dask", workers: int = 2, scheduler: "str 
             for i in todo:
                 check_signals()
                 finish(i, run_spec(specs[i]))
-        elif engine == "dask" and _has_dask():
+        elif engine == "dask" and dask_installed():
             _run_dask(specs, todo, workers, scheduler, finish)
         elif engine in ("dask", "processes"):
             _run_pool(specs, todo, workers, finish)
@@ -149,7 +149,8 @@ def run_sweep(specs, *, engine: str = "dask", workers: int = 2, scheduler: "str 
     return results
 
 
-def _has_dask() -> bool:
+def dask_installed() -> bool:
+    """Dask's distributed scheduler can be imported (else the dask engine runs a process pool)."""
     import importlib.util
 
     return importlib.util.find_spec("distributed") is not None

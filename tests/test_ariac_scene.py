@@ -81,7 +81,7 @@ def pick_from_belt(w: World, pid: int) -> None:
 
 
 def detections(w):
-    return [(pid, t) for t, sensor, _ev, pid in w.events if sensor == "beam"]
+    return [(pid, t) for t, sensor, _ev, pid, _type in w.events if sensor == "beam"]
 
 
 # ---------------------------------------------------------------------------- the file

@@ -566,3 +566,43 @@ def test_cli_validate_errors_exit_2_one_line(tmp_path):
         assert out.returncode == 2 and "Traceback" not in out.stderr
         assert out.stderr.count("\n") == 1 and out.stdout == ""
     assert "fsms.arm.edges[0].guard" in _cli("validate", p).stderr
+
+
+MULTI_SOURCE = """name: multi
+fsms:
+  arm:
+    goals: [work, rest]
+    states: [home, a, b, c]
+    edges:
+      - {from: home, to: a, goals: work}
+      - {from: a, to: b, goals: work}
+      - {from: [a, b, c], to: home, goals: rest, when: direct, guard: "true", effects: {}, ID}
+tree: {SkillRequest: go, fsm: arm, goal: work}
+"""
+
+
+@pytest.mark.parametrize("ident", ["", "id: back"])
+def test_edge_with_a_list_of_sources_is_one_edge_per_source(ident):
+    text = MULTI_SOURCE.replace(", ID}", (", " + ident if ident else "") + "}")
+    one_by_one = text.replace("- {from: [a, b, c], to: home",
+                              "- {from: a, to: home, goals: rest, when: direct, guard: \"true\", effects: {}, ID}\n"
+                              "      - {from: b, to: home, goals: rest, when: direct, guard: \"true\", effects: {}, ID}\n"
+                              "      - {from: c, to: home").replace(", ID}", (", " + ident if ident else "") + "}")
+    if ident:  # written one by one, the ids must differ
+        one_by_one = one_by_one.replace("id: back", "id: back/a", 1).replace("id: back}", "id: back/b}", 1) \
+                               .replace("id: back}", "id: back/c}", 1)
+    data = yaml.safe_load(text)
+    VALIDATOR.validate(data)
+    got, want = loads_model(text).fsm("arm").edges, loads_model(one_by_one).fsm("arm").edges
+    assert got == want and [e.source for e in got[2:]] == ["a", "b", "c"]
+    assert [e.id for e in got[2:]] == (["back/a", "back/b", "back/c"] if ident else ["a->home", "b->home", "c->home"])
+
+
+@pytest.mark.parametrize("sources, needle", [
+    ("[]", "fsms.arm.edges[2].from: expected a state id or a non-empty list of state ids (line 9)"),
+    ("[a, 3]", "fsms.arm.edges[2].from[1]: expected a state id, got an integer (line 9)"),
+    ("[a, zz]", "fsms.arm.edges[2].from: unknown state 'zz' (line 9)"),
+    ("[a, b, a]", "fsms.arm.edges[2].from[2]: state 'a' is listed twice (line 9)"),
+])
+def test_edge_source_list_errors(sources, needle):
+    assert needle in _error(MULTI_SOURCE.replace("[a, b, c]", sources).replace(", ID}", "}"))

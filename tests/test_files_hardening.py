@@ -184,11 +184,24 @@ fsms:
 """
 
 
+def _string_bomb(in_key=False):
+    """One item, one value, but a text that doubles eightfold per template level (8**15
+    times its start): refused by its length, computed before the text is built."""
+    lines = ["name: x", "templates:"]
+    for k in range(15):
+        lines.append(f"  t{k}: {{params: [X], states: [{{use: t{k + 1}, with: {{X: \"{'${X}' * 8}\"}}}}]}}")
+    last = "{id: s, args: {\"${X}\": 1}}" if in_key else "\"s_${X}\""
+    lines += [f"  t15: {{params: [X], states: [{last}]}}", "fsms:", "  f: {goals: [g], states: [{use: t0, with: {X: ab}}]}"]
+    return "\n".join(lines) + "\n"
+
+
 @pytest.mark.parametrize("text, expected", [
     (LAUGHS, "more than 200000 values (aliases expanded)"),
     (_template_bomb(), "templates produce more than 100000 items"),
     (_value_bomb(), "templates produce more than 200000 values"),
-], ids=["billion-laughs", "template-items", "template-values"])
+    (_string_bomb(), "templates produce more than 8388608 characters of text"),
+    (_string_bomb(in_key=True), "templates produce more than 8388608 characters of text"),
+], ids=["billion-laughs", "template-items", "template-values", "template-string", "template-key-string"])
 def test_bombs_are_refused_quickly(text, expected):
     t0 = time.process_time()
     msg = _one_line_error(text)

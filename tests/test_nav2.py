@@ -258,7 +258,7 @@ def test_nav2_tree_loads_with_the_library(tree):
 def test_nav2_trees_check(capsys):
     """``btfsm check TREE.xml --node-library nav2``: exit 0 or 1 (a finding), never an error.
     The default run checks the trees without RecoveryNode retry loops (each well under a
-    second); BTFSM_LONG=1 checks all 15 (minutes: docs/interop.md section 6)."""
+    second); BTFSM_LONG=1 checks all 15 (minutes: docs/interop.md section 7)."""
     chosen = TREES if os.environ.get("BTFSM_LONG") else [t for t in TREES if t.stem in SMALL]
     unfinished = []
     for tree in chosen:
@@ -269,7 +269,7 @@ def test_nav2_trees_check(capsys):
         assert code in (0, 1), (tree.name, code, err[-2000:])
         assert "under btcpp semantics" in out
     if unfinished:
-        pytest.xfail(f"known: the checker does not finish {unfinished} (docs/interop.md section 6)")
+        pytest.xfail(f"known: the checker does not finish {unfinished} (docs/interop.md section 7)")
 
 
 #: the trees whose in-tick RecoveryNode retries the checker cannot enumerate in time (tests/data/nav2/README.md)

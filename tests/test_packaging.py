@@ -20,7 +20,7 @@ ROOT = Path(__file__).resolve().parent.parent
 @pytest.fixture(scope="module")
 def wheel(tmp_path_factory):
     out = tmp_path_factory.mktemp("wheel")
-    r = subprocess.run([sys.executable, "-m", "pip", "wheel", "-q", "--no-deps", "-w", str(out), str(ROOT)],
+    r = subprocess.run([sys.executable, "-m", "pip", "wheel", "-v", "--no-deps", "-w", str(out), str(ROOT)],
                        capture_output=True, text=True)
     if r.returncode != 0:
         pytest.skip(f"cannot build the wheel here: {r.stderr.strip().splitlines()[-1:]}")
@@ -29,11 +29,18 @@ def wheel(tmp_path_factory):
     with zipfile.ZipFile(path) as z:
         z.extractall(unpacked)
         names = z.namelist()
-    return names, unpacked
+    return names, unpacked, r.stdout + r.stderr
+
+
+def test_build_declares_every_package(wheel):
+    """setuptools warns "Package would be ignored" (about 70 lines) for a folder of data it
+    installs without its being declared: btfsm.schema and btfsm.models.scenes are."""
+    *_, log = wheel
+    assert "would be ignored" not in log
 
 
 def test_one_top_level_package(wheel):
-    names, _ = wheel
+    names, *_ = wheel
     tops = {n.split("/")[0] for n in names}
     assert tops == {"btfsm", "btfsm-0.1.0.dist-info"}
     for sub in ("btfsm/verify/explore.py", "btfsm/models/ariac.py", "btfsm/sim/scene.py", "btfsm/models/scenes/ariac.yaml",
@@ -43,7 +50,7 @@ def test_one_top_level_package(wheel):
 
 
 def test_license_and_py_typed(wheel):
-    names, unpacked = wheel
+    names, unpacked, _ = wheel
     assert "btfsm/py.typed" in names
     assert any(n.endswith("licenses/LICENSE") for n in names)
     meta = next(unpacked.glob("btfsm-*.dist-info/METADATA")).read_text()
@@ -62,7 +69,7 @@ def _run_isolated(unpacked, code):
 
 
 def test_only_btfsm_is_importable(wheel):
-    _, unpacked = wheel
+    _, unpacked, _ = wheel
     for name in ("verify", "models", "sim"):
         r = _run_isolated(unpacked, f"import {name}")
         assert r.returncode != 0 and "ModuleNotFoundError" in r.stderr, (name, r.stderr)
@@ -76,7 +83,7 @@ def test_only_btfsm_is_importable(wheel):
 def test_checker_imports_no_simulator(wheel):
     """``pip install btfsm`` (no [sim] extra) is enough to check: checking never imports
     matplotlib, Pillow or the simulator."""
-    _, unpacked = wheel
+    _, unpacked, _ = wheel
     r = _run_isolated(unpacked, "from btfsm.verify import check; from btfsm.files import load_model\n"
                                 "check(load_model('ariac-preemptive'))\n"
                                 "print(sorted(m for m in ('matplotlib', 'PIL', 'btfsm.sim.scene') if m in sys.modules))")

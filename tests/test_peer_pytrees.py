@@ -16,12 +16,15 @@ from hypothesis import strategies as st
 
 pytest.importorskip("py_trees")
 
-from btfsm import (ForceFailure, ForceSuccess, Guard, Inverter, MemoryFallback, MemorySequence,  # noqa: E402
-                   Parallel, ReactiveFallback, ReactiveSequence, Repeat, Retry)
-from pytrees_peer import leaf, run_btfsm, run_pytrees  # noqa: E402
+from btfsm import (FailureIsRunning, ForceFailure, ForceSuccess, Guard, Inverter, KeepRunningUntilFailure,  # noqa: E402
+                   MemoryFallback, MemorySequence, Parallel, ReactiveFallback, ReactiveSequence, Repeat, Retry,
+                   RunningIsFailure, RunningIsSuccess)
+from pytrees_peer import (STATUS, KeyedBehaviour, build_pytrees, leaf, run_btfsm, run_imported,  # noqa: E402
+                          run_pytrees, tick_pytrees)
 
 TICKS = 8
 TREES = 1200
+IMPORTED_TREES = 300
 
 
 @st.composite
@@ -40,7 +43,8 @@ def peer_trees(draw, max_depth=3):
     def node(depth):
         kinds = ["leaf"] * 3
         if depth > 0:
-            kinds += ["RSeq", "MSeq", "RFb", "MFb", "Par", "Par", "Inv", "FS", "FF", "Retry", "Repeat", "Guard"]
+            kinds += ["RSeq", "MSeq", "RFb", "MFb", "Par", "Par", "Inv", "FS", "FF", "Retry", "Repeat", "Guard", "Forever",
+                      "FIR", "RIF", "RIS"]
         k = draw(st.sampled_from(kinds))
         if k == "leaf":
             n = name("a")
@@ -65,6 +69,10 @@ def peer_trees(draw, max_depth=3):
             return Retry(n, child, draw(st.integers(1, 3)))
         if k == "Repeat":
             return Repeat(n, child, draw(st.integers(1, 3)))
+        if k == "Forever":
+            return KeepRunningUntilFailure(n, child)
+        if k in ("FIR", "RIF", "RIS"):
+            return {"FIR": FailureIsRunning, "RIF": RunningIsFailure, "RIS": RunningIsSuccess}[k](n, child)
         if k == "Guard":
             table[n] = answers("SSF")
             return Guard(n, child, f"{n}_open")
@@ -80,3 +88,78 @@ def peer_trees(draw, max_depth=3):
 def test_random_trees_match_real_py_trees(case):
     tree, table = case
     assert run_btfsm(tree, table, TICKS) == run_pytrees(tree, table, TICKS)
+
+
+# Names py_trees accepts and btfsm's first importer refused or mangled: collisions with the
+# "_2" suffix, unicode, spaces, guards whose derived variables collide, names btfsm cannot
+# carry as they are (empty, a line break, a template placeholder, 300 characters), keywords.
+HOSTILE_NAMES = ["a", "a_2", "a_3", "a", "Tür offen", "g 1", "g_1", "g-1", "", " ", "x\ny", "${x}",
+                 "é" * 300, "if", "true", "1", "ok", "ok_2", "\u200b"]
+
+
+def _blackboard_behaviour(data, name):
+    import operator
+
+    import py_trees
+    key, value = data.draw(st.sampled_from(["x", "y"])), data.draw(st.integers(0, 2))
+    if data.draw(st.booleans()):
+        return py_trees.behaviours.SetBlackboardVariable(name, key, value, overwrite=True)
+    op = data.draw(st.sampled_from([operator.eq, operator.ne, operator.lt, operator.ge]))
+    return py_trees.behaviours.CheckBlackboardVariableValue(name, py_trees.common.ComparisonExpression(key, value, op))
+
+
+def _swap(old, new):
+    """Put behaviour ``new`` where ``old`` is in its tree (py_trees has no call for it)."""
+    new.peer_key = getattr(old, "peer_key", None)
+    parent = old.parent
+    new.parent = parent
+    if parent is not None:
+        parent.children[parent.children.index(old)] = new
+        if getattr(parent, "decorated", None) is old:
+            parent.decorated = new
+        chosen = getattr(getattr(parent, "policy", None), "children", None)  # SuccessOnSelected
+        if chosen and any(c is old for c in chosen):
+            chosen[[id(c) for c in chosen].index(id(old))] = new
+
+
+@settings(max_examples=IMPORTED_TREES, derandomize=True, deadline=None, database=None,
+          suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])
+@given(peer_trees(), st.data())
+def test_imported_trees_with_hostile_names_match_real_py_trees(case, data):
+    """The user's path: a tree built in py_trees (renamed with names drawn from
+    HOSTILE_NAMES; Retry(num_failures=1) also written 0 or -2; Repeat forever written -1, 0,
+    2.5 or as SuccessIsRunning; some leaves replaced by CheckBlackboardVariableValue and
+    SetBlackboardVariable on keys x and y; sometimes a BehaviourTree instead of its root) is imported with from_pytrees
+    and ticked by btfsm; it must do what real py_trees does with it."""
+    import py_trees
+    tree, table = case
+    log: list = []
+    clock = [0]
+    root = build_pytrees(tree, table, log, clock)
+    leaves: dict = {}
+    py_trees.blackboard.Blackboard.clear()
+    for i, b in enumerate(list(root.iterate())):
+        if not isinstance(b, KeyedBehaviour):
+            b.peer_key = b.name
+        elif data.draw(st.integers(0, 3)) == 0:  # py_trees' blackboard behaviours, on keys x and y
+            new = _blackboard_behaviour(data, f"bb{i}")
+            _swap(b, new)
+            new.peer_key = "blackboard"  # not a table row: the oracle is not asked, nothing is logged
+            root = new if b is root else root
+            continue
+        if data.draw(st.booleans()):
+            b.name = data.draw(st.sampled_from(HOSTILE_NAMES))
+        if isinstance(b, py_trees.decorators.Retry) and b.num_failures == 1:
+            b.num_failures = data.draw(st.sampled_from([1, 0, -2]))
+        if isinstance(b, py_trees.decorators.Repeat) and b.num_success == -1:
+            b.num_success = data.draw(st.sampled_from([-1, 0, 2.5, "SuccessIsRunning"]))
+            if b.num_success == "SuccessIsRunning":  # the same rule, py_trees' other spelling
+                new = py_trees.decorators.SuccessIsRunning(name=b.name, child=b.decorated)
+                _swap(b, new)
+                root = new if b is root else root
+    for b in root.iterate():
+        if isinstance(b, KeyedBehaviour):
+            leaves.setdefault(b.name, set()).update(STATUS[a].name.lower() for a in table[b.key])
+    subject = py_trees.trees.BehaviourTree(root) if data.draw(st.booleans()) else root
+    ours = run_imported(subject, table, TICKS, {k: sorted(v) for k, v in leaves.items()})
+    assert ours == tick_pytrees(root, log, clock, TICKS)

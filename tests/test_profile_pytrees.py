@@ -20,9 +20,10 @@ from hypothesis import HealthCheck, given, settings
 
 py_trees = pytest.importorskip("py_trees")
 
-from btfsm import (Action, ForceFailure, ForceSuccess, Guard, Inverter, MemoryFallback,  # noqa: E402
+from btfsm import (Action, ForceFailure, ForceSuccess, Guard, Inverter, KeepRunningUntilFailure, MemoryFallback,  # noqa: E402
                    MemorySequence, ModelError, Parallel, ReactiveFallback, ReactiveSequence,
                    Repeat, Retry, Status)
+from btfsm.expr import Const, to_text  # noqa: E402
 from btfsm.interop.pytrees import PytreesImportWarning, from_pytrees, to_pytrees  # noqa: E402
 from pytrees_peer import build_model, leaf, run_btfsm, run_pytrees  # noqa: E402
 from test_peer_pytrees import peer_trees  # noqa: E402
@@ -219,9 +220,81 @@ def test_from_pytrees_unknown_leaf_warns_and_refuses_what_it_cannot_model():
     timeout = py_trees.decorators.Timeout("slow", py_trees.behaviours.Running("r"), duration=1.0)
     with pytest.raises(ModelError, match=r"tree\.slow: py_trees decorator Timeout has no btfsm counterpart"):
         from_pytrees(py_trees.composites.Selector("root", memory=False, children=[timeout]))
-    forever = py_trees.decorators.Repeat("forever", py_trees.behaviours.Success("s"), num_success=-1)
-    with pytest.raises(ModelError, match=r"tree\.forever"):
-        from_pytrees(forever)
+    with pytest.raises(ModelError, match=r"tree\.slow"):  # a BehaviourTree is read as its root
+        from_pytrees(py_trees.trees.BehaviourTree(timeout))
+    with pytest.raises(ModelError, match=r"tree: expected a py_trees behaviour or BehaviourTree, got int"):
+        from_pytrees(3)
+
+
+def test_from_pytrees_counts_as_py_trees_compares_them():
+    """py_trees' Retry fails when its failure count reaches num_failures ("<"): any count
+    <= 1 is Retry(1). Its Repeat succeeds when the count *equals* num_success: -1, 0 or a
+    count that is not a whole number is never reached (repeat for ever, KeepRunningUntilFailure).
+    Peer-tested in tests/test_peer_pytrees.py."""
+    D, B = py_trees.decorators, py_trees.behaviours
+    for k, attempts in ((0, 1), (-3, 1), (1, 1), (3, 3), (2.5, 3)):
+        assert from_pytrees(D.Retry("r", B.Failure("f"), num_failures=k)).tree.attempts == attempts
+    for k in (-1, 0, 2.5):
+        assert type(from_pytrees(D.Repeat("r", B.Success("s"), num_success=k)).tree) is KeepRunningUntilFailure
+    assert from_pytrees(D.Repeat("r", B.Success("s"), num_success=2)).tree.times == 2
+    assert from_pytrees(D.Repeat("r", B.Success("s"), num_success=True)).tree.times == 1  # True == 1 in py_trees
+    assert type(from_pytrees(D.SuccessIsRunning("r", B.Success("s"))).tree) is KeepRunningUntilFailure
+    with pytest.raises(ModelError, match=r"^leaves: expected a mapping of behaviour names, got int"):
+        from_pytrees(B.Success("s"), leaves=3)
+    with pytest.raises(ModelError, match=r"tree\.r: Retry num_failures inf"):
+        from_pytrees(D.Retry("r", B.Failure("f"), num_failures=float("inf")))
+    with pytest.raises(ModelError, match=r"tree\.r: Retry num_failures 'x' is not a number"):
+        from_pytrees(D.Retry("r", B.Failure("f"), num_failures="x"))
+
+
+def test_from_pytrees_blackboard_behaviours():
+    """CheckBlackboardVariableValue is a Condition, SetBlackboardVariable an Action writing
+    the value, over a variable per key and a flag that it exists (peer-tested in
+    tests/test_peer_pytrees.py). What depends on Python code or on existence is refused."""
+    import operator
+    B, CE = py_trees.behaviours, py_trees.common.ComparisonExpression
+    root = py_trees.composites.Sequence("root", memory=False, children=[
+        B.SetBlackboardVariable("set", "mode", "a b", overwrite=True),
+        B.CheckBlackboardVariableValue("is c", CE("mode", "c", operator.ne)),
+        B.CheckBlackboardVariableValue("n big", CE("n", 4, operator.ge))])
+    m = from_pytrees(root, blackboard={"n": 5})
+    assert [(v.name, v.kind, v.init) for v in m.variables] == [
+        ("mode", "enum", "a b"), ("mode_exists", "bool", False), ("n", "int", 5), ("n_exists", "bool", True)]
+    assert dict(m.tree.children[0].outcomes[0].effects) == {"mode": Const("a b"), "mode_exists": Const(True)}
+    assert [to_text(c.expr) for c in m.tree.children[1:]] == ["mode_exists and mode != 'c'", "n_exists and n >= 4"]
+    refused = [
+        (B.SetBlackboardVariable("s", "k", 1, overwrite=False), "overwrite=False"),
+        (B.SetBlackboardVariable("s", "k", lambda: 1, overwrite=True), "computed by Python code"),
+        (B.CheckBlackboardVariableValue("s", CE("k.a", 1, operator.eq)), "no nested attributes"),
+        (B.CheckBlackboardVariableValue("s", CE("k", 1, operator.contains)), "btfsm models ==, !="),
+        (py_trees.composites.Sequence("r", memory=False, children=[
+            B.SetBlackboardVariable("s", "k", 1, overwrite=True), B.SetBlackboardVariable("t", "k", "x", True)]),
+         "several kinds")]
+    for b, why in refused:
+        with pytest.raises(ModelError, match=why):
+            from_pytrees(b)
+
+
+def test_from_pytrees_keeps_names_and_resolves_collisions():
+    B, C, D = py_trees.behaviours, py_trees.composites, py_trees.decorators
+    root = C.Sequence("root", memory=False, children=[
+        B.Success("a"), B.Success("a_2"), B.Success("a"),
+        D.EternalGuard("Tür offen", B.Running("Tür offen"), condition=lambda: True),
+        D.EternalGuard("g 1", B.Running("x"), condition=lambda: True),
+        D.EternalGuard("g_1", B.Running("y"), condition=lambda: True),
+        B.Success(""), B.Success("line\nbreak"), B.Success("${x}")])
+    m = from_pytrees(root, leaves={"Tür offen": ["running", "success"]})
+    names = [n.name for n in m.tree.children]
+    assert names == ["a", "a_2", "a_3", "Tür offen", "g 1", "g_1", "unnamed", "line_break", "$_{x}"]
+    guard = m.tree.children[3]
+    assert guard.child.name == "Tür offen_2" and {o.status.name for o in guard.child.outcomes} == {"RUNNING", "SUCCESS"}
+    # the leaf's entry is not read as the guard's condition: the guard is a free variable
+    assert [v.name for v in m.variables] == ["Tur_offen_open", "g_1_open", "g_1_open_2"]
+    assert [str(g.condition.id) for g in m.tree.children[3:6]] == ["Tur_offen_open", "g_1_open", "g_1_open_2"]
+    m2 = from_pytrees(root.children[3], guards={"Tür offen": "false"}, leaves={"Tür offen": "running"})
+    assert not m2.variables and m2.tree.condition.value is False
+    with pytest.raises(ModelError, match=r"tree\.Tür offen\.condition: syntax error"):
+        from_pytrees(root.children[3], guards={"Tür offen": "x >"})
 
 
 def test_from_pytrees_guard_becomes_a_free_variable():
@@ -229,7 +302,7 @@ def test_from_pytrees_guard_becomes_a_free_variable():
     m = from_pytrees(guard)
     assert isinstance(m.tree, Guard) and [v.name for v in m.variables] == ["door_ok_open"]
     assert [e.name for e in m.environment] == ["door_ok_open"]
-    m2 = from_pytrees(guard, leaves={"door ok": "false"})
+    m2 = from_pytrees(guard, leaves={"door ok": "false"})  # still read: no leaf has that name
     assert isinstance(m2.tree, Guard) and not m2.variables
 
 

@@ -69,11 +69,18 @@ def test_a_broken_model_fails_with_its_counterexample(tmp_path):
 
 @needs_install
 def test_properties_ini_option_and_unloadable_files(tmp_path):
-    project = _project(tmp_path, GOOD, "btfsm_properties = contracts\n")
+    # properties on one line separated by spaces (docs/testing.md writes them so) or one per line
+    project = _project(tmp_path, GOOD, "btfsm_properties = contracts workable-reachability\n    goal-reachability\n")
     (project / "robot" / "bad.yaml").write_text("name: bad\ntree: {type: Nope}\n")
+    # a scene and a side file beside the model match robot/*.yaml but are not models
+    (project / "robot" / "cell.scene.yaml").write_text("robots: {}\n")
+    (project / "robot" / "tree.btfsm.yaml").write_text("nodes: {}\n")
     done = _pytest(project, "robot")
     assert done.returncode == 1
     assert "PASSED robot/cell.yaml::contracts" in done.stdout and "no-dead-states" not in done.stdout
+    assert "PASSED robot/cell.yaml::workable-reachability" in done.stdout
+    assert "PASSED robot/cell.yaml::goal-reachability" in done.stdout
+    assert "scene" not in done.stdout and "btfsm.yaml" not in done.stdout
     assert "FAILED robot/bad.yaml::load" in done.stdout and "bad.yaml: tree: a node needs a type" in done.stdout
 
 

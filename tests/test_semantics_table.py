@@ -19,7 +19,8 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from btfsm import (FSM, Action, Bool, Condition, DomainError, Edge, Effects, EnvChoice, EnvEvent,
+from btfsm import (FSM, Action, Bool, Condition, DomainError, Edge, Effects, EnvChoice, EnvEvent, FailureIsRunning,
+                   RunningIsFailure, RunningIsSuccess,
                    ForceFailure, ForceSuccess, Guard, Int, Inverter, Marker, MemoryFallback,
                    MemorySequence, Model, ModelError, Parallel, Primitive, ReactiveFallback,
                    ReactiveSequence, Repeat, Retry, SkillRequest, State, Status, failure, running,
@@ -361,6 +362,20 @@ def test_force_failure():
     m = Model("ff", tree=ForceFailure("root", act("a")))
     run_rows(m, [Tick("a:S", "F", running=""), Tick("a:F", "F", running=""),
                  Tick("a:R", "R", running="root a"), Tick("a:S", "F", running="")])
+
+
+def test_failure_is_running():
+    m = Model("fir", tree=FailureIsRunning("root", act("a")))
+    run_rows(m, [Tick("a:F", "R", running="root"), Tick("a:S", "S", running=""),
+                 Tick("a:R", "R", running="root a"), Tick("a:F", "R", running="root", halts="")])
+
+
+@pytest.mark.parametrize("cls, letter", [(RunningIsFailure, "F"), (RunningIsSuccess, "S")])
+def test_running_is_failure_and_running_is_success(cls, letter):
+    m = Model("ri", tree=cls("root", act("a")))
+    run_rows(m, [Tick("a:R", letter, running="", halts="a"),  # returned as finished: the child is halted
+                 Tick("a:S", "S", running="", halts=""), Tick("a:F", "F", running="", halts=""),
+                 Tick("a:R", letter, running="", halts="a")])
 
 
 def test_retry():

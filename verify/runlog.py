@@ -161,7 +161,7 @@ def _map_tree(log_root, model, file, children, tag, name, label, key, wrapper, k
             m.prim[mn.name] = m.add(key(ln), label(ln), QUIET if quiet else LEAF, parent)
             return
         cls = known(ln)
-        if cls is not None and type(mn).__name__ != cls:
+        if cls is not None and type(mn).__name__ not in cls.split("|"):
             raise fail(ln, mn, f"a {tag(ln)} in the recording")
         if len(lkids) != len(kids):
             raise fail(ln, mn, f"{len(lkids)} child node(s) in the recording, {len(kids)} in the model")
@@ -463,7 +463,10 @@ def read_pytrees_run(text: str, file: str) -> PytreesRun:
 
 _PYTREES_KNOWN = {"Sequence": None, "Selector": None, "Parallel": "Parallel", "Inverter": "Inverter",
                   "FailureIsSuccess": "ForceSuccess", "SuccessIsFailure": "ForceFailure", "Retry": "Retry",
-                  "Repeat": "Repeat", "EternalGuard": "Guard"}
+                  # a Repeat whose count py_trees never reaches is imported as KeepRunningUntilFailure
+                  "Repeat": "Repeat|KeepRunningUntilFailure", "SuccessIsRunning": "KeepRunningUntilFailure",
+                  "FailureIsRunning": "FailureIsRunning", "RunningIsFailure": "RunningIsFailure",
+                  "RunningIsSuccess": "RunningIsSuccess", "EternalGuard": "Guard"}
 _PY_STATUS = {"RUNNING": 0, "SUCCESS": 1, "FAILURE": 2}
 
 

@@ -23,14 +23,23 @@ py_trees 2.6                                    btfsm
 ``Inverter``                                    ``Inverter``
 ``FailureIsSuccess``                            ``ForceSuccess``
 ``SuccessIsFailure``                            ``ForceFailure``
-``Retry(num_failures=k)``                       ``Retry(attempts=k)``
-``Repeat(num_success=k)``, k >= 1               ``Repeat(times=k)``
+``Retry(num_failures=k)``                       ``Retry(attempts=max(1, ceil(k)))``
+``Repeat(num_success=k)``, k a whole number >= 1 ``Repeat(times=k)``
+``Repeat(num_success=k)``, any other k (-1, 0)   ``KeepRunningUntilFailure`` (for ever)
+``SuccessIsRunning``                            ``KeepRunningUntilFailure``
+``FailureIsRunning``, ``RunningIs{Failure,Success}`` the btfsm decorators of those names
 ``EternalGuard``                                ``Guard``
+``CheckBlackboardVariableValue`` (a constant)    ``Condition`` over the key's variable
+``SetBlackboardVariable(overwrite=True)``         ``Action`` whose SUCCESS writes the constant
 ``PassThrough``, ``Count`` (read only)           the child itself (they change no status)
 =============================================== =========================================
 
-Everything else (``Timeout``: wall-clock time; ``OneShot``; ``RunningIsFailure`` and the
-other status remaps; ``Repeat(-1)``) is refused with a ``ModelError`` naming the node.
+py_trees compares its counts as its code says: ``Retry`` fails when the failures it
+counted reach ``num_failures`` (``<``), so 0 or -3 fail at the first failure like 1;
+``Repeat`` succeeds when its count *equals* ``num_success``, which -1, 0 or 2.5 never do.
+Everything else (docs/interop.md lists each refusal and why: ``Timeout``, wall-clock
+time; ``OneShot``; ...) is refused with
+a ``ModelError`` naming the node. ``from_pytrees`` raises nothing else, whatever the tree.
 
 >>> import py_trees
 >>> root = py_trees.composites.Selector("root", memory=False, children=[
@@ -45,9 +54,14 @@ other status remaps; ``Repeat(-1)``) is refused with a ``ModelError`` naming the
 from __future__ import annotations
 
 import json
+import keyword
+import math
+import operator
 import os
 import re
+import unicodedata
 import warnings
+from collections.abc import Mapping
 from typing import Callable
 
 try:
@@ -56,16 +70,18 @@ except ImportError as exc:  # pragma: no cover - exercised only without py_trees
     raise ImportError("btfsm.interop.pytrees needs py_trees 2.x: pip install 'py_trees>=2.2' "
                       "(or the btfsm 'test' / 'bench' extras)") from exc
 
-from ..bt import (Action, Condition, Effects, ForceFailure, ForceSuccess, Guard, Inverter,
-                  MemoryFallback, MemorySequence, Node, Parallel, ReactiveFallback,
-                  ReactiveSequence, Repeat, Retry, SkillRequest)
+from ..bt import (Action, Condition, Effects, FailureIsRunning, ForceFailure, ForceSuccess, Guard, Inverter,
+                  KeepRunningUntilFailure, MemoryFallback, MemorySequence, Node, Parallel, ReactiveFallback,
+                  ReactiveSequence, Repeat, Retry, RunningIsFailure, RunningIsSuccess, SkillRequest)
 from ..errors import ModelError
+from ..expr import Const, as_expr
 from ..model import EnvChoice, EnvEvent, Model
 from ..primitives import Outcome, Primitive
 from ..status import Status
-from ..world import Bool
+from ..world import RESERVED_NAMES, Bool, Enum, Int, check_label
 
-__all__ = ["from_pytrees", "to_pytrees", "AnswerBehaviour", "PytreesImportWarning", "RunRecorder", "RUN_FORMAT"]
+__all__ = ["from_pytrees", "node_names", "to_pytrees", "AnswerBehaviour", "PytreesImportWarning", "RunRecorder",
+           "RUN_FORMAT"]
 
 Common = py_trees.common
 _TO_PT = {Status.RUNNING: Common.Status.RUNNING, Status.SUCCESS: Common.Status.SUCCESS,
@@ -178,6 +194,13 @@ def to_pytrees(model: Model, behaviours: "Callable | dict | None" = None,
             return py_trees.decorators.Retry(name=n.name, child=build(n.child), num_failures=n.attempts)
         if isinstance(n, Repeat):
             return py_trees.decorators.Repeat(name=n.name, child=build(n.child), num_success=n.times)
+        if type(n) is KeepRunningUntilFailure:
+            return py_trees.decorators.Repeat(name=n.name, child=build(n.child), num_success=-1)
+        remaps = {FailureIsRunning: py_trees.decorators.FailureIsRunning,
+                  RunningIsFailure: py_trees.decorators.RunningIsFailure,
+                  RunningIsSuccess: py_trees.decorators.RunningIsSuccess}
+        if type(n) in remaps:
+            return remaps[type(n)](name=n.name, child=build(n.child))
         if isinstance(n, Effects):
             raise ModelError(where, "Effects has no py_trees counterpart (py_trees behaviours write the blackboard in code)")
         raise ModelError(where, f"{type(n).__name__} has no py_trees counterpart")
@@ -238,9 +261,207 @@ def _builtin_outcomes(b):
     return None
 
 
+def node_names(root) -> list:
+    """``[(behaviour, btfsm node name), ...]`` in pre-order, for every behaviour of the
+    tree under ``root`` that ``from_pytrees`` turns into a node (``PassThrough`` and
+    ``Count`` are read as their child and get none).
+
+    A name is kept as the user wrote it (unicode and spaces included) wherever btfsm
+    accepts it as a node name: one line of printable text, at most 256 characters, no
+    ``${...}``. A name it cannot carry becomes a safe one (each non-printable character
+    as ``_``, ``${`` as ``$_{``, cut to 240 characters; an empty name is ``unnamed``).
+    The first behaviour with a name keeps it; a later behaviour with the same name gets
+    ``_2``, ``_3``, ... (the first suffix no behaviour of the tree uses), so every valid
+    py_trees tree imports, whatever its names (py_trees does not ask for unique names).
+
+    >>> import py_trees
+    >>> B = py_trees.behaviours
+    >>> root = py_trees.composites.Sequence("Tür offen", memory=False,
+    ...                                     children=[B.Success("a"), B.Success("a_2"), B.Success("a")])
+    >>> [n for _, n in node_names(root)]
+    ['Tür offen', 'a', 'a_2', 'a_3']
+    """
+    root = _root_of(root)
+    order = []
+    _walk_behaviours(root, order)
+    labels = [_label(b.name) for b in order]
+    taken = set(labels)
+    given: set = set()
+    out = []
+    for b, lab in zip(order, labels):
+        nm, k = lab, 1
+        while nm in given or (k > 1 and nm in taken):
+            k += 1
+            nm = f"{lab[:240]}_{k}"
+        given.add(nm)
+        out.append((b, nm))
+    return out
+
+
+def _root_of(root):
+    """``root`` itself, or the root of a ``py_trees.trees.BehaviourTree``."""
+    if isinstance(root, py_trees.trees.BehaviourTree):
+        root = root.root
+    if not isinstance(root, py_trees.behaviour.Behaviour):
+        raise ModelError("tree", f"expected a py_trees behaviour or BehaviourTree, got {type(root).__name__}")
+    return root
+
+
+def _walk_behaviours(root, order):
+    """Pre-order list of the behaviours that become nodes; ModelError on a behaviour met
+    twice (py_trees cannot tick such a tree: a behaviour has one parent)."""
+    seen: set = set()
+    stack = [root]
+    while stack:
+        b = stack.pop()
+        if not isinstance(b, py_trees.behaviour.Behaviour):
+            raise ModelError("tree", f"a child is not a py_trees behaviour: {type(b).__name__}")
+        if id(b) in seen:
+            raise ModelError("tree", f"behaviour {_label(getattr(b, 'name', ''))!r} appears twice in the tree")
+        seen.add(id(b))
+        if not isinstance(getattr(b, "name", None), str):
+            raise ModelError("tree", f"a behaviour's name must be a string (py_trees' rule), got {type(getattr(b, 'name', None)).__name__}")
+        if isinstance(b, py_trees.decorators.Decorator):
+            if not isinstance(b, (py_trees.decorators.PassThrough, py_trees.decorators.Count)):
+                order.append(b)
+            stack.append(b.decorated)
+        else:
+            order.append(b)
+            kids = list(getattr(b, "children", None) or ())
+            stack.extend(reversed(kids))
+
+
+def _label(name) -> str:
+    """``name`` if btfsm accepts it as a node name (check_label), else a safe label made from it."""
+    text = name if isinstance(name, str) else str(name)
+    try:
+        return check_label(text, "", "node name")
+    except ModelError:
+        pass
+    safe = "".join(c if c.isprintable() else "_" for c in text).replace("${", "$_{")[:240]
+    return safe or "unnamed"
+
+
+def _ident(label: str, taken: set) -> str:
+    """An ASCII identifier made from ``label`` (accents dropped, other characters as ``_``),
+    not in ``taken`` (``_2``, ``_3``... appended), which it joins."""
+    text = unicodedata.normalize("NFKD", label)
+    text = "".join(c for c in text if not unicodedata.combining(c))
+    base = re.sub(r"[^A-Za-z0-9_]", "_", text)[:64]
+    if not re.match(r"[A-Za-z_]", base):
+        base = f"g_{base}"
+    x, k = base, 1
+    while x in taken or x in RESERVED_NAMES or keyword.iskeyword(x):
+        k += 1
+        x = f"{base}_{k}"
+    taken.add(x)
+    return x
+
+
+def _guard_expression(spec, where):
+    """A guard's condition from ``guards=`` / ``leaves=``: ModelError when it is none."""
+    try:
+        return as_expr(spec)
+    except ModelError as exc:
+        raise exc.at(where) from None
+    except (TypeError, ValueError) as exc:
+        raise ModelError(where, f"a guard's condition must be an expression over the model's variables: {exc}") from None
+
+
+def _is_status_word(x) -> bool:
+    try:
+        Status.parse(x)
+        return True
+    except (ValueError, TypeError, AttributeError):
+        return False
+
+
+def _count(x, what, where):
+    """A py_trees count (``num_failures``, ``num_success``): a number, else ModelError."""
+    if isinstance(x, bool):  # py_trees compares it as the number it is (True == 1)
+        return int(x)
+    if not isinstance(x, (int, float)):
+        raise ModelError(where, f"{what} {x!r} is not a number")
+    return x
+
+
+_OPERATORS = {operator.eq: "==", operator.ne: "!=", operator.lt: "<", operator.le: "<=", operator.gt: ">",
+              operator.ge: ">="}
+
+
+def _constant(generator, where, what):
+    """The constant a py_trees blackboard behaviour was given (it keeps it in a lambda);
+    ModelError when it was given a callable (Python code, which btfsm does not run)."""
+    cells = getattr(generator, "__closure__", None) or ()
+    if getattr(generator, "__qualname__", "").endswith("__init__.<locals>.<lambda>") and len(cells) == 1:
+        value = cells[0].cell_contents
+        if not callable(value):
+            return value
+    raise ModelError(where, f"{what} is computed by Python code; btfsm models constant values only")
+
+
+def _blackboard_vars(order, names, initial, idents):
+    """{key: (value var, set-flag var, [Var, Var])} for the keys the tree's
+    CheckBlackboardVariableValue / SetBlackboardVariable behaviours use: one variable of
+    the values written and compared (bool, int or enum of strings) and a bool that says
+    whether the key exists (py_trees' check fails on a key that does not)."""
+    B = py_trees.behaviours
+    values: dict = {}
+    for b in order:
+        where = f"tree.{names[id(b)]}"
+        if type(b) is B.CheckBlackboardVariableValue:
+            key, v = b.check.variable, _constant(b.check.value_generator, where, "the compared value")
+            if b.check.operator not in _OPERATORS:
+                raise ModelError(where, f"comparison {getattr(b.check.operator, '__name__', b.check.operator)!r}: "
+                                        "btfsm models ==, !=, <, <=, >, >= (the operator module's eq ... ge)")
+        elif type(b) is B.SetBlackboardVariable:
+            key, v = b.variable_name, _constant(b.variable_value_generator, where, "the value written")
+            if not b.overwrite:
+                raise ModelError(where, "SetBlackboardVariable(overwrite=False) succeeds or fails on whether the "
+                                        "key exists; btfsm models overwrite=True (write a check before it)")
+        else:
+            continue
+        values.setdefault(key, []).append((v, where))
+    for key, v in (initial or {}).items():
+        values.setdefault(key, []).append((v, f"blackboard.{key}"))
+    for key, vals in values.items():
+        if not isinstance(key, str) or "." in key or not key:
+            raise ModelError(vals[0][1], f"blackboard variable {key!r}: btfsm models plain keys (no nested attributes)")
+    out = {}
+    for key, vals in values.items():
+        kinds = {bool if isinstance(v, bool) else int if isinstance(v, int) else str if isinstance(v, str) else None
+                 for v, _ in vals}
+        if len(kinds) != 1 or None in kinds:
+            raise ModelError(vals[0][1], f"blackboard variable '{key}' takes values of several kinds or of a kind "
+                                         "btfsm does not model (one of bool, int, str)")
+        name = _ident(key, idents)
+        flag = _ident(f"{name}_exists", idents)
+        known = key in (initial or {})
+        init = initial[key] if known else None
+        kind = kinds.pop()
+        if kind is bool:
+            var = Bool(name, bool(init))
+        elif kind is int:
+            nums = [v for v, _ in vals]
+            var = Int(name, min(nums), max(nums), init if known else min(nums))
+        else:
+            texts = tuple(dict.fromkeys(v for v, _ in vals))
+            var = Enum(name, texts, init if known else texts[0])
+        out[key] = (name, flag, [var, Bool(flag, known)])
+    return out
+
+
+def _literal(v) -> str:
+    if isinstance(v, bool):
+        return "true" if v else "false"
+    return repr(v) if isinstance(v, str) else str(v)
+
+
 def from_pytrees(root, leaves: "dict | None" = None, name: "str | None" = None,
-                 semantics: str = "pytrees") -> Model:
-    """A btfsm ``Model`` of the py_trees tree under ``root``.
+                 semantics: str = "pytrees", guards: "dict | None" = None,
+                 blackboard: "dict | None" = None) -> Model:
+    """A btfsm ``Model`` of the py_trees tree under ``root`` (a behaviour, or a
+    ``py_trees.trees.BehaviourTree``: its root).
 
     ``leaves`` maps a leaf behaviour's name to its outcomes: a ``Primitive``, a status
     (``"success"``), or a list of statuses / ``Outcome`` objects (with effects on model
@@ -248,27 +469,49 @@ def from_pytrees(root, leaves: "dict | None" = None, name: "str | None" = None,
     (``Success``, ``Failure``, ``Running``, ``Dummy``; ``SuccessEveryN``, ``Periodic``,
     ``TickCounter`` and ``StatusQueue`` to the set of statuses they can return). Any other
     leaf may return any status (a ``PytreesImportWarning`` names it). An ``EternalGuard``'s
-    condition (Python code) becomes a bool variable ``<guard>_open`` that the environment
-    sets freely before each tick (an ``EnvChoice``), unless ``leaves`` maps the guard's name
-    to an expression over those variables. Duplicate py_trees names get ``_2``, ``_3``...
-    Nodes with no counterpart raise ``ModelError`` naming the node."""
+    condition (Python code) becomes a bool variable ``<guard>_open`` (an ASCII identifier
+    made from the guard's name, unique) that the environment sets freely before each tick
+    (an ``EnvChoice``), unless ``guards`` maps the guard's name to an expression over those
+    variables (a ``leaves`` entry that is an expression string, not a status, still does,
+    when no leaf has that name). py_trees' ``CheckBlackboardVariableValue`` (a constant
+    compared with ``==``, ``!=``, ``<``, ``<=``, ``>``, ``>=``) is a ``Condition`` and
+    ``SetBlackboardVariable(overwrite=True)`` of a constant an ``Action`` that writes it,
+    over one model variable per key (named after it; bool, int over the values used, or
+    an enum of strings) and a bool ``<key>_exists``: a key starts unset (a check fails)
+    unless ``blackboard`` gives its initial value. Node names are the py_trees names, kept as written where
+    btfsm can carry them (``node_names``); duplicates get ``_2``, ``_3``... Nodes with no
+    counterpart raise ``ModelError`` naming the node; nothing else is raised for any
+    input."""
+    for arg, given in (("leaves", leaves), ("guards", guards), ("blackboard", blackboard)):
+        if given is not None and not isinstance(given, Mapping):
+            raise ModelError(arg, f"expected a mapping of behaviour names, got {type(given).__name__}")
     leaves = dict(leaves or {})
-    used: dict = {}
+    guards = dict(guards or {})
+    try:
+        names = {id(b): nm for b, nm in node_names(root)}
+        root = _root_of(root)
+        leaf_names = {b.name for b in root.iterate() if not getattr(b, "children", None)
+                      and not isinstance(b, py_trees.decorators.Decorator)}
+        return _import(root, names, leaves, guards, leaf_names, name, semantics, dict(blackboard or {}))
+    except RecursionError:
+        raise ModelError("tree", "the tree is nested too deeply to import") from None
+
+
+def _import(root, names, leaves, guards, leaf_names, name, semantics, blackboard):
     variables, environment = [], []
-
-    def unique(label):
-        k = used.get(label, 0) + 1
-        used[label] = k
-        return label if k == 1 else f"{label}_{k}"
-
-    def ident(label):
-        x = re.sub(r"\W", "_", label)
-        return x if re.match(r"[A-Za-z_]", x) else f"g_{x}"
+    idents: set = set()
+    mapped = [b for b in root.iterate() if b.name not in leaves and id(b) in names]
+    bb = _blackboard_vars(mapped, names, blackboard, idents)
+    for _, _, pair in bb.values():
+        variables.extend(pair)
+    B = py_trees.behaviours
 
     def build(b) -> Node:
-        nm = unique(b.name)
-        where = f"tree.{nm}"
         C, D = py_trees.composites, py_trees.decorators
+        if isinstance(b, (D.PassThrough, D.Count)):
+            return build(b.decorated)  # transparent: no node, no name
+        nm = names[id(b)]
+        where = f"tree.{nm}"
         if isinstance(b, (C.Sequence, C.Selector)):
             kids = [build(c) for c in b.children]
             if not kids:
@@ -282,24 +525,26 @@ def from_pytrees(root, leaves: "dict | None" = None, name: "str | None" = None,
                 raise ModelError(where, "an empty Parallel has no btfsm counterpart")
             pol, P = b.policy, Common.ParallelPolicy
             if isinstance(pol, P.SuccessOnAll):
-                return Parallel(nm, kids, synchronise=pol.synchronise)
+                return Parallel(nm, kids, synchronise=bool(pol.synchronise))
             if isinstance(pol, P.SuccessOnOne):
                 return Parallel(nm, kids, success_threshold=1)
             if isinstance(pol, P.SuccessOnSelected):
-                sel = tuple(k.name for k, c in zip(kids, b.children) if any(c is x for x in pol.children))
-                if len(sel) != len(pol.children) or not sel:
+                chosen = list(pol.children or ())
+                sel = tuple(k.name for k, c in zip(kids, b.children) if any(c is x for x in chosen))
+                if len(sel) != len(chosen) or not sel:
                     raise ModelError(where, "SuccessOnSelected must select children of this parallel")
-                return Parallel(nm, kids, selected=sel, synchronise=pol.synchronise)
+                return Parallel(nm, kids, selected=sel, synchronise=bool(pol.synchronise))
             raise ModelError(where, f"unknown parallel policy {type(pol).__name__}")
         if isinstance(b, D.Decorator):
-            if isinstance(b, (D.PassThrough, D.Count)):
-                used[b.name] -= 1  # transparent: the name is not used
-                return build(b.decorated)
             child = build(b.decorated)
             if isinstance(b, D.EternalGuard):
-                if b.name in leaves:
-                    return Guard(nm, child, leaves[b.name])
-                var = ident(f"{nm}_open")
+                spec = guards.get(b.name)
+                if spec is None and b.name not in leaf_names and isinstance(leaves.get(b.name), str) \
+                        and not _is_status_word(leaves[b.name]):
+                    spec = leaves[b.name]
+                if spec is not None:
+                    return Guard(nm, child, _guard_expression(spec, f"{where}.condition"))
+                var = _ident(f"{nm}_open", idents)
                 variables.append(Bool(var, True))
                 environment.append(EnvChoice(var, (EnvEvent(f"{var}_true", effects={var: True}),
                                                    EnvEvent(f"{var}_false", effects={var: False}))))
@@ -310,29 +555,53 @@ def from_pytrees(root, leaves: "dict | None" = None, name: "str | None" = None,
                 return ForceSuccess(nm, child)
             if type(b) is D.SuccessIsFailure:
                 return ForceFailure(nm, child)
+            if type(b) is D.SuccessIsRunning:  # SUCCESS -> RUNNING, the rest as is
+                return KeepRunningUntilFailure(nm, child)
+            remaps = {D.FailureIsRunning: FailureIsRunning, D.RunningIsFailure: RunningIsFailure,
+                      D.RunningIsSuccess: RunningIsSuccess}
+            if type(b) in remaps:
+                return remaps[type(b)](nm, child)
             if type(b) is D.Retry:
-                if b.num_failures < 1:
-                    raise ModelError(where, f"Retry num_failures {b.num_failures}: must be at least 1")
-                return Retry(nm, child, b.num_failures)
+                # py_trees counts failures and fails when the count reaches num_failures (a
+                # "<" test): any count <= 1 fails at the first failure, as Retry(1) does
+                k = _count(b.num_failures, "Retry num_failures", where)
+                if math.isnan(k):  # no count is below NaN
+                    k = 1
+                if k == math.inf:
+                    raise ModelError(where, "Retry num_failures inf (retry for ever) has no btfsm counterpart")
+                return Retry(nm, child, max(1, math.ceil(k)))
             if type(b) is D.Repeat:
-                if b.num_success < 1:
-                    raise ModelError(where, f"Repeat num_success {b.num_success} (repeat forever) has no btfsm counterpart")
-                return Repeat(nm, child, b.num_success)
+                # py_trees succeeds when its success count *equals* num_success: a count it
+                # never reaches (-1, 0, any value that is not a whole number >= 1) repeats for
+                # ever, which is KeepRunningUntilFailure
+                k = _count(b.num_success, "Repeat num_success", where)
+                if math.isfinite(k) and k >= 1 and k == int(k):
+                    return Repeat(nm, child, int(k))
+                return KeepRunningUntilFailure(nm, child)
             raise ModelError(where, f"py_trees decorator {type(b).__name__} has no btfsm counterpart")
         if isinstance(b, C.Composite):
             raise ModelError(where, f"py_trees composite {type(b).__name__} has no btfsm counterpart")
+        if type(b) is B.CheckBlackboardVariableValue and b.name not in leaves:
+            var, flag, _ = bb[b.check.variable]
+            value = _constant(b.check.value_generator, where, "the compared value")
+            return Condition(nm, f"{flag} and {var} {_OPERATORS[b.check.operator]} {_literal(value)}")
+        if type(b) is B.SetBlackboardVariable and b.name not in leaves:
+            var, flag, _ = bb[b.variable_name]
+            value = _constant(b.variable_value_generator, where, "the value written")
+            return Action(nm, outcomes=(Outcome(Status.SUCCESS, effects={var: Const(value), flag: Const(True)}),))
         if b.name in leaves:
             outs = _outcomes_of(leaves[b.name], where)
         else:
             outs = _builtin_outcomes(b)
             if outs is None:
                 warnings.warn(f"{where}: py_trees leaf {type(b).__name__} has no outcomes in leaves=; "
-                              "modelled as returning any status", PytreesImportWarning, stacklevel=3)
+                              "modelled as returning any status", PytreesImportWarning, stacklevel=4)
                 outs = _ANY
         return Action(nm, outcomes=outs)
 
     tree = build(root)
-    return Model(name or ident(root.name), variables=tuple(variables), tree=tree,
+    model_name = name if name is not None else _ident(_label(root.name), set())
+    return Model(model_name, variables=tuple(variables), tree=tree,
                  environment=tuple(environment), semantics=semantics)
 
 

@@ -18,16 +18,18 @@ each skill runs to its end before the next decision (no preemption here; see
 from __future__ import annotations
 
 from btfsm import (FSM, Bool, Condition, Edge, Effects, EnvEvent, Int, Marker, MemoryFallback,
-                   MemorySequence, Model, Primitive, SkillRequest, State, running, success)
+                   MemorySequence, Model, Primitive, SkillRequest, State, Status, failure, running, success)
 
-__all__ = ["two_area", "arm"]
+__all__ = ["two_area", "two_area_drops", "arm"]
 
 
-def arm() -> FSM:
-    """The two-area arm FSM."""
+def arm(drops: bool = False) -> FSM:
+    """The two-area arm FSM; with ``drops`` the transit to the output area carries the
+    part with ``carry``, which can fail (``dropped``): the skill fails and the arm goes on
+    to the output hub empty-handed."""
     states = [
         State("at_in", "move", {"area": "in", "pose": "approach"}),
-        State("in_to_out", "move", {"area": "out", "pose": "via"}),
+        State("in_to_out", "carry" if drops else "move", {"area": "out", "pose": "via"}),
         State("out_to_in", "move", {"area": "in", "pose": "via"}),
         State("at_out", "move", {"area": "out", "pose": "approach"}),
         State("grasp_in", "grasp", {"area": "in"}),
@@ -57,11 +59,15 @@ def arm() -> FSM:
         Edge("retreat_out", "at_out", ["pick", "place"]),  # after the release: retreat first
     ]
     markers = [Marker("lift_in", ["pick"]), Marker("retreat_out", ["place"])]
+    if drops:  # the part slipped on the way: the place skill fails, the arm goes on to the output hub
+        edges.append(Edge("in_to_out", "at_out", ["place"], on=Status.FAILURE))
+        markers.append(Marker("in_to_out", ["place"], on=Status.FAILURE, outcome=Status.FAILURE))
     return FSM("arm", states=states, initial="at_in", goals=["pick", "place"], edges=edges, markers=markers)
 
 
-def two_area(n_parts: int = 3, waiting_max: int = 2) -> Model:
-    """Move ``n_parts`` parts; at most ``waiting_max`` wait at the input at a time."""
+def two_area(n_parts: int = 3, waiting_max: int = 2, drops: bool = False) -> Model:
+    """Move ``n_parts`` parts; at most ``waiting_max`` wait at the input at a time. With
+    ``drops`` (``two_area_drops``) a carried part may slip on the way to the output."""
     tree = MemoryFallback("work", [
         Condition("done", f"placed == {n_parts}"),
         MemorySequence("deliver", [Condition("holding_part", "holding"),
@@ -72,12 +78,14 @@ def two_area(n_parts: int = 3, waiting_max: int = 2) -> Model:
                                          on_success={"waiting": "waiting - 1"})]),
     ])
     return Model(
-        "two-area",
+        "two-area-drops" if drops else "two-area",
         variables=[Bool("holding"), Int("waiting", 0, waiting_max), Int("placed", 0, n_parts)],
         primitives=[Primitive("move", (running("moving"), success("arrived"))),
                     Primitive("grasp", (running("searching"), success("attached", holding=True))),
-                    Primitive("gripper", (success("switched"),))],
-        fsms=[arm()],
+                    Primitive("gripper", (success("switched"),))]
+        + ([Primitive("carry", (running("moving"), success("arrived"), failure("dropped", holding=False)))]
+           if drops else []),
+        fsms=[arm(drops)],
         tree=tree,
         # parts keep coming until all that are needed have come
         environment=[EnvEvent("arrive", f"waiting < {waiting_max} and placed + waiting + (1 if holding else 0) < {n_parts}",
@@ -85,5 +93,13 @@ def two_area(n_parts: int = 3, waiting_max: int = 2) -> Model:
         invariants={"release_holds_a_part": "arm.state != 'release_out' or holding"},
         workable="arm.state in ('at_in', 'at_out') and arm.goal == 'none'",
         terminal=f"placed == {n_parts}",
-        description=f"one arm, two areas: pick at 'in', place at 'out', {n_parts} parts",
+        description=f"one arm, two areas: pick at 'in', place at 'out', {n_parts} parts"
+        + (" (a carried part may slip)" if drops else ""),
     )
+
+
+def two_area_drops(n_parts: int = 3, waiting_max: int = 2) -> Model:
+    """``two_area`` whose transit to the output declares that the carried part may be
+    dropped (``carry``: failure ``dropped``, ``holding`` becomes false): the model of the
+    slip scene (``models/scenes/two_area_slip.yaml``, docs/cell.md)."""
+    return two_area(n_parts, waiting_max, drops=True)
