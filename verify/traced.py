@@ -729,6 +729,8 @@ def _closure(eng, c0, timers, smax, tmax, progress=None, t0=0.0):
             out, ev = eng.expand(batch, ROWS_LIMIT)
         except (_Wide, _Stop):
             return None
+        except MemoryError:
+            raise
         except Exception:  # e.g. Untraceable, maybe on a guessed state no run reaches
             return None
         ok = [(leaf, rows) for leaf, rows in out if leaf.kind == "ok"]
