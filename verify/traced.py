@@ -1266,10 +1266,31 @@ class _Staged:
         out, ev = eng.expand(codes, 1 << 62)
         ords = eng.ordinals()
         ok = sorted(((leaf, r) for leaf, r in out if leaf.kind == "ok"), key=lambda x: ords[x[0].id])
-        rows, lid, nxt = _transitions(ok, codes, ev)
-        del ev
-        order = np.argsort(rows, kind="stable")  # runs of ascending rows: a merge of the leaves' runs
-        return rows[order], lid[order], nxt[order], [(leaf, r) for leaf, r in out if leaf.kind == "error"]
+        bad = [(leaf, r) for leaf, r in out if leaf.kind == "error"]
+        if len(ok) <= 1:  # one leaf: its rows ascend
+            return (*_transitions(ok, codes, ev), bad)
+        # each leaf's rows go straight to their places (a row's successors in the leaves'
+        # order): no sort
+        n = len(codes)
+        count = np.zeros(n, np.int64)
+        for _, r in ok:
+            count[r] += 1  # a leaf's rows are distinct
+        start = np.cumsum(count)
+        total = int(start[-1])
+        start -= count
+        rows = np.repeat(np.arange(n), count)
+        lid, nxt = np.empty(total, np.int64), np.empty(total, np.int64)
+        for leaf, r in ok:
+            at = start[r]
+            start[r] = at + 1
+            lid[at] = leaf.id
+            shift, terms = leaf.code
+            v = codes[r] + shift
+            for term in terms:
+                t = ev(term)
+                v += t[r] if isinstance(t, np.ndarray) else t
+            nxt[at] = v
+        return rows, lid, nxt, bad
 
     def expand(self, batch, cap):
         """``(rows, kind ids, target codes)`` of the batch's transitions in the scalar
