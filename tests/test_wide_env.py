@@ -68,6 +68,19 @@ def test_budget_cut_and_small_batches_staged(staged, monkeypatch):
             assert_same(*both(m, **kw))
 
 
+@pytest.mark.parametrize("limit", [3, 50])
+def test_one_state_walked_in_slices(staged, monkeypatch, limit):
+    """A state whose rows pass ROWS_LIMIT is walked on in slices, and stops early once a
+    budget is hit among its successors: the same system, cut at the same transition."""
+    monkeypatch.setattr(traced, "ROWS_LIMIT", limit)
+    six = load_model(str(SIX))
+    for m, kws in ((six, ({"max_states": 900}, {"max_transitions": 5000}, {"max_states": 2})),
+                   (load_builtin("defect-domain"), ({}, {"max_states": 10})),
+                   (load_builtin("pickplace3"), ({"max_transitions": 2000},))):
+        for kw in kws:
+            assert_same(*both(m, **kw))
+
+
 def test_dense_and_hashed_kind_tables_agree(staged, monkeypatch):
     m = load_builtin("pickplace3")
     ref = explore(m, engine="scalar")

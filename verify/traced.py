@@ -924,8 +924,9 @@ def search(model, kind, fsm, kept, run, s0, budget, progress, op, fallback: bool
         k = min(n - head, chunk)
         batch = visited.batch(head, k)
         try:
-            if staged is not None:
-                rows, lid, dst = staged.expand(batch, min(ROWS_LIMIT, tmax - nt + 1))
+            if staged is not None:  # one state's successors may stop early, once a budget is hit among them
+                rows, dst = staged.expand(batch, min(ROWS_LIMIT, tmax - nt + 1), lambda d: len(d) > tmax - nt or len(
+                    np.unique(d[~visited.seen(d)])) > smax - n)
             else:
                 out, ev = eng.expand(batch, min(ROWS_LIMIT, tmax - nt + 1))
         except _Wide:  # split the batch: transitions are ordered by source state first
@@ -965,6 +966,8 @@ def search(model, kind, fsm, kept, run, s0, budget, progress, op, fallback: bool
             parent.extend(firstpos + nt, nt + cut)
             n += len(newcodes)
         cut_row = None if complete else int(rows[cut])
+        if staged is not None:
+            lid = staged.kinds(cut + 1)
         stop = None if complete or staged is not None else (cut_row, int(ords[lid[cut]]))
         named = lid[:cut + 1]  # the generic engine names the cut transition's label too
         rows, lid = rows[:cut], lid[:cut]
@@ -1292,32 +1295,64 @@ class _Staged:
             nxt[at] = v
         return rows, lid, nxt, bad
 
-    def expand(self, batch, cap):
-        """``(rows, kind ids, target codes)`` of the batch's transitions in the scalar
-        engine's order. Raises ``_Wide`` when a batch of more than one state reaches more
-        than ``cap`` rows."""
-        wide = len(batch) > 1
-        cur, key = batch, np.zeros(len(batch), np.int64)
-        hist, errs = [], []
-        for i, eng in enumerate(self.stages):
-            rows, lid, cur, bad = self._walk(eng, cur)
-            if bad:
-                errs.append((i, bad))
-            key = key[rows] * self.radix[i] + self._digits(i, eng)[lid]
-            hist.append((rows, lid))
-            if wide and len(cur) > cap:
-                raise _Wide()
-        rows, lid, dst, bad = self._walk(self.tree, cur)
-        if bad:
-            errs.append((len(self.stages), bad))
-        if wide and len(rows) > cap:
-            raise _Wide()
-        kinds = self._kinds(key[rows], lid)
-        self.last = (hist, rows, lid, errs)
+    def expand(self, batch, cap, enough=None):
+        """``(rows, target codes)`` of the batch's transitions in the scalar engine's order
+        (their kinds: ``kinds``). Raises ``_Wide`` when a batch of more than one state
+        reaches more than ``cap`` rows. One state whose rows pass ``cap`` is walked on in
+        slices of ``cap`` rows, in order, and stops early once ``enough(targets so far)``
+        says a budget is hit within them (the search cuts there, as on all of them)."""
+        n_stages = len(self.stages)
+        self._hist = [[] for _ in range(n_stages)]  # per entry: (input row, leaf id) of its output rows, in pieces
+        self._made = [0] * (n_stages + 2)  # output rows so far: of entry i at i + 1, of the tree last
+        self._tree, self._errs, self._sliced = [], [], False
+        self._feed(0, batch, np.zeros(len(batch), np.int64), 0, cap, len(batch) > 1, enough)
+        cat = (lambda xs: np.concatenate(xs) if len(xs) > 1 else xs[0])
+        hist = [(cat([r for r, _ in h]), cat([li for _, li in h])) for h in self._hist]
+        rows, lid, dst, key = (cat([t[k] for t in self._tree]) for k in range(4))
+        self.last = (hist, rows, lid, self._errs, key)
+        self._hist = self._tree = None
         src = rows
         for r, _ in reversed(hist):
             src = r[src]
-        return src, kinds, dst
+        return src, dst
+
+    def _feed(self, i, cur, key, base, cap, wide, enough) -> bool:
+        """Stage ``i`` (the tree when ``i`` is the number of entries) on the rows ``cur``
+        (numbered from ``base`` among the previous stage's output rows) and the stages
+        after it. False: stop, ``enough`` said so."""
+        if i == len(self.stages):
+            rows, lid, dst, bad = self._walk(self.tree, cur)
+            if bad:
+                self._errs.append((i, [(leaf, r + base) for leaf, r in bad]))
+            self._tree.append((rows + base, lid, dst, key[rows]))
+            self._made[i + 1] += len(rows)
+            if wide and self._made[i + 1] > cap:
+                raise _Wide()
+            return not (self._sliced and enough is not None and enough(np.concatenate([t[2] for t in self._tree])))
+        rows, lid, nxt, bad = self._walk(self.stages[i], cur)
+        if bad:
+            self._errs.append((i, [(leaf, r + base) for leaf, r in bad]))
+        key = key[rows] * self.radix[i] + self._digits(i, self.stages[i])[lid]
+        first = self._made[i + 1]
+        self._made[i + 1] += len(nxt)
+        self._hist[i].append((rows + base, lid))
+        if len(nxt) <= cap:
+            return self._feed(i + 1, nxt, key, first, cap, wide, enough)
+        if wide:
+            raise _Wide()
+        self._sliced = True
+        for a in range(0, len(nxt), cap):
+            if self.budget is not None and self.budget.out_of_time():
+                raise _Stop("seconds")
+            if not self._feed(i + 1, nxt[a:a + cap], key[a:a + cap], first + a, cap, wide, enough):
+                return False
+        return True
+
+    def kinds(self, n: int) -> np.ndarray:
+        """The ``_Combo`` ids of the last batch's first ``n`` transitions (those the search
+        keeps, and the one it cuts at: labels are made for no other)."""
+        _, _, lid, _, key = self.last  # key: the environment's picks of each transition
+        return self._kinds(key[:n], lid[:n])
 
     def _kinds(self, key, lid) -> np.ndarray:
         """The ``_Combo`` id of each (environment key, tree leaf id) pair."""
@@ -1376,7 +1411,7 @@ class _Staged:
     def errors(self, codes, head, cut):
         """DomainViolations of the last batch, in the scalar engine's order, before the
         transition at position ``cut`` of the batch (None: all)."""
-        hist, rows, lid, errs = self.last
+        hist, rows, lid, errs, _ = self.last
         stop = None
         if cut is not None:
             script, r = self.script(len(self.stages), int(rows[cut]), self.tree.leaves[int(lid[cut])])
