@@ -1149,6 +1149,7 @@ def _rerun_errors(eng, prog, items, codes, head):
 #: options, 2 for an event) the traced engine walks one trie per environment entry, then
 #: one for the tree, each on the rows the previous one left (``_Staged``).
 ENV_WIDE = 64
+SLICE = 1 << 12  # rows of the first slice of one state's successors (then doubled up to ROWS_LIMIT)
 
 
 def env_width(prog) -> int:
@@ -1304,7 +1305,7 @@ class _Staged:
         n_stages = len(self.stages)
         self._hist = [[] for _ in range(n_stages)]  # per entry: (input row, leaf id) of its output rows, in pieces
         self._made = [0] * (n_stages + 2)  # output rows so far: of entry i at i + 1, of the tree last
-        self._tree, self._errs, self._sliced = [], [], False
+        self._tree, self._errs, self._sliced, self._slice = [], [], False, min(cap, SLICE)
         self._feed(0, batch, np.zeros(len(batch), np.int64), 0, cap, len(batch) > 1, enough)
         cat = (lambda xs: np.concatenate(xs) if len(xs) > 1 else xs[0])
         hist = [(cat([r for r, _ in h]), cat([li for _, li in h])) for h in self._hist]
@@ -1336,16 +1337,20 @@ class _Staged:
         first = self._made[i + 1]
         self._made[i + 1] += len(nxt)
         self._hist[i].append((rows + base, lid))
-        if len(nxt) <= cap:
+        if len(nxt) <= (cap if wide else self._slice):
             return self._feed(i + 1, nxt, key, first, cap, wide, enough)
         if wide:
             raise _Wide()
         self._sliced = True
-        for a in range(0, len(nxt), cap):
+        a = 0
+        while a < len(nxt):  # slices of growing size: a budget hit early costs little
             if self.budget is not None and self.budget.out_of_time():
                 raise _Stop("seconds")
-            if not self._feed(i + 1, nxt[a:a + cap], key[a:a + cap], first + a, cap, wide, enough):
+            b = a + self._slice
+            self._slice = min(cap, 2 * self._slice)
+            if not self._feed(i + 1, nxt[a:b], key[a:b], first + a, cap, wide, enough):
                 return False
+            a = b
         return True
 
     def kinds(self, n: int) -> np.ndarray:
