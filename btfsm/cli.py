@@ -41,7 +41,7 @@ import os
 import sys
 
 from .errors import ConformanceError, DomainError, ModelError, Terminated, UsageError
-from . import signals
+from . import reserve, signals
 from .profiles import SEMANTICS
 from .validators import (finite_float, input_file, input_text, int_range, output_dir, output_file, probability,
                          seed_int)
@@ -476,6 +476,7 @@ def main(argv=None) -> int:
     argv = sys.argv[1:] if argv is None else list(argv)
     command, as_json, debug = _prescan(argv)
     _safe_streams()
+    reserve.hold()  # released on a MemoryError, so that the report has memory to be written
     with signals.handling():
         try:
             code = _main(argv)
@@ -487,6 +488,8 @@ def main(argv=None) -> int:
             _silence_stdout()
             return EXIT_OK
         except BaseException as exc:  # noqa: BLE001 - the one place that turns everything into one line
+            if isinstance(exc, MemoryError):
+                return _out_of_memory(exc, command, as_json)
             info = _describe(exc, command)
             _emit(info, as_json)
             if debug and info["kind"] == "internal":
@@ -494,6 +497,24 @@ def main(argv=None) -> int:
 
                 traceback.print_exception(type(exc), exc, exc.__traceback__, file=sys.stderr)
             return info["exit_code"]
+
+
+def _out_of_memory(exc: MemoryError, command: str, as_json: bool) -> int:
+    """The budget exit (3) of a MemoryError, in one line: the reserve and what the failed
+    computation held are freed first; should the message still not fit, a fixed line is
+    written straight to the file descriptor."""
+    reserve.release(exc)
+    try:
+        _emit(_describe(exc, command), as_json)
+    except MemoryError:
+        try:
+            os.write(2, _OOM_LINE)
+        except OSError:
+            pass
+    return EXIT_BUDGET
+
+
+_OOM_LINE = b"btfsm: incomplete: out of memory before an answer (lower --max-states)\n"
 
 
 def _silence_stdout() -> None:

@@ -56,7 +56,8 @@ def _columns(stream) -> int:
 
 class ExplorationProgress:
     """``progress(what, states, transitions, seconds)``: a bar per explored system
-    (``what``, e.g. ``model`` or ``fsm arm``) with states, states/s and transitions."""
+    (``what``, e.g. ``model`` or ``fsm arm``) with states, states/s, transitions and
+    transitions/s (``seconds``: since that exploration started)."""
 
     def __init__(self, file=None, delay: float = 1.0, **options):
         self.file = sys.stderr if file is None else file
@@ -72,7 +73,8 @@ class ExplorationProgress:
             self._bar = progress_bar(desc=str(what), unit=" states", file=self.file, delay=self.delay, **self.options)
         bar = self._bar
         if transitions is not None and not bar.disable:
-            bar.set_postfix_str(f"{transitions:,} transitions", refresh=False)
+            rate = f" ({transitions / seconds:,.0f}/s)" if seconds else ""  # wide branching: transitions outrun states
+            bar.set_postfix_str(f"{transitions:,} transitions{rate}", refresh=False)
         if states > bar.n:
             bar.update(states - bar.n)
 

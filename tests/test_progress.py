@@ -56,7 +56,7 @@ def test_exploration_progress_callback(stream, shown):
     if not shown:
         assert text == ""
     else:
-        assert "model" in text and "5000" in text and "9,000 transitions" in text and "fsm arm" in text
+        assert "model" in text and "5000" in text and "9,000 transitions (9,000/s)" in text and "fsm arm" in text
 
 
 def test_exploration_progress_waits_for_its_delay():

@@ -15,6 +15,8 @@ import json
 import os
 import sys
 
+from btfsm import reserve
+
 __all__ = ["cli_check", "cli_export", "cli_bound"]
 
 
@@ -42,11 +44,15 @@ def cli_check(args) -> int:
     if getattr(args, "trigger", None) and props and "response" not in props:
         props.append("response")
     progress = ExplorationProgress()
+    report = None
     try:
         report = check(model, props or None, max_states=max_states, max_transitions=max_transitions,
                        max_seconds=max_seconds, progress=progress, engine=args.engine,
                        goal_level=getattr(args, "goal_level", "open"))
-    except MemoryError:
+    except MemoryError as exc:
+        reserve.release(exc)  # the reserve, and the exploration's frames the traceback holds
+    if report is None:  # reported outside the handler: nothing of the exploration is left
+        reserve.release()
         progress.done()
         print(f"btfsm check: out of memory while exploring {model.name}; lower --max-states", file=sys.stderr)
         return 3
@@ -114,10 +120,14 @@ def cli_bound(args) -> int:
     from btfsm.progress import ExplorationProgress
 
     progress = ExplorationProgress()
+    ts = None
     try:
         ts = explore(model, max_states=max_states, max_transitions=max_transitions, max_seconds=max_seconds,
                      progress=lambda s, t, sec: progress("model", s, t, sec))
-    except MemoryError:
+    except MemoryError as exc:
+        reserve.release(exc)
+    if ts is None:
+        reserve.release()
         progress.done()
         print(f"btfsm bound: out of memory while exploring {model.name}; lower --max-states", file=sys.stderr)
         return 3

@@ -359,13 +359,16 @@ def _explore_with(engine, model, kind, fsm, kept, run, init, budget, progress, o
     off on small systems); a system that is larger is explored again, from the start, by
     the traced engine under the same budget (its clock included), or by the scalar engine
     when the probe's breadth-first levels averaged fewer than ``AUTO_NARROW_LEVEL`` states; a model whose timers
-    alone span more values than that skips the probe (``_long_timers``). A traced search whose
+    alone span more values than that skips the probe (``_long_timers``), and so does a model whose
+    environment answers multiply past ``btfsm.verify.traced.ENV_WIDE`` per state (each state
+    has that many successors: the scalar engine runs the step once per transition). A traced search whose
     paths multiply (``TooManyPaths``) goes on with the scalar engine; ``traced`` then stops
     at a "paths" budget."""
     if engine not in ("auto", "traced", "scalar"):
         raise ValueError(f"engine must be auto, traced or scalar, not {engine!r}")
     split = scalar.TreeCache(model) if kind == "model" and model.environment and model.tree is not None else None
-    if engine == "auto" and not _long_timers(model.program, kept):
+    wide = kind == "model" and traced.env_width(model.program) >= traced.ENV_WIDE
+    if engine == "auto" and not wide and not _long_timers(model.program, kept):
         small = AUTO_SCALAR_STATES if budget.max_states is None else min(budget.max_states, AUTO_SCALAR_STATES)
         probe = Budget(small, budget.max_transitions, budget.max_seconds)
         probe.start = budget.start

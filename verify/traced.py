@@ -729,6 +729,8 @@ def _closure(eng, c0, timers, smax, tmax, progress=None, t0=0.0):
             out, ev = eng.expand(batch, ROWS_LIMIT)
         except (_Wide, _Stop):
             return None
+        except MemoryError:
+            raise
         except Exception:  # e.g. Untraceable, maybe on a guessed state no run reaches
             return None
         ok = [(leaf, rows) for leaf, rows in out if leaf.kind == "ok"]
@@ -890,7 +892,11 @@ def search(model, kind, fsm, kept, run, s0, budget, progress, op, fallback: bool
     tmax = (1 << 62) if budget.max_transitions is None else budget.max_transitions
     chunk = CHUNK
     c0 = sum(v * m for v, m in zip(s0, mults)) - offset
-    if budget.max_seconds is None and _timer_slots(prog, kept, mults):
+    staged = None
+    if kind == "model" and env_width(prog) >= ENV_WIDE:  # one trie per environment entry, then the tree
+        staged = _Staged(model, kept, s0)
+        staged.budget = eng.budget
+    elif budget.max_seconds is None and _timer_slots(prog, kept, mults):
         ts = _search_closure(model, kind, fsm, kept, eng, c0, smax, tmax, progress, t0, op)
         if ts is not None:
             return ts
@@ -918,24 +924,30 @@ def search(model, kind, fsm, kept, run, s0, budget, progress, op, fallback: bool
         k = min(n - head, chunk)
         batch = visited.batch(head, k)
         try:
-            out, ev = eng.expand(batch, min(ROWS_LIMIT, tmax - nt + 1))
+            if staged is not None:  # one state's successors may stop early, once a budget is hit among them
+                rows, dst = staged.expand(batch, min(ROWS_LIMIT, tmax - nt + 1), lambda d: len(d) > tmax - nt or len(
+                    np.unique(d[~visited.seen(d)])) > smax - n)
+            else:
+                out, ev = eng.expand(batch, min(ROWS_LIMIT, tmax - nt + 1))
         except _Wide:  # split the batch: transitions are ordered by source state first
             chunk = max(1, k // 4)
             continue
         except _Stop as stop_:
             if stop_.hit == "paths" and fallback:
-                raise TooManyPaths(f"more than {eng.max_paths} paths traced after {nt} transitions") from None
+                raise TooManyPaths(f"more than {(staged or eng).max_paths} paths traced after {nt} transitions") from None
             complete, budget.hit, expanded = False, stop_.hit, head
             break
         chunk = min(CHUNK, chunk * 2)
-        ords = eng.ordinals()
-        # transitions of the batch, ordered as the generic engine makes them
-        ok = sorted(((leaf, rows) for leaf, rows in out if leaf.kind == "ok"), key=lambda x: ords[x[0].id])
-        rows, lid, dst = _transitions(ok, batch, ev)
-        # each leaf's rows are ascending and the leaves are in order: a stable sort by row
-        # (a radix sort on 16 bits) gives the (source, script) order
-        order = np.argsort(rows.astype(np.uint16) if k <= 1 << 16 else rows, kind="stable")
-        rows, lid, dst = rows[order], lid[order], dst[order]
+        if staged is None:
+            ords = eng.ordinals()
+            # transitions of the batch, ordered as the generic engine makes them
+            ok = sorted(((leaf, rows) for leaf, rows in out if leaf.kind == "ok"), key=lambda x: ords[x[0].id])
+            rows, lid, dst = _transitions(ok, batch, ev)
+            # each leaf's rows are ascending and the leaves are in order: a stable sort by row
+            # (a radix sort on 16 bits) gives the (source, script) order
+            order = np.argsort(rows.astype(np.uint16) if k <= 1 << 16 else rows, kind="stable")
+            rows, lid, dst = rows[order], lid[order], dst[order]
+        leaves = eng.leaves if staged is None else staged.leaves
         # new targets, numbered in order of first discovery
         cut = len(dst)
         if cut > tmax - nt:  # the transition budget ends within this batch
@@ -953,19 +965,22 @@ def search(model, kind, fsm, kept, run, s0, budget, progress, op, fallback: bool
             visited.add(newcodes)
             parent.extend(firstpos + nt, nt + cut)
             n += len(newcodes)
-        stop = None if complete else (int(rows[cut]), int(ords[lid[cut]]))
+        cut_row = None if complete else int(rows[cut])
+        if staged is not None:
+            lid = staged.kinds(cut + 1)
+        stop = None if complete or staged is not None else (cut_row, int(ords[lid[cut]]))
         named = lid[:cut + 1]  # the generic engine names the cut transition's label too
         rows, lid = rows[:cut], lid[:cut]
         # labels numbered in order of first use, as the generic engine does
-        if len(leaf_kind) < len(eng.leaves):
-            grow = len(eng.leaves) - len(leaf_kind)
+        if len(leaf_kind) < len(leaves):
+            grow = len(leaves) - len(leaf_kind)
             leaf_kind = np.concatenate([leaf_kind, np.full(grow, -1, np.int64)])
-            leaf_viol = np.array([leaf.violations is not None for leaf in eng.leaves], bool)
+            leaf_viol = np.array([leaf.violations is not None for leaf in leaves], bool)
         if len(named) and (leaf_kind[named] < 0).any():
             u, first = np.unique(named, return_index=True)
             for li in u[np.argsort(first)]:
                 if leaf_kind[li] < 0:
-                    leaf = eng.leaves[li]
+                    leaf = leaves[li]
                     lab = label_ids.get(leaf.label)
                     if lab is None:
                         lab = label_ids[leaf.label] = len(labels)
@@ -976,17 +991,20 @@ def search(model, kind, fsm, kept, run, s0, budget, progress, op, fallback: bool
         targets.frombytes(dst[:cut].astype(visited.codes.dtype).tobytes())
         edge_c.extend(leaf_kind[lid], len(kinds))
         for t in np.flatnonzero(leaf_viol[lid]).tolist():
-            violations.append((nt + t, eng.leaves[int(lid[t])].violations))
+            violations.append((nt + t, leaves[int(lid[t])].violations))
         # domain errors, re-run on concrete states (reported exactly as the generic engine does)
-        bad = [(leaf, r) for leaf, r in out if leaf.kind == "error"]
-        if bad:
-            errors.extend(_errors(eng, prog, bad, batch, head, ords, stop))
+        if staged is not None:
+            errors.extend(staged.errors(batch, head, None if complete else cut))
+        else:
+            bad = [(leaf, r) for leaf, r in out if leaf.kind == "error"]
+            if bad:
+                errors.extend(_errors(eng, prog, bad, batch, head, ords, stop))
         nt += cut
         if not complete:
-            expanded = head + stop[0]
+            expanded = head + cut_row
             break
         head += k
-        eng.max_paths = max(PATHS_MIN, nt // PATHS_RATIO)
+        (staged or eng).max_paths = max(PATHS_MIN, nt // PATHS_RATIO)
         if progress is not None:
             progress(n, nt, time.perf_counter() - t0)
     if expanded is None:
@@ -1105,9 +1123,14 @@ def _errors(eng, prog, bad, codes, head, ords, cut_at):
         for r in rows.tolist():
             if cut_at is None or (r, int(ords[leaf.id])) < cut_at:
                 items.append((r, int(ords[leaf.id]), leaf))
+    return _rerun_errors(eng, prog, [(r, leaf.taken) for r, _, leaf in sorted(items, key=lambda x: x[:2])], codes, head)
+
+
+def _rerun_errors(eng, prog, items, codes, head):
+    """The DomainViolations of ``(row, choice script)`` items, re-run on concrete states."""
     out = []
-    for r, _, leaf in sorted(items, key=lambda x: x[:2]):
-        o = EnumOracle(leaf.taken)
+    for r, taken in items:
+        o = EnumOracle(taken)
         try:
             eng.run(eng.state_of(int(codes[r])), o)
         except DomainError as exc:
@@ -1116,3 +1139,300 @@ def _errors(eng, prog, bad, codes, head, ords, cut_at):
         else:
             raise Untraceable("a traced domain error did not happen again")
     return out
+
+
+# ---------------------------------------------------------------------- wide environments: staged tries
+
+#: The environment multiplies the paths of one trie: every entry's answers times every other
+#: entry's (6 choices of 3 options: 729 paths per state, 7**6 in all with the guards'
+#: decisions). Past this many combined answers (the product over the entries of their
+#: options, 2 for an event) the traced engine walks one trie per environment entry, then
+#: one for the tree, each on the rows the previous one left (``_Staged``).
+ENV_WIDE = 64
+SLICE = 1 << 12  # rows of the first slice of one state's successors (then doubled up to ROWS_LIMIT)
+
+
+def env_width(prog) -> int:
+    """The product over the environment entries of their possible answers (options of a
+    choice, 2 for an event): an upper bound of the environment's answers per state."""
+    w = 1
+    for _, _, _, options in prog.env:
+        w *= max(2, len(options)) if options is not None else 2
+    return w
+
+
+class _EnvStep:
+    """What one environment entry leaves: the state; no status, no violation."""
+
+    __slots__ = ("state",)
+    status = 0
+    violations = None
+
+    def __init__(self, state):
+        self.state = state
+
+
+class _Combo:
+    """One transition kind of a staged search: the environment's answers (their readable
+    picks) and the tree's path; what ``search`` reads of a leaf."""
+
+    __slots__ = ("id", "label", "status", "violations")
+    kind = "ok"
+    goal = -1
+
+    def __init__(self, id, label, status, violations):
+        self.id, self.label, self.status, self.violations = id, label, status, violations
+
+
+class _Staged:
+    """The traced engine for a model whose environment answers multiply (``ENV_WIDE``).
+
+    ``Program.step`` is the environment entries in order (``Program.environment_phase``),
+    then the tree on the state they leave (the same split as the scalar engine's
+    ``TreeCache``: nothing but the state passes between the phases). So a tick is traced as
+    a sequence of tries: one per environment entry (``environment_phase`` of that entry
+    alone) and one for the tree (``Program.step`` of the model without environment). A
+    batch walks them in turn: each trie's leaves turn every row into its successors (rows
+    multiply, paths only add up: 6 choices of 3 options make 7 paths each, not 7**6). Rows
+    stay ordered by (source, choice script in depth-first order) at every stage, so the
+    transitions come out in the scalar engine's order. A transition's kind (``_Combo``:
+    label, status, violations) is the environment's picks, a mixed-radix key over the
+    entries, with the tree's leaf."""
+
+    TABLE = 1 << 22  # (environment key, tree leaf) pairs looked up in a dense table, else hashed
+
+    def __init__(self, model, kept, s0):
+        import dataclasses
+
+        prog = model.program
+        self.prog, self.run, self.op = prog, prog.step, None
+        self.stages = []
+        for i in range(len(prog.env)):
+            self.stages.append(_Engine(model, self._entry(prog, i), kept, s0, None))
+        tree = dataclasses.replace(model, environment=(), responses=()).program
+        self.tree = _Engine(model, tree.step, kept, s0, None)
+        self.engines = self.stages + [self.tree]
+        # an entry's readable picks: an event happened or not; a choice's option, or none
+        # when a lone option was enabled (no choice point)
+        self.radix = [len(o) + 1 if o is not None else 2 for _, _, _, o in prog.env]
+        self.space = 1
+        for r in self.radix:
+            self.space *= r
+        self.pick_of = [{} for _ in self.stages]  # per entry: readable label -> pick digit
+        self.pick_label = [[] for _ in self.stages]  # ... and back
+        self.leaves: list = []  # the _Combos, by id
+        self.combos: dict = {}  # (environment key, tree leaf id) -> _Combo id
+        self.table = None  # or a dense int32 table over environment key * tl + tree leaf id
+        self.tl = 64
+        self.digits = [np.zeros(0, np.int64) for _ in self.stages]  # per entry: leaf id -> pick digit
+        self.max_paths = PATHS_MIN
+        self.budget = None
+        self.last = None  # the last batch's history (for scripts of errors and of the cut)
+
+    @staticmethod
+    def _entry(prog, i):
+        def run(state, oracle):
+            s = list(state)
+            if prog.environment_phase(s, oracle, None, (i,)) is not None:
+                return None  # a choice without enabled option: the tick cannot happen
+            return _EnvStep(tuple(s))
+        return run
+
+    def __setattr__(self, name, value):
+        object.__setattr__(self, name, value)
+        if name in ("max_paths", "budget") and "engines" in self.__dict__:
+            for e in self.engines:
+                setattr(e, name, value)
+
+    def state_of(self, code: int) -> tuple:
+        return self.tree.state_of(code)
+
+    def _digits(self, i, eng) -> np.ndarray:
+        d = self.digits[i]
+        if len(d) < len(eng.leaves):
+            ids, labels = self.pick_of[i], self.pick_label[i]
+            new = []
+            for leaf in eng.leaves[len(d):]:
+                p = ids.get(leaf.label)
+                if p is None:
+                    p = ids[leaf.label] = len(labels)
+                    labels.append(leaf.label)
+                new.append(p)
+            d = self.digits[i] = np.concatenate([d, np.array(new, np.int64)])
+        return d
+
+    @staticmethod
+    def _walk(eng, codes):
+        """The ok leaves' rows of one trie, ordered by (row, leaf in script order):
+        ``(rows, leaf ids, next codes, error leaves [(leaf, rows)])``."""
+        if not len(codes):
+            return codes, codes, codes, []
+        out, ev = eng.expand(codes, 1 << 62)
+        ords = eng.ordinals()
+        ok = sorted(((leaf, r) for leaf, r in out if leaf.kind == "ok"), key=lambda x: ords[x[0].id])
+        bad = [(leaf, r) for leaf, r in out if leaf.kind == "error"]
+        if len(ok) <= 1:  # one leaf: its rows ascend
+            return (*_transitions(ok, codes, ev), bad)
+        # each leaf's rows go straight to their places (a row's successors in the leaves'
+        # order): no sort
+        n = len(codes)
+        count = np.zeros(n, np.int64)
+        for _, r in ok:
+            count[r] += 1  # a leaf's rows are distinct
+        start = np.cumsum(count)
+        total = int(start[-1])
+        start -= count
+        rows = np.repeat(np.arange(n), count)
+        lid, nxt = np.empty(total, np.int64), np.empty(total, np.int64)
+        for leaf, r in ok:
+            at = start[r]
+            start[r] = at + 1
+            lid[at] = leaf.id
+            shift, terms = leaf.code
+            v = codes[r] + shift
+            for term in terms:
+                t = ev(term)
+                v += t[r] if isinstance(t, np.ndarray) else t
+            nxt[at] = v
+        return rows, lid, nxt, bad
+
+    def expand(self, batch, cap, enough=None):
+        """``(rows, target codes)`` of the batch's transitions in the scalar engine's order
+        (their kinds: ``kinds``). Raises ``_Wide`` when a batch of more than one state
+        reaches more than ``cap`` rows. One state whose rows pass ``cap`` is walked on in
+        slices of ``cap`` rows, in order, and stops early once ``enough(targets so far)``
+        says a budget is hit within them (the search cuts there, as on all of them)."""
+        n_stages = len(self.stages)
+        self._hist = [[] for _ in range(n_stages)]  # per entry: (input row, leaf id) of its output rows, in pieces
+        self._made = [0] * (n_stages + 2)  # output rows so far: of entry i at i + 1, of the tree last
+        self._tree, self._errs, self._sliced, self._slice = [], [], False, min(cap, SLICE)
+        self._feed(0, batch, np.zeros(len(batch), np.int64), 0, cap, len(batch) > 1, enough)
+        cat = (lambda xs: np.concatenate(xs) if len(xs) > 1 else xs[0])
+        hist = [(cat([r for r, _ in h]), cat([li for _, li in h])) for h in self._hist]
+        rows, lid, dst, key = (cat([t[k] for t in self._tree]) for k in range(4))
+        self.last = (hist, rows, lid, self._errs, key)
+        self._hist = self._tree = None
+        src = rows
+        for r, _ in reversed(hist):
+            src = r[src]
+        return src, dst
+
+    def _feed(self, i, cur, key, base, cap, wide, enough) -> bool:
+        """Stage ``i`` (the tree when ``i`` is the number of entries) on the rows ``cur``
+        (numbered from ``base`` among the previous stage's output rows) and the stages
+        after it. False: stop, ``enough`` said so."""
+        if i == len(self.stages):
+            rows, lid, dst, bad = self._walk(self.tree, cur)
+            if bad:
+                self._errs.append((i, [(leaf, r + base) for leaf, r in bad]))
+            self._tree.append((rows + base, lid, dst, key[rows]))
+            self._made[i + 1] += len(rows)
+            if wide and self._made[i + 1] > cap:
+                raise _Wide()
+            return not (self._sliced and enough is not None and enough(np.concatenate([t[2] for t in self._tree])))
+        rows, lid, nxt, bad = self._walk(self.stages[i], cur)
+        if bad:
+            self._errs.append((i, [(leaf, r + base) for leaf, r in bad]))
+        key = key[rows] * self.radix[i] + self._digits(i, self.stages[i])[lid]
+        first = self._made[i + 1]
+        self._made[i + 1] += len(nxt)
+        self._hist[i].append((rows + base, lid))
+        if len(nxt) <= (cap if wide else self._slice):
+            return self._feed(i + 1, nxt, key, first, cap, wide, enough)
+        if wide:
+            raise _Wide()
+        self._sliced = True
+        a = 0
+        while a < len(nxt):  # slices of growing size: a budget hit early costs little
+            if self.budget is not None and self.budget.out_of_time():
+                raise _Stop("seconds")
+            b = a + self._slice
+            self._slice = min(cap, 2 * self._slice)
+            if not self._feed(i + 1, nxt[a:b], key[a:b], first + a, cap, wide, enough):
+                return False
+            a = b
+        return True
+
+    def kinds(self, n: int) -> np.ndarray:
+        """The ``_Combo`` ids of the last batch's first ``n`` transitions (those the search
+        keeps, and the one it cuts at: labels are made for no other)."""
+        _, _, lid, _, key = self.last  # key: the environment's picks of each transition
+        return self._kinds(key[:n], lid[:n])
+
+    def _kinds(self, key, lid) -> np.ndarray:
+        """The ``_Combo`` id of each (environment key, tree leaf id) pair."""
+        tl = self.tl
+        while len(self.tree.leaves) > tl:
+            tl *= 2
+        if self.space * tl <= self.TABLE:
+            if self.table is None or tl != self.tl:
+                self.tl, self.table = tl, np.full(self.space * tl, -1, np.int32)
+                for (k, li), c in self.combos.items():
+                    self.table[k * tl + li] = c
+            flat = key * tl + lid
+            got = self.table[flat]
+            miss = got < 0
+            if miss.any():
+                for f in np.unique(flat[miss]).tolist():
+                    self.table[f] = self._combo(f // tl, f % tl)
+                got = self.table[flat]
+            return got.astype(np.int64)
+        flat = key * (1 << 32) + lid if self.space < 1 << 30 else None
+        if flat is not None:
+            u, inv = np.unique(flat, return_inverse=True)
+            ids = np.array([self._combo(f >> 32, f & 0xFFFFFFFF) for f in u.tolist()], np.int64)
+        else:
+            pairs = np.stack([key, lid], axis=1)
+            u, inv = np.unique(pairs, axis=0, return_inverse=True)
+            ids = np.array([self._combo(int(k), int(li)) for k, li in u.tolist()], np.int64)
+        return ids[inv.reshape(-1)]
+
+    def _combo(self, k: int, li: int) -> int:
+        c = self.combos.get((k, li))
+        if c is None:
+            label, rest = (), k
+            for i in reversed(range(len(self.stages))):
+                rest, d = divmod(rest, self.radix[i])
+                label = self.pick_label[i][d] + label
+            leaf = self.tree.leaves[li]
+            c = self.combos[(k, li)] = len(self.leaves)
+            self.leaves.append(_Combo(c, label + leaf.label, leaf.status, leaf.violations))
+        return c
+
+    def ordinals(self):
+        return None
+
+    def script(self, stage: int, row: int, leaf) -> tuple:
+        """The whole choice script of ``row`` of ``stage`` (an index into that stage's
+        input rows) ending at ``leaf``."""
+        hist = self.last[0]
+        taken = list(leaf.taken)
+        for j in reversed(range(stage)):
+            rows, lid = hist[j]
+            taken[:0] = self.stages[j].leaves[int(lid[row])].taken
+            row = int(rows[row])
+        return tuple(taken), row
+
+    def errors(self, codes, head, cut):
+        """DomainViolations of the last batch, in the scalar engine's order, before the
+        transition at position ``cut`` of the batch (None: all)."""
+        hist, rows, lid, errs, _ = self.last
+        stop = None
+        if cut is not None:
+            script, r = self.script(len(self.stages), int(rows[cut]), self.tree.leaves[int(lid[cut])])
+            stop = (r, _dfs_key(script))
+        items = []
+        for stage, bad in errs:
+            for leaf, rs in bad:
+                for r in rs.tolist():
+                    script, src = self.script(stage, r, leaf)
+                    k = (src, _dfs_key(script))
+                    if stop is None or k < stop:
+                        items.append((k, script))
+        items.sort()
+        return _rerun_errors(self, self.prog, [(k[0], s) for k, s in items], codes, head)
+
+
+def _dfs_key(script) -> tuple:
+    """The order of a choice script in the scalar engine's depth-first search."""
+    return tuple(c and _LAST - c for c in script)
