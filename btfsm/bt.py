@@ -3,7 +3,8 @@
 Composites: ``ReactiveSequence``, ``MemorySequence``, ``SequenceWithMemory``,
 ``ReactiveFallback``, ``MemoryFallback``, ``Parallel``, ``ParallelAll``, ``IfThenElse`` and
 ``WhileDoElse``. Decorators: ``Inverter``, ``ForceSuccess``, ``ForceFailure``, ``Retry``,
-``Repeat``, ``KeepRunningUntilFailure``, ``RunOnce``, ``Guard`` and ``Effects``. Leaves: ``Condition``,
+``Repeat``, ``KeepRunningUntilFailure``, ``RunOnce``, ``Guard``, ``Effects`` and ``SubTree``
+(BehaviorTree.CPP's SubTree node: the tree of another ``<BehaviorTree>``). Leaves: ``Condition``,
 ``Action`` and ``SkillRequest``. Their tick rules are in docs/semantics.md and in exactly
 one implementation, ``btfsm.semantics``.
 
@@ -22,6 +23,7 @@ SequenceWithMemory                                 ``SequenceWithMemory``
 ParallelAll                                        ``ParallelAll``
 IfThenElse                                         ``IfThenElse``
 WhileDoElse                                        ``WhileDoElse``
+SubTree                                            ``SubTree``
 ================== =============================== ==========================
 
 The reactive rows and py_trees' ``SuccessOnOne``/``SuccessOnSelected`` hold exactly under
@@ -47,7 +49,7 @@ __all__ = [
     "ReactiveSequence", "MemorySequence", "ReactiveFallback", "MemoryFallback", "Parallel",
     "SequenceWithMemory", "ParallelAll", "IfThenElse", "WhileDoElse",
     "Inverter", "ForceSuccess", "ForceFailure", "Retry", "Repeat", "Guard", "Effects",
-    "KeepRunningUntilFailure", "RunOnce",
+    "KeepRunningUntilFailure", "RunOnce", "SubTree",
     "Condition", "Action", "SkillRequest", "walk", "NODE_TYPES",
 ]
 
@@ -209,6 +211,21 @@ class Effects(Decorator):
 
 
 @dataclass(frozen=True)
+class SubTree(Decorator):
+    """BehaviorTree.CPP's ``<SubTree ID="tree_id">``: returns its child's status. Under
+    ``semantics: btcpp`` it resets its child whenever the child finishes (BT.CPP 4's
+    SubTreeNode), so a stateful leaf at the subtree's root keeps no old status
+    (docs/semantics.md section 8.1). ``tree_id``: the ``<BehaviorTree>`` ID (default: the
+    node's name); the export writes one ``<BehaviorTree>`` per ID."""
+
+    tree_id: str = ""
+
+    def __post_init__(self):
+        if not self.tree_id:
+            object.__setattr__(self, "tree_id", self.name)
+
+
+@dataclass(frozen=True)
 class Leaf(Node):
     pass
 
@@ -284,5 +301,5 @@ def walk(node: Node) -> Iterator[Node]:
 NODE_TYPES = {cls.__name__: cls for cls in (
     ReactiveSequence, MemorySequence, ReactiveFallback, MemoryFallback, Parallel,
     SequenceWithMemory, ParallelAll, IfThenElse, WhileDoElse,
-    Inverter, ForceSuccess, ForceFailure, Retry, Repeat, KeepRunningUntilFailure, RunOnce, Guard, Effects,
+    Inverter, ForceSuccess, ForceFailure, Retry, Repeat, KeepRunningUntilFailure, RunOnce, Guard, Effects, SubTree,
     Condition, Action, SkillRequest)}

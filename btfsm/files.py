@@ -38,7 +38,7 @@ from pathlib import Path
 import yaml
 
 from .bt import (NODE_TYPES, Action, Composite, Condition, Decorator, Effects, Guard, Parallel, ParallelAll, Repeat, Retry,
-                 RunOnce, SkillRequest, walk)
+                 RunOnce, SkillRequest, SubTree, walk)
 from .errors import ModelError
 from .expr import Const, Expr, as_expr, to_text
 from .fsm import FSM, Edge, Marker, State
@@ -751,7 +751,7 @@ _NODE_FIELDS = {
     "Parallel": ("success_threshold", "failure_threshold", "synchronise", "selected", "children"),
     "SequenceWithMemory": ("children",), "ParallelAll": ("max_failures", "children"),
     "IfThenElse": ("children",), "WhileDoElse": ("children",),
-    "KeepRunningUntilFailure": ("child",), "RunOnce": ("then_skip", "child"),
+    "KeepRunningUntilFailure": ("child",), "RunOnce": ("then_skip", "child"), "SubTree": ("tree_id", "child"),
     "Inverter": ("child",), "ForceSuccess": ("child",), "ForceFailure": ("child",),
     "Retry": ("attempts", "child"), "Repeat": ("times", "child"), "Guard": ("condition", "child"),
     "Effects": ("on_start", "on_success", "on_failure", "on_halt", "child"),
@@ -761,7 +761,7 @@ _NODE_FIELDS = {
 _NODE_REQUIRED = {"Guard": ("condition", "child"), "Condition": ("expr",), "SkillRequest": ("fsm", "goal"),
                   "Inverter": ("child",), "ForceSuccess": ("child",), "ForceFailure": ("child",),
                   "Retry": ("child",), "Repeat": ("child",), "Effects": ("child",),
-                  "KeepRunningUntilFailure": ("child",), "RunOnce": ("child",),
+                  "KeepRunningUntilFailure": ("child",), "RunOnce": ("child",), "SubTree": ("child",),
                   "IfThenElse": ("children",), "WhileDoElse": ("children",)}
 TRIGGER_KEYS = ("when", "on", True)  # "on" and True (YAML 1.1's reading of on:) are older spellings
 TOP_FIELDS = ("name", "description", "semantics", "tick_rate", "variables", "primitives", "fsms", "tree",
@@ -1014,6 +1014,8 @@ class _Reader:
             if not isinstance(obj["then_skip"], bool):
                 raise self.fail(f"{path}.then_skip", f"expected true or false, got {_kind(obj['then_skip'])}", obj, "then_skip")
             kw["then_skip"] = obj["then_skip"]
+        if obj.get("tree_id") is not None:
+            kw["tree_id"] = self.string(obj["tree_id"], f"{path}.tree_id", obj, "tree_id", "a BehaviorTree ID")
         if obj.get("synchronise") is not None:
             if not isinstance(obj["synchronise"], bool):
                 raise self.fail(f"{path}.synchronise", f"expected true or false, got {_kind(obj['synchronise'])}", obj, "synchronise")
@@ -1550,6 +1552,8 @@ def _node_data(n) -> dict:
         out["max_failures"] = n.max_failures
     if isinstance(n, RunOnce):
         out["then_skip"] = n.then_skip
+    if isinstance(n, SubTree) and n.tree_id != n.name:
+        out["tree_id"] = n.tree_id
     if isinstance(n, Retry) and n.attempts != 1:
         out["attempts"] = n.attempts
     if isinstance(n, Repeat) and n.times != 1:

@@ -22,7 +22,7 @@ from dataclasses import dataclass
 from .bt import (Action, Condition, Effects, ForceFailure, ForceSuccess, Guard, IfThenElse, Inverter,
                  KeepRunningUntilFailure, MemoryFallback, MemorySequence, Node, Parallel, ParallelAll,
                  ReactiveFallback, ReactiveSequence, Repeat, Retry, RunOnce, SequenceWithMemory,
-                 SkillRequest, WhileDoElse)
+                 SkillRequest, SubTree, WhileDoElse)
 from .errors import ModelError
 from .expr import BOOL, Scope, Slot, Type, compile_effects, compile_fn
 from .profiles import profile
@@ -663,10 +663,12 @@ class Program:
             need = count if n.success_threshold is None else _threshold(n.success_threshold, count)
             fail_at = _threshold(n.failure_threshold, count)
             top = count if self.profile.parallel_memory else fail_at  # BT.CPP refuses failure > children
-            if not 1 <= need <= count or not 1 <= fail_at <= top:
+            low = 0 if self.profile.parallel_memory else 1  # BT.CPP's 0: decide after the first child
+            if not low <= need <= count or not low <= fail_at <= top:
                 bound = f" <= {count}" if self.profile.parallel_memory else ""
-                raise ModelError(where, f"thresholds must satisfy 1 <= success <= {count} and 1 <= failure{bound} "
-                                        f"(negative ones count from the end: -1 is all {count} children)")
+                zero = "" if low else " (0 is BehaviorTree.CPP's, under semantics: btcpp)"
+                raise ModelError(where, f"thresholds must satisfy {low} <= success <= {count} and {low} <= failure{bound} "
+                                        f"(negative ones count from the end: -1 is all {count} children){zero}")
             halts = tuple((k.flag, k.halt) for k in info.kids if k.can_run)
             if info.mems:
                 return self._parallel_memory(info, kids, need, fail_at, halts, finish)
@@ -791,6 +793,13 @@ class Program:
                     s[mem] = 0
                 return finish(st, ctx)
             return tick
+
+        if isinstance(n, SubTree):
+            # rule 'SubTree': the child's status. BT.CPP's SubTreeNode also resets its child
+            # when it finishes, which only matters to a stale condition (section 8.1): a
+            # SubTree is not a stateful leaf, so IfThenElse/WhileDoElse tick it afresh
+            child = kids[0]
+            return lambda ctx: finish(child(ctx), ctx)
 
         if isinstance(n, KeepRunningUntilFailure):
             child = kids[0]
@@ -929,7 +938,7 @@ class Program:
                         bad += 1
                 if ok >= need:
                     return done(ctx, SUCCESS)
-                if count - bad < need or bad >= fail_at:
+                if count - bad < need or bad == fail_at:  # BT.CPP's ==: a threshold of 0 holds until a failure
                     return done(ctx, FAILURE)
             return finish(RUNNING, ctx)
         return tick
@@ -1209,7 +1218,9 @@ class Program:
 
 
 def _stateful(info) -> bool:
-    """A leaf that keeps a status between ticks in BehaviorTree.CPP (a StatefulActionNode)."""
+    """A leaf that keeps a status between ticks in BehaviorTree.CPP (a StatefulActionNode).
+    Only a leaf: every decorator, SubTree included, resets its child's status when the
+    child finishes (BT.CPP's ``DecoratorNode::executeTick`` and ``SubTreeNode::tick``)."""
     return isinstance(info.node, SkillRequest) or (isinstance(info.node, Action) and info.can_run)
 
 

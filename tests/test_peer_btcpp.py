@@ -25,9 +25,17 @@ _COMPOSITES = ("ReactiveSequence", "MemorySequence", "SequenceWithMemory", "Reac
 _DECORATORS = ("Inverter", "ForceSuccess", "ForceFailure", "Retry", "Repeat", "KeepRunningUntilFailure", "RunOnce")
 
 
+def _has_skill(spec) -> bool:
+    if spec[0] in ("async", "sync", "cond", "skill"):
+        return spec[0] == "skill"
+    body = spec[2]
+    return any(_has_skill(c) for c in body) if isinstance(body, list) else _has_skill(body)
+
+
 @st.composite
 def trees(draw, depth=4):
     counter = iter(range(1000))
+    made = []  # SubTrees written so far without skill requests: (tree ID, child), reusable
 
     def node(d):
         if d == 0 or (d < depth and draw(st.integers(0, 3)) == 0):  # the root is never a leaf
@@ -36,6 +44,14 @@ def trees(draw, depth=4):
             table = "".join(draw(st.lists(st.sampled_from(alphabet), min_size=TICKS, max_size=TICKS)))
             return (kind, f"L{next(counter)}", table)
         name = f"n{next(counter)}"
+        if draw(st.integers(0, 4)) == 0:  # a SubTree: a new <BehaviorTree>, or one written before again
+            if made and draw(st.booleans()):
+                ident, child = draw(st.sampled_from(made))
+            else:
+                ident, child = f"T{name}", node(d - 1)
+                if not _has_skill(child):
+                    made.append((ident, child))
+            return ("SubTree", name, child, {"tree_id": ident})
         if draw(st.booleans()):
             t = draw(st.sampled_from(_COMPOSITES))
             lo, hi = (2, 3) if t in ("IfThenElse", "WhileDoElse") else (1, 4)
@@ -43,8 +59,8 @@ def trees(draw, depth=4):
             n = len(kids)
             params = {}
             if t == "Parallel":
-                s = draw(st.integers(-n, n).filter(lambda x: x != 0))
-                f = draw(st.integers(-n, n).filter(lambda x: x != 0))
+                s = draw(st.integers(-n - 1, n))  # 0 (and -n-1): BT.CPP decides after the first child
+                f = draw(st.integers(-n - 1, n))
                 params = {"success_threshold": s, "failure_threshold": f}
             elif t == "ParallelAll":
                 params = {"max_failures": draw(st.integers(1, n))}
@@ -71,9 +87,9 @@ def _show(spec, a, b, xml):
 
 @settings(derandomize=True, max_examples=TREES, deadline=None, database=None,
           suppress_health_check=list(HealthCheck))
-@given(trees())
-def test_peer_btcpp_random_trees(spec):
-    a, b, xml = compare(spec, TICKS)
+@given(trees(), st.integers(0, 2**32))
+def test_peer_btcpp_random_trees(spec, seed):
+    a, b, xml = compare(spec, TICKS, seed)
     assert a == b, _show(spec, a, b, xml)
 
 

@@ -96,6 +96,16 @@ SCENARIOS = [
      ("WhileDoElse", "wde", [C("c", "SFSS"), A("do", "RRRR")]), "RFRR"),
     ("gtest_while_do_else (an async condition keeps its status while the branch runs)",
      ("WhileDoElse", "wde", [A("c", "SFFF"), A("do", "RRSS"), A("else", "RRRR")]), "RRSR"),
+    ("gtest_parallel (issue 18: success_count 0 succeeds once the first child was ticked)",
+     ("Parallel", "par", [A("a", "RRRR"), A("b", "RRRR")], {"success_threshold": 0, "failure_threshold": 1}), "SSSS"),
+    ("gtest_parallel (issue 18: failure_count 0 fails after the first child unless it failed)",
+     ("Parallel", "par", [S("a", "SFSF"), A("b", "RRSR")], {"success_threshold": 2, "failure_threshold": 0}), "FFFF"),
+    ("gtest_parallel (issue 18: failure_count 0 after a first failure: only the success rule decides)",
+     ("Parallel", "par", [S("a", "FSFS"), A("b", "RRSR")], {"success_threshold": 1, "failure_threshold": 0}), "RRSS"),
+    ("gtest_subtree (issue 18: a SubTree resets its child, so IfThenElse sees the leaf afresh)",
+     ("IfThenElse", "ite", [("SubTree", "Check", A("Detect", "FSSS")), S("ok", "SSSS")]), "FSSS"),
+    ("gtest_subtree (issue 18: WhileDoElse over a SubTree halts Do when the condition turns false)",
+     ("WhileDoElse", "wde", [("SubTree", "Check", A("Detect", "SSFF")), A("Pick", "RRRR"), A("Wait", "RRRR")]), "RRRR"),
 ]
 
 _LETTER = {"RUNNING": "R", "SUCCESS": "S", "FAILURE": "F"}
@@ -167,6 +177,19 @@ def test_profile_btcpp_stale_condition():
     real, ours, default = _both(spec, 2)
     assert ours == real and real[1] == ("RUNNING", [("do", "run")])
     assert default[1] == ("RUNNING", [("do", "halt"), ("c", "start"), ("else", "start")])  # halt before start
+
+
+def test_profile_btcpp_subtree_resets_its_child():
+    """Rule 'SubTree' (issue 18): BT.CPP's SubTreeNode resets its child when it finishes, so a
+    stateful leaf at a SubTree's root keeps no status: WhileDoElse sees the condition turn
+    false and halts Pick. The same leaf without the SubTree keeps its SUCCESS (stale
+    condition), and Pick keeps running: both as in the real engine."""
+    sub = ("WhileDoElse", "wde", [("SubTree", "Check", A("Detect", "SSFF")), A("Pick", "RRRR"), A("Wait", "RRRR")])
+    real, ours, _ = _both(sub, 3)
+    assert ours == real and real[2] == ("RUNNING", [("Detect", "start"), ("Pick", "halt"), ("Wait", "start")])
+    inline = ("WhileDoElse", "wde", [A("Detect", "SSFF"), A("Pick", "RRRR"), A("Wait", "RRRR")])
+    real, ours, _ = _both(inline, 3)
+    assert ours == real and real[2] == ("RUNNING", [("Pick", "run")])
 
 
 def test_run_once_then_skip_refused():
