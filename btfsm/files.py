@@ -44,7 +44,7 @@ from .expr import Const, Expr, as_expr, to_text
 from .fsm import FSM, Edge, Marker, State
 from .model import EnvChoice, EnvEvent, Model
 from .primitives import Outcome, Primitive
-from .profiles import DEFAULT_SEMANTICS, PROFILES
+from .profiles import DEFAULT_SEMANTICS, DEFAULT_TICK, PROFILES, TICKS
 from .status import Status
 from .timing import Response, duration_of
 from .world import Bool, Enum, Int, Var
@@ -764,7 +764,7 @@ _NODE_REQUIRED = {"Guard": ("condition", "child"), "Condition": ("expr",), "Skil
                   "KeepRunningUntilFailure": ("child",), "RunOnce": ("child",), "SubTree": ("child",),
                   "IfThenElse": ("children",), "WhileDoElse": ("children",)}
 TRIGGER_KEYS = ("when", "on", True)  # "on" and True (YAML 1.1's reading of on:) are older spellings
-TOP_FIELDS = ("name", "description", "semantics", "tick_rate", "variables", "primitives", "fsms", "tree",
+TOP_FIELDS = ("name", "description", "semantics", "tick", "tick_rate", "variables", "primitives", "fsms", "tree",
               "environment", "invariants", "workable", "terminal", "resources", "responses")
 FSM_FIELDS = ("goals", "states", "initial", "edges", "markers", "params", "retarget", "withdraw_goal", "terminal")
 
@@ -1258,6 +1258,11 @@ class _Reader:
             if not isinstance(sem, str) or sem not in PROFILES:
                 raise self.fail("semantics", f"expected one of {', '.join(PROFILES)}, got {sem!r}", data, "semantics")
             kw["semantics"] = sem
+        if "tick" in data:
+            tick = data["tick"]
+            if not isinstance(tick, str) or tick not in TICKS:
+                raise self.fail("tick", f"expected one of {', '.join(TICKS)}, got {tick!r}", data, "tick")
+            kw["tick"] = tick
         if "tick_rate" in data:
             r = data["tick_rate"]
             if isinstance(r, bool) or not isinstance(r, (int, float)) or not math.isfinite(r):
@@ -1320,20 +1325,26 @@ def builtin_models() -> dict:
     return dict(BUILTIN)
 
 
-def load_model(ref, *, file_name: "str | None" = None, semantics: "str | None" = None) -> Model:
+def load_model(ref, *, file_name: "str | None" = None, semantics: "str | None" = None,
+               tick: "str | None" = None) -> Model:
     """A Model from a file (.yaml/.yml/.json) or a built-in name (``builtin_models()``).
 
-    ``semantics`` (a ``btfsm.profiles`` name) overrides the profile the model names.
+    ``semantics`` (a ``btfsm.profiles`` name) overrides the profile the model names,
+    ``tick`` (``once``, ``exactly-once``) the way a BehaviorTree.CPP main loop ticks it.
 
     Built-in entries are ``module:function`` (a shipped function returning a Model) or a
     file path relative to the ``models`` package; user input never names a module."""
     model = _load_model(ref, file_name)
-    if semantics is None or semantics == model.semantics:
+    semantics = model.semantics if semantics is None else semantics
+    tick = model.tick if tick is None else tick
+    if semantics == model.semantics and tick == model.tick:
         return model
     if semantics not in PROFILES:
         raise _err("semantics", f"unknown semantics {semantics!r} (one of: {', '.join(PROFILES)})", model.source)
+    if tick not in TICKS:
+        raise _err("tick", f"unknown tick {tick!r} (one of: {', '.join(TICKS)})", model.source)
     try:
-        new = dataclasses.replace(model, semantics=semantics)
+        new = dataclasses.replace(model, semantics=semantics, tick=tick)
         object.__setattr__(new, "warnings", new.warnings + tuple(w for w in model.warnings if w not in new.warnings))
         return _with_source(new, model.source)
     except ModelError as exc:
@@ -1341,8 +1352,9 @@ def load_model(ref, *, file_name: "str | None" = None, semantics: "str | None" =
 
 
 def load_cli_model(args) -> Model:
-    """The model a command's arguments name: ``args.model``, under ``args.semantics`` when given."""
-    return load_model(args.model, semantics=getattr(args, "semantics", None))
+    """The model a command's arguments name: ``args.model``, under ``args.semantics`` and
+    ``args.tick`` when given."""
+    return load_model(args.model, semantics=getattr(args, "semantics", None), tick=getattr(args, "tick", None))
 
 
 def _load_model(ref, file_name) -> Model:
@@ -1686,6 +1698,8 @@ def model_to_data(model: Model) -> dict:
         out["description"] = model.description
     if model.semantics != DEFAULT_SEMANTICS:
         out["semantics"] = model.semantics
+    if model.tick != DEFAULT_TICK:
+        out["tick"] = model.tick
     if model.tick_rate != 10.0:
         out["tick_rate"] = model.tick_rate
     if model.variables:

@@ -134,6 +134,7 @@ class Program:
         self._fsm_timers: dict = {}  # FSM name -> the slot counting its state's run (rule 'Durations')
         self._layout_fsms()
         self._layout_nodes()
+        self.wake = self._wake_slot()
         self.exclusive = self._exclusive_groups()
         self._compile_fsms()
         self.env_timers: list = []  # (event index, slot, ticks) of events with a minimum interval
@@ -213,6 +214,22 @@ class Program:
                     and _stateful(info.kids[0])):
                 # the condition leaf's last status while the node keeps it (0: none)
                 info.stale = self._slot(f"{n.name}:condition", "memory", 3)
+
+    def _wake_slot(self):
+        """Rule 'tickOnce' (docs/semantics.md 8.1): under ``loop_wake_up`` with
+        ``Model.tick == "once"``, a slot holding BT.CPP's pending wake-up signal, when a
+        node of the tree can emit one (Retry/Repeat with a bound above 1, a
+        SequenceWithMemory of several children); else None."""
+        if not self.profile.loop_wake_up or self.model.tick != "once" or self.model.tree is None:
+            return None
+        for info in self.nodes.values():
+            n = info.node
+            if info.root != self.model.tree.name:
+                continue
+            if ((isinstance(n, Retry) and n.attempts > 1) or (isinstance(n, Repeat) and n.times > 1)
+                    or (isinstance(n, SequenceWithMemory) and len(n.children) > 1)):
+                return self._slot("tick:wake-up", "memory", 2)
+        return None
 
     def _collect(self, node: Node, parent, root):
         info = _N(node, parent, root)
@@ -720,7 +737,7 @@ class Program:
 
         if isinstance(n, SequenceWithMemory):
             keep, count = info.keep, len(kids)
-            wake = self.profile.loop_wake_up
+            wake, signal = self.profile.loop_wake_up, self._signal(info)
             steps = tuple((child, k.flag) for child, k in zip(kids, info.kids))
 
             def tick(ctx):
@@ -736,6 +753,8 @@ class Program:
                     i += 1
                     if wake and not was_running and i < count:
                         s[keep] = i  # the wake-up: RUNNING now, the next child on the next tick
+                        if signal is not None:
+                            s[signal] = 1
                         return finish(RUNNING, ctx)
                 s[keep] = 0
                 return finish(SUCCESS, ctx)
@@ -758,6 +777,8 @@ class Program:
             limit = n.attempts if isinstance(n, Retry) else n.times
 
             if self.profile.loop_wake_up:
+                signal = self._signal(info)
+
                 def tick(ctx):
                     s = ctx.s
                     k = s[mem]
@@ -776,6 +797,8 @@ class Program:
                             return finish(st, ctx)
                         if not was_running:  # the wake-up: RUNNING now, the next attempt next tick
                             s[mem] = k
+                            if signal is not None:
+                                s[signal] = 1
                             return finish(RUNNING, ctx)
                     raise AssertionError("unreachable: the second attempt started from idle")
                 return tick
@@ -905,6 +928,11 @@ class Program:
                 return finish(st, ctx)
             return tick
         raise ModelError(where, f"unknown node type {type(n).__name__}")
+
+    def _signal(self, info):
+        """The wake-up slot a loop node of the main tree sets (rule 'tickOnce'), or None
+        (``tick: exactly-once``, or a subtree an FSM state runs: its FSM steps once a tick)."""
+        return self.wake if info.root == (self.model.tree.name if self.model.tree is not None else None) else None
 
     def _parallel_memory(self, info, kids, need, fail_at, halts, finish):
         """BehaviorTree.CPP's Parallel (profile switch ``parallel_memory``): finished children
@@ -1129,11 +1157,37 @@ class Program:
             return Step(None, FAILURE, ctx.rec, [("blocked", blocked)])
         try:
             status = self.root(ctx) if self.root is not None else SUCCESS
+            if self.wake is not None and status == RUNNING and s[self.wake]:
+                status = self._reticks(ctx, status)
         except _Late as late:
             return Step(None, FAILURE, ctx.rec, [("timing", late.site.label, late.text)])
         if self.exclusive:
             _exclusive_end(ctx, self.exclusive)
         return Step(tuple(s), status, ctx.rec, ctx.violations)
+
+    def _reticks(self, ctx, status):
+        """Rule 'tickOnce' (docs/semantics.md 8.1): BT.CPP's ``tickOnce()`` ticks the root
+        again while it returns RUNNING and a wake-up signal is pending (each tick takes the
+        signal). Each re-tick is a BT tick of its own (an FSM may step again). When the
+        state before a re-tick repeats, the oracle can answer as it did before, so the
+        loop can go on for ever: the violation ``("tick-loop", root)`` ends the tick (the
+        state is the repeated one; property ``contracts`` reports it)."""
+        s, wake, seen = ctx.s, self.wake, []
+        while status == RUNNING and s[wake]:
+            s[wake] = 0
+            if s in seen:
+                name = self.model.tree.name
+                ctx.violations.append(("tick-loop", name))
+                if ctx.rec is not None:
+                    ctx.rec.append(("violation", name, f"tickOnce never returns: re-tick {len(seen) + 1} "
+                                                       "starts from the state of an earlier one"))
+                return RUNNING
+            seen.append(list(s))
+            ctx.fsm_done = {}
+            if ctx.rec is not None:
+                ctx.rec.append(("wake-up", self.model.tree.name))
+            status = self.root(ctx)
+        return status
 
     def environment_phase(self, s, oracle, rec=None, indices=None) -> "str | None":
         """Tick step 1 (docs/semantics.md section 1): the environment entries (those at

@@ -26,6 +26,11 @@ by the importer; logs use the leaf's own name (its BT.CPP ID).
 """
 from __future__ import annotations
 
+import json
+import os
+import subprocess
+import sys
+
 try:
     import behaviortreepy as bt
 except ImportError:  # the btfsm side (run_btfsm) still works; run_btcpp needs the engine
@@ -79,7 +84,7 @@ def _node(spec, leaves, period, fsms, prims, prefix=""):
     return cls(full, child=_node(body, leaves, period, fsms, prims, inner), **params)
 
 
-def build(spec, ticks: int, semantics: str = "btcpp"):
+def build(spec, ticks: int, semantics: str = "btcpp", tick: str = "exactly-once"):
     """(Model, {leaf name: (kind, statuses)}) for a spec; the model's clock ``t`` counts
     ticks (0 on the first) so that conditions can read the tick number."""
     leaves: dict = {}
@@ -90,7 +95,7 @@ def build(spec, ticks: int, semantics: str = "btcpp"):
     model = Model("peer", variables=(Int("t", 0, n - 1, init=n - 1),), fsms=tuple(fsms),
                   primitives=tuple(prims.values()),
                   environment=(EnvEvent("clock", effects={"t": f"(t + 1) % {n}"}),),
-                  tree=tree, semantics=semantics)
+                  tree=tree, semantics=semantics, tick=tick)
     return model, leaves
 
 
@@ -109,13 +114,33 @@ def _base(name: str) -> str:
     return name.rsplit("/", 1)[-1]
 
 
-def run_btcpp(model, leaves, ticks: int, xml: "str | None" = None):
-    """[(root status name, [(leaf, callback), ...]) per tick] from real BehaviorTree.CPP."""
+#: leaf callbacks in one tick past which BT.CPP's ``tick_once()`` is taken to loop for ever
+LOOP_CALLBACKS = 5000
+LOOP = ("LOOP", [])  # the log entry of a tick that does not return (and the last one)
+
+
+def run_btcpp(model, leaves, ticks: int, xml: "str | None" = None, isolated: bool = False):
+    """[(root status name, [(leaf, callback), ...]) per tick] from real BehaviorTree.CPP,
+    ticked with ``tick_once()`` or ``tick_exactly_once()`` as ``model.tick`` says.
+
+    A tick with more than ``LOOP_CALLBACKS`` leaf callbacks does not return in BT.CPP (its
+    ``tick_once()`` loops for ever; nothing stops it from outside). ``isolated``: this runs
+    in a process of its own (``run_btcpp_isolated``), which then prints the log so far
+    with ``LOOP`` and exits. Otherwise the process ends with a message: a loop btfsm did
+    not predict (``compare`` isolates the runs where btfsm predicts one)."""
     factory = bt.BehaviorTreeFactory()
     log: list = []
+    out: list = []
     now = [0]
     for name, (kind, table) in leaves.items():
         def answer(name=name, table=table):
+            if len(log) > LOOP_CALLBACKS:
+                if isolated:
+                    print(json.dumps(out + [LOOP]), flush=True)
+                    os._exit(0)
+                print(f"BehaviorTree.CPP's tick_once() loops at tick {now[0]} where btfsm predicts no loop:\n"
+                      f"{xml}", file=sys.stderr, flush=True)
+                os._exit(70)
             return _BT[table[now[0]]]
         if kind in ("async", "skill"):
             factory.register_simple_stateful_action(
@@ -128,13 +153,25 @@ def run_btcpp(model, leaves, ticks: int, xml: "str | None" = None):
         else:
             factory.register_simple_condition(name, lambda node, name=name, answer=answer: (log.append((name, "cond")), answer())[1])
     tree = factory.create_tree_from_text(xml if xml is not None else to_btcpp_xml(model))
-    out = []
+    tick = tree.tick_once if model.tick == "once" else tree.tick_exactly_once
     for k in range(ticks):
         now[0] = k
         log.clear()
-        status = tree.tick_exactly_once()
+        status = tick()
         out.append((_NAME[status], list(log)))
     return out
+
+
+def run_btcpp_isolated(model, leaves, ticks: int, xml: str, timeout: float = 300):
+    """``run_btcpp`` in a child process (for a run whose ``tick_once()`` may never return)."""
+    job = json.dumps({"tick": model.tick, "leaves": leaves, "ticks": ticks, "xml": xml})
+    code = ("import json, sys, types; sys.path.insert(0, sys.argv[1]); import btcpp_peer as p; "
+            "j = json.loads(sys.stdin.read()); "
+            "print(json.dumps(p.run_btcpp(types.SimpleNamespace(tick=j['tick']), "
+            "{k: tuple(v) for k, v in j['leaves'].items()}, j['ticks'], j['xml'], isolated=True)))")
+    done = subprocess.run([sys.executable, "-c", code, os.path.dirname(os.path.abspath(__file__))], input=job,
+                          capture_output=True, text=True, timeout=timeout, check=True)
+    return [(s, [tuple(e) for e in log]) for s, log in json.loads(done.stdout.strip().splitlines()[-1])]
 
 
 class _Oracle:
@@ -194,6 +231,9 @@ def run_btfsm(model, leaves, ticks: int):
                 running.discard(ev[1])
             elif ev[0] == "withdraw" and ev[2] in leaves:
                 pass  # the halt event of the SkillRequest node was logged just before
+        if any(v[0] == "tick-loop" for v in step.violations):
+            out.append(LOOP)  # btfsm's rule 'tickOnce': this tick never returns
+            break
         out.append((Status(step.status).name, log))
         state = step.state
     return out
@@ -238,11 +278,15 @@ def respell(xml: str, seed: int) -> str:
     return ET.tostring(root, encoding="unicode")
 
 
-def compare(spec, ticks: int, seed: "int | None" = None):
+def compare(spec, ticks: int, seed: "int | None" = None, tick: str = "exactly-once"):
     """(btcpp log, btfsm log, xml) for one spec: BT.CPP runs the exported XML (``respell``
-    with ``seed`` when given), btfsm the model its importer makes of the same XML."""
-    model, leaves = build(spec, ticks)
+    with ``seed`` when given), btfsm the model its importer makes of the same XML; both
+    ticked as ``tick`` says (``once``: ``tick_once()``, btfsm's rule 'tickOnce')."""
+    model, leaves = build(spec, ticks, tick=tick)
     xml = to_btcpp_xml(model)
     if seed is not None:
         xml = respell(xml, seed)
-    return run_btcpp(model, leaves, ticks, xml), run_btfsm(imported(model, leaves, xml), leaves, ticks), xml
+    ours = run_btfsm(imported(model, leaves, xml), leaves, ticks)
+    if ours[-1] == LOOP:  # btfsm predicts that a tick_once() never returns: BT.CPP runs apart
+        return run_btcpp_isolated(model, leaves, ticks, xml), ours, xml
+    return run_btcpp(model, leaves, ticks, xml), ours, xml
