@@ -192,6 +192,44 @@ def test_profile_btcpp_subtree_resets_its_child():
     assert ours == real and real[2] == ("RUNNING", [("Pick", "run")])
 
 
+def test_profile_btcpp_tick_once():
+    """Rule 'tickOnce' (Model.tick, --tick): BT.CPP's tick_once() ticks the root again while
+    it returns RUNNING and a wake-up signal is pending; tick_exactly_once() does not. Both
+    against the real engine."""
+    spec = ("Retry", "retry", S("a", "FFFS"), {"attempts": 3})
+    real, ours, _ = compare(spec, 4, tick="once")
+    assert ours == real and real[0] == ("FAILURE", [("a", "tick")] * 3)  # three attempts in one tick_once()
+    real, ours, _ = compare(spec, 4, tick="exactly-once")
+    assert ours == real and [s for s, _ in real] == ["RUNNING", "RUNNING", "FAILURE", "SUCCESS"]
+
+
+_LOOPS = ("ReactiveSequence", "rs", [("Repeat", "r1", S("a", "SSSS"), {"times": 2}),
+                                     ("Repeat", "r2", S("b", "SSSS"), {"times": 2})])
+
+
+def test_profile_btcpp_tick_once_loop(tmp_path, capsys):
+    """A tick_once() that never returns: r1's first success wakes the tree up, r1 then
+    succeeds and r2 wakes it up, r1 starts again and halts r2 (a reactive sequence), and so
+    on for ever. The real engine loops (run apart, stopped after many callbacks); btfsm
+    finds the repeated state, and `btfsm check` reports it under `contracts` with a
+    counterexample that replays; with --tick exactly-once the property holds."""
+    real, ours, _ = compare(_LOOPS, 3, tick="once")
+    assert real == ours == [("LOOP", [])]
+    model, _ = build(_LOOPS, 3, tick="once")
+    from btfsm.cli import main
+    from btfsm.files import dump_model
+
+    path = tmp_path / "loop.yaml"
+    dump_model(model, path)
+    assert main(["check", str(path), "--property", "contracts", "--counterexample-dir", str(tmp_path / "ce")]) == 1
+    out = capsys.readouterr().out
+    assert "contracts: tickOnce() of 'rs' can loop for ever (the tick never returns)" in out
+    (ce,) = (tmp_path / "ce").iterdir()
+    assert main(["replay", str(ce), str(path)]) == 0
+    assert "confirmed: tick 1: tickOnce() re-ticks 'rs' in a loop" in capsys.readouterr().out
+    assert main(["check", str(path), "--property", "contracts", "--tick", "exactly-once"]) == 0
+
+
 def test_run_once_then_skip_refused():
     """SKIPPED is out of scope: RunOnce(then_skip=True) is refused under every profile."""
     from btfsm.errors import ModelError
