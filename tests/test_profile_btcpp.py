@@ -230,6 +230,21 @@ def test_profile_btcpp_tick_once_loop(tmp_path, capsys):
     assert main(["check", str(path), "--property", "contracts", "--tick", "exactly-once"]) == 0
 
 
+def test_tick_option_in_files_and_flags():
+    """`tick:` in a model (or side) file and --tick: once (the default) or exactly-once;
+    anything else is a one-line error naming the field."""
+    from btfsm.errors import ModelError
+    from btfsm.files import load_model, loads_model, model_to_data
+
+    text = "name: m\nsemantics: btcpp\nprimitives: {a: [success]}\ntree: {Action: a}\n"
+    assert loads_model(text).tick == "once" and "tick" not in model_to_data(loads_model(text))
+    exact = loads_model(text + "tick: exactly-once\n")
+    assert exact.tick == "exactly-once" and model_to_data(exact)["tick"] == "exactly-once"
+    with pytest.raises(ModelError, match=r"tick: expected one of once, exactly-once, got 'sometimes'"):
+        loads_model(text + "tick: sometimes\n")
+    assert load_model("bt-cpp-1031", tick="exactly-once").tick == "exactly-once"
+
+
 def test_run_once_then_skip_refused():
     """SKIPPED is out of scope: RunOnce(then_skip=True) is refused under every profile."""
     from btfsm.errors import ModelError
