@@ -133,7 +133,7 @@ def _declare(leaves, ident, kind, ports, desc, node):
     if old is None:
         leaves[ident] = (kind, list(ports), desc, node)
         return
-    if old[0] != kind or old[2] != desc or kind == "Condition" or old[2] is not None:
+    if old[0] != kind or old[2] != desc:  # one ID is one leaf type: same kind, same description
         raise ModelError(f"tree.{node}", f"BehaviorTree.CPP ID '{ident}' is also used by node '{old[3]}' for another leaf")
     old[1].extend(p for p in ports if p not in old[1])
 
@@ -172,15 +172,14 @@ def _node(n, depth, lines, leaves, trees, strip=""):
         body: list = []
         mine: dict = {}  # the leaves of this SubTree's tree, declared once per tree written
         _node(n.child, 2, body, mine, trees, n.name + "/")
-        tree = (body, {lid: d[:3] for lid, d in mine.items()})
+        tree = (body, {lid: d[:3] for lid, d in mine.items()})  # with the leaves of SubTrees inside
         ident, k = n.tree_id, 1
         while trees.get(ident, tree) != tree:  # another tree under this ID: the next free one
             k += 1
             ident = f"{n.tree_id}_{k}"
-        if ident not in trees:
-            trees[ident] = tree
-            for lid, (kind, ports, desc, node) in mine.items():
-                _declare(leaves, lid, kind, ports, desc, node)
+        trees.setdefault(ident, tree)
+        for lid, (kind, ports, desc, node) in mine.items():
+            _declare(leaves, lid, kind, ports, desc, node)
         lines.append(f'{pad}<SubTree ID="{xml_attr(ident, where)}" name="{name}"/>')
         return
     if isinstance(n, (Guard, Effects)):
