@@ -5,7 +5,7 @@ The public modelling API. See docs/semantics.md for the tick rules.
 from .bt import (Action, Condition, Effects, FailureIsRunning, ForceFailure, ForceSuccess, Guard, IfThenElse,
                  Inverter, KeepRunningUntilFailure, RunningIsFailure, RunningIsSuccess, MemoryFallback, MemorySequence, Parallel, ParallelAll,
                  ReactiveFallback, ReactiveSequence, Repeat, Retry, RunOnce, SequenceWithMemory,
-                 SkillRequest, WhileDoElse, walk)
+                 SkillRequest, SubTree, WhileDoElse, walk)
 from .errors import ConformanceError, DomainError, ModelError
 from .expr import E, as_expr, parse, to_text, v
 from .fsm import FSM, Edge, Marker, State
@@ -20,7 +20,7 @@ __all__ = [
     "Action", "Condition", "Effects", "ForceFailure", "ForceSuccess", "Guard", "Inverter",
     "MemoryFallback", "MemorySequence", "Parallel", "ReactiveFallback", "ReactiveSequence",
     "Repeat", "Retry", "SkillRequest", "walk",
-    "IfThenElse", "KeepRunningUntilFailure", "ParallelAll", "RunOnce", "SequenceWithMemory", "WhileDoElse",
+    "IfThenElse", "KeepRunningUntilFailure", "ParallelAll", "RunOnce", "SequenceWithMemory", "SubTree", "WhileDoElse",
     "FailureIsRunning", "RunningIsFailure", "RunningIsSuccess",
     "ConformanceError", "DomainError", "ModelError",
     "E", "as_expr", "parse", "to_text", "v",

@@ -3,7 +3,8 @@
 Composites: ``ReactiveSequence``, ``MemorySequence``, ``SequenceWithMemory``,
 ``ReactiveFallback``, ``MemoryFallback``, ``Parallel``, ``ParallelAll``, ``IfThenElse`` and
 ``WhileDoElse``. Decorators: ``Inverter``, ``ForceSuccess``, ``ForceFailure``, ``Retry``,
-``Repeat``, ``KeepRunningUntilFailure``, ``RunOnce``, ``Guard``, ``Effects`` and py_trees'
+``Repeat``, ``KeepRunningUntilFailure``, ``RunOnce``, ``Guard``, ``Effects``, ``SubTree``
+(BehaviorTree.CPP's SubTree node: the tree of another ``<BehaviorTree>``) and py_trees'
 ``FailureIsRunning``, ``RunningIsFailure``, ``RunningIsSuccess``. Leaves: ``Condition``,
 ``Action`` and ``SkillRequest``. Their tick rules are in docs/semantics.md and in exactly
 one implementation, ``btfsm.semantics``.
@@ -23,6 +24,7 @@ SequenceWithMemory                                 ``SequenceWithMemory``
 ParallelAll                                        ``ParallelAll``
 IfThenElse                                         ``IfThenElse``
 WhileDoElse                                        ``WhileDoElse``
+SubTree                                            ``SubTree``
 ================== =============================== ==========================
 
 The reactive rows and py_trees' ``SuccessOnOne``/``SuccessOnSelected`` hold exactly under
@@ -48,7 +50,7 @@ __all__ = [
     "ReactiveSequence", "MemorySequence", "ReactiveFallback", "MemoryFallback", "Parallel",
     "SequenceWithMemory", "ParallelAll", "IfThenElse", "WhileDoElse",
     "Inverter", "ForceSuccess", "ForceFailure", "Retry", "Repeat", "Guard", "Effects",
-    "KeepRunningUntilFailure", "RunOnce", "FailureIsRunning", "RunningIsFailure", "RunningIsSuccess",
+    "KeepRunningUntilFailure", "RunOnce", "SubTree", "FailureIsRunning", "RunningIsFailure", "RunningIsSuccess",
     "PipelineSequence", "RecoveryNode", "RoundRobin",
     "Condition", "Action", "SkillRequest", "walk", "NODE_TYPES",
 ]
@@ -254,6 +256,21 @@ class Effects(Decorator):
 
 
 @dataclass(frozen=True)
+class SubTree(Decorator):
+    """BehaviorTree.CPP's ``<SubTree ID="tree_id">``: returns its child's status. Under
+    ``semantics: btcpp`` it resets its child whenever the child finishes (BT.CPP 4's
+    SubTreeNode), so a stateful leaf at the subtree's root keeps no old status
+    (docs/semantics.md section 8.1). ``tree_id``: the ``<BehaviorTree>`` ID (default: the
+    node's name); the export writes one ``<BehaviorTree>`` per ID."""
+
+    tree_id: str = ""
+
+    def __post_init__(self):
+        if not self.tree_id:
+            object.__setattr__(self, "tree_id", self.name)
+
+
+@dataclass(frozen=True)
 class Leaf(Node):
     pass
 
@@ -329,5 +346,5 @@ def walk(node: Node) -> Iterator[Node]:
 NODE_TYPES = {cls.__name__: cls for cls in (
     ReactiveSequence, MemorySequence, ReactiveFallback, MemoryFallback, Parallel,
     SequenceWithMemory, ParallelAll, IfThenElse, WhileDoElse, PipelineSequence, RecoveryNode, RoundRobin,
-    Inverter, ForceSuccess, ForceFailure, Retry, Repeat, KeepRunningUntilFailure, RunOnce, Guard, Effects,
+    Inverter, ForceSuccess, ForceFailure, Retry, Repeat, KeepRunningUntilFailure, RunOnce, Guard, Effects, SubTree,
     Condition, Action, SkillRequest, FailureIsRunning, RunningIsFailure, RunningIsSuccess)}

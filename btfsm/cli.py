@@ -42,7 +42,7 @@ import sys
 
 from .errors import ConformanceError, DomainError, ModelError, Terminated, UsageError
 from . import reserve, signals
-from .profiles import SEMANTICS
+from .profiles import SEMANTICS, TICKS
 from .validators import (finite_float, input_file, input_text, int_range, output_dir, output_file, probability,
                          seed_int)
 
@@ -127,6 +127,10 @@ def _args_model(sp):
     sp.add_argument("--semantics", choices=SEMANTICS, default=None,
                     help="tick rules of this engine instead of the model's own (btfsm, btcpp: BehaviorTree.CPP 4, "
                          "pytrees: py_trees 2.6; see docs/semantics.md section 8)")
+    sp.add_argument("--tick", choices=TICKS, default=None,
+                    help="how a BehaviorTree.CPP main loop ticks the tree under btcpp, instead of the model's own: "
+                         "once (tickOnce(), the default: re-ticks while a wake-up signal is pending) or exactly-once "
+                         "(tickExactlyOnce()); docs/semantics.md 8.1")
     _args_xml(sp)
 
 
@@ -349,6 +353,8 @@ def _args_import(sp):
                          "...; default: STEM.btfsm.yaml beside the XML when it exists)")
     sp.add_argument("--semantics", choices=SEMANTICS, default=None,
                     help="profile written into the model (default: the side file's, else btcpp)")
+    sp.add_argument("--tick", choices=TICKS, default=None,
+                    help="tick written into the model: once or exactly-once (default: the side file's, else once)")
     sp.add_argument("--output", "-o", type=output_file(".yaml", ".yml", ".json"), default=None,
                     help="model file to write (.yaml, .yml or .json; default: YAML on stdout)")
     _args_xml(sp)
@@ -632,6 +638,8 @@ def cli_import(args) -> int:
                            main_tree=args.main_tree)
     if args.semantics is not None and args.semantics != model.semantics:
         model = dataclasses.replace(model, semantics=args.semantics)
+    if args.tick is not None and args.tick != model.tick:
+        model = dataclasses.replace(model, tick=args.tick)
     text = dumps_model(model, fmt)
     for element, warning in model.warnings:
         print(f"warning: {element}: {warning}".replace("\n", " "), file=sys.stderr)

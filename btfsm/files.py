@@ -38,13 +38,13 @@ from pathlib import Path
 import yaml
 
 from .bt import (NODE_TYPES, Action, Composite, Condition, Decorator, Effects, Guard, Parallel, ParallelAll, Repeat, Retry,
-                 RunOnce, SkillRequest, walk, RecoveryNode, RoundRobin)
+                 RunOnce, SkillRequest, SubTree, walk, RecoveryNode, RoundRobin)
 from .errors import ModelError
 from .expr import Const, Expr, as_expr, to_text
 from .fsm import FSM, Edge, Marker, State
 from .model import EnvChoice, EnvEvent, Model
 from .primitives import Outcome, Primitive
-from .profiles import DEFAULT_SEMANTICS, PROFILES
+from .profiles import DEFAULT_SEMANTICS, DEFAULT_TICK, PROFILES, TICKS
 from .status import Status
 from .timing import Response, duration_of
 from .world import Bool, Enum, Int, Var
@@ -763,7 +763,7 @@ _NODE_FIELDS = {
     "IfThenElse": ("children",), "WhileDoElse": ("children",),
     "PipelineSequence": ("children",), "RecoveryNode": ("retries", "children"),
     "RoundRobin": ("wrap_around", "children"),
-    "KeepRunningUntilFailure": ("child",), "RunOnce": ("then_skip", "child"),
+    "KeepRunningUntilFailure": ("child",), "RunOnce": ("then_skip", "child"), "SubTree": ("tree_id", "child"),
     "FailureIsRunning": ("child",), "RunningIsFailure": ("child",), "RunningIsSuccess": ("child",),
     "Inverter": ("child",), "ForceSuccess": ("child",), "ForceFailure": ("child",),
     "Retry": ("attempts", "child"), "Repeat": ("times", "child"), "Guard": ("condition", "child"),
@@ -774,11 +774,11 @@ _NODE_FIELDS = {
 _NODE_REQUIRED = {"Guard": ("condition", "child"), "Condition": ("expr",), "SkillRequest": ("fsm", "goal"),
                   "Inverter": ("child",), "ForceSuccess": ("child",), "ForceFailure": ("child",),
                   "Retry": ("child",), "Repeat": ("child",), "Effects": ("child",),
-                  "KeepRunningUntilFailure": ("child",), "RunOnce": ("child",),
+                  "KeepRunningUntilFailure": ("child",), "RunOnce": ("child",), "SubTree": ("child",),
                   "FailureIsRunning": ("child",), "RunningIsFailure": ("child",), "RunningIsSuccess": ("child",),
                   "IfThenElse": ("children",), "WhileDoElse": ("children",)}
 TRIGGER_KEYS = ("when", "on", True)  # "on" and True (YAML 1.1's reading of on:) are older spellings
-TOP_FIELDS = ("name", "description", "semantics", "tick_rate", "variables", "primitives", "fsms", "tree",
+TOP_FIELDS = ("name", "description", "semantics", "tick", "tick_rate", "variables", "primitives", "fsms", "tree",
               "environment", "invariants", "workable", "terminal", "resources", "responses")
 FSM_FIELDS = ("goals", "states", "initial", "edges", "markers", "params", "retarget", "withdraw_goal", "terminal")
 
@@ -1029,6 +1029,8 @@ class _Reader:
                 if not isinstance(obj[f], bool):
                     raise self.fail(f"{path}.{f}", f"expected true or false, got {_kind(obj[f])}", obj, f)
                 kw[f] = obj[f]
+        if obj.get("tree_id") is not None:
+            kw["tree_id"] = self.string(obj["tree_id"], f"{path}.tree_id", obj, "tree_id", "a BehaviorTree ID")
         if obj.get("synchronise") is not None:
             if not isinstance(obj["synchronise"], bool):
                 raise self.fail(f"{path}.synchronise", f"expected true or false, got {_kind(obj['synchronise'])}", obj, "synchronise")
@@ -1286,6 +1288,11 @@ class _Reader:
             if not isinstance(sem, str) or sem not in PROFILES:
                 raise self.fail("semantics", f"expected one of {', '.join(PROFILES)}, got {sem!r}", data, "semantics")
             kw["semantics"] = sem
+        if "tick" in data:
+            tick = data["tick"]
+            if not isinstance(tick, str) or tick not in TICKS:
+                raise self.fail("tick", f"expected one of {', '.join(TICKS)}, got {tick!r}", data, "tick")
+            kw["tick"] = tick
         if "tick_rate" in data:
             r = data["tick_rate"]
             if isinstance(r, bool) or not isinstance(r, (int, float)) or not math.isfinite(r):
@@ -1348,10 +1355,12 @@ def builtin_models() -> dict:
     return dict(BUILTIN)
 
 
-def load_model(ref, *, file_name: "str | None" = None, semantics: "str | None" = None, **xml) -> Model:
+def load_model(ref, *, file_name: "str | None" = None, semantics: "str | None" = None,
+               tick: "str | None" = None, **xml) -> Model:
     """A Model from a file (.yaml/.yml/.json) or a built-in name (``builtin_models()``).
 
-    ``semantics`` (a ``btfsm.profiles`` name) overrides the profile the model names.
+    ``semantics`` (a ``btfsm.profiles`` name) overrides the profile the model names,
+    ``tick`` (``once``, ``exactly-once``) the way a BehaviorTree.CPP main loop ticks it.
 
     Built-in entries are ``module:function`` (a shipped function returning a Model) or a
     file path relative to the ``models`` package; user input never names a module.
@@ -1360,12 +1369,16 @@ def load_model(ref, *, file_name: "str | None" = None, semantics: "str | None" =
     (``load_xml_model``); an error for any other model."""
     xml = {k: v for k, v in xml.items() if v}
     model = _load_model(ref, file_name, xml)
-    if semantics is None or semantics == model.semantics:
+    semantics = model.semantics if semantics is None else semantics
+    tick = model.tick if tick is None else tick
+    if semantics == model.semantics and tick == model.tick:
         return model
     if semantics not in PROFILES:
         raise _err("semantics", f"unknown semantics {semantics!r} (one of: {', '.join(PROFILES)})", model.source)
+    if tick not in TICKS:
+        raise _err("tick", f"unknown tick {tick!r} (one of: {', '.join(TICKS)})", model.source)
     try:
-        new = dataclasses.replace(model, semantics=semantics)
+        new = dataclasses.replace(model, semantics=semantics, tick=tick)
         object.__setattr__(new, "warnings", new.warnings + tuple(w for w in model.warnings if w not in new.warnings))
         return _with_source(new, model.source)
     except ModelError as exc:
@@ -1373,9 +1386,9 @@ def load_model(ref, *, file_name: "str | None" = None, semantics: "str | None" =
 
 
 def load_cli_model(args) -> Model:
-    """The model a command's arguments name: ``args.model``, under ``args.semantics`` when given
-    (and ``--node-library``, ``--nodes``, ``--main-tree`` for an XML tree)."""
-    return load_model(args.model, semantics=getattr(args, "semantics", None),
+    """The model a command's arguments name: ``args.model``, under ``args.semantics`` and
+    ``args.tick`` when given (and ``--node-library``, ``--nodes``, ``--main-tree`` for an XML tree)."""
+    return load_model(args.model, semantics=getattr(args, "semantics", None), tick=getattr(args, "tick", None),
                       node_library=getattr(args, "node_library", None), nodes=getattr(args, "nodes", None) or (),
                       main_tree=getattr(args, "main_tree", None))
 
@@ -1641,6 +1654,8 @@ def _node_data(n) -> dict:
         out["retries"] = n.retries
     if isinstance(n, RoundRobin) and n.wrap_around:
         out["wrap_around"] = True
+    if isinstance(n, SubTree) and n.tree_id != n.name:
+        out["tree_id"] = n.tree_id
     if isinstance(n, Retry) and n.attempts != 1:
         out["attempts"] = n.attempts
     if isinstance(n, Repeat) and n.times != 1:
@@ -1773,6 +1788,8 @@ def model_to_data(model: Model) -> dict:
         out["description"] = model.description
     if model.semantics != DEFAULT_SEMANTICS:
         out["semantics"] = model.semantics
+    if model.tick != DEFAULT_TICK:
+        out["tick"] = model.tick
     if model.tick_rate != 10.0:
         out["tick_rate"] = model.tick_rate
     if model.variables:

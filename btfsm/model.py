@@ -23,7 +23,7 @@ from .bt import Action, Node, SkillRequest, walk
 from .errors import ModelError
 from .expr import Expr, as_expr
 from .fsm import FSM
-from .profiles import PROFILES
+from .profiles import PROFILES, TICKS
 from .primitives import PASS, Primitive, effects_of
 from .timing import responses_of
 from .world import Var, check_label, check_name, check_text
@@ -74,6 +74,9 @@ class Model:
     resource must never run at once (property ``exclusive-actions``, docs/semantics.md
     rule 'Exclusive resources'). ``responses``: ``btfsm.timing.Response`` requirements (or a
     mapping name -> {trigger, response, within}) that property ``response`` decides.
+    ``tick``: how a BehaviorTree.CPP main loop ticks the tree under ``semantics="btcpp"``:
+    ``once`` (``tickOnce()``, the default: wake-up re-ticks) or ``exactly-once``
+    (``btfsm.profiles.TICKS``; docs/semantics.md section 8.1).
     """
 
     name: str
@@ -90,6 +93,7 @@ class Model:
     semantics: str = "btfsm"
     resources: tuple = ()
     responses: tuple = ()
+    tick: str = "once"
     warnings: tuple = field(default=(), compare=False, repr=False)
 
     def __post_init__(self):
@@ -166,6 +170,8 @@ class Model:
         check_text(self.description, "description", "the description")
         if self.semantics not in PROFILES:
             raise ModelError("semantics", f"unknown semantics {self.semantics!r} (one of: {', '.join(PROFILES)})")
+        if self.tick not in TICKS:
+            raise ModelError("tick", f"unknown tick {self.tick!r} (one of: {', '.join(TICKS)})")
         names = set()
         for i, var in enumerate(self.variables):
             if not isinstance(var, Var):

@@ -22,7 +22,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-__all__ = ["Profile", "PROFILES", "SEMANTICS", "DEFAULT_SEMANTICS", "profile"]
+__all__ = ["Profile", "PROFILES", "SEMANTICS", "DEFAULT_SEMANTICS", "TICKS", "DEFAULT_TICK", "profile"]
 
 
 @dataclass(frozen=True)
@@ -83,6 +83,13 @@ PROFILES = {
 }
 SEMANTICS = tuple(PROFILES)
 DEFAULT_SEMANTICS = "btfsm"
+#: How the main loop ticks a BehaviorTree.CPP tree (``Model.tick``, the file's ``tick:``,
+#: ``--tick``): ``once`` is ``Tree::tickOnce()``, which ticks the root again while it returns
+#: RUNNING and a wake-up signal is pending (Retry/Repeat/SequenceWithMemory emit one);
+#: ``exactly-once`` is ``tickExactlyOnce()``. Only ``btcpp`` has wake-ups (switch
+#: ``loop_wake_up``): under the other profiles both are the same (docs/semantics.md 8.1)
+TICKS = ("once", "exactly-once")
+DEFAULT_TICK = "once"
 
 
 def profile(name: str) -> Profile:

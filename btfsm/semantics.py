@@ -23,7 +23,7 @@ from .bt import (Action, Condition, Effects, FailureIsRunning, ForceFailure, For
                  Inverter, KeepRunningUntilFailure, MemoryFallback, MemorySequence, Node, Parallel, ParallelAll,
                  PipelineSequence, RecoveryNode, RoundRobin, RunningIsFailure, RunningIsSuccess,
                  ReactiveFallback, ReactiveSequence, Repeat, Retry, RunOnce, SequenceWithMemory,
-                 SkillRequest, WhileDoElse)
+                 SkillRequest, SubTree, WhileDoElse)
 from .errors import ModelError
 from .expr import BOOL, Scope, Slot, Type, compile_effects, compile_fn
 from .profiles import profile
@@ -135,6 +135,7 @@ class Program:
         self._fsm_timers: dict = {}  # FSM name -> the slot counting its state's run (rule 'Durations')
         self._layout_fsms()
         self._layout_nodes()
+        self.wake = self._wake_slot()
         self.exclusive = self._exclusive_groups()
         self._compile_fsms()
         self.env_timers: list = []  # (event index, slot, ticks) of events with a minimum interval
@@ -225,6 +226,22 @@ class Program:
                     and _stateful(info.kids[0])):
                 # the condition leaf's last status while the node keeps it (0: none)
                 info.stale = self._slot(f"{n.name}:condition", "memory", 3)
+
+    def _wake_slot(self):
+        """Rule 'tickOnce' (docs/semantics.md 8.1): under ``loop_wake_up`` with
+        ``Model.tick == "once"``, a slot holding BT.CPP's pending wake-up signal, when a
+        node of the tree can emit one (Retry/Repeat with a bound above 1, a
+        SequenceWithMemory of several children); else None."""
+        if not self.profile.loop_wake_up or self.model.tick != "once" or self.model.tree is None:
+            return None
+        for info in self.nodes.values():
+            n = info.node
+            if info.root != self.model.tree.name:
+                continue
+            if ((isinstance(n, Retry) and n.attempts > 1) or (isinstance(n, Repeat) and n.times > 1)
+                    or (isinstance(n, SequenceWithMemory) and len(n.children) > 1)):
+                return self._slot("tick:wake-up", "memory", 2)
+        return None
 
     def _collect(self, node: Node, parent, root):
         info = _N(node, parent, root)
@@ -675,10 +692,12 @@ class Program:
             need = count if n.success_threshold is None else _threshold(n.success_threshold, count)
             fail_at = _threshold(n.failure_threshold, count)
             top = count if self.profile.parallel_memory else fail_at  # BT.CPP refuses failure > children
-            if not 1 <= need <= count or not 1 <= fail_at <= top:
+            low = 0 if self.profile.parallel_memory else 1  # BT.CPP's 0: decide after the first child
+            if not low <= need <= count or not low <= fail_at <= top:
                 bound = f" <= {count}" if self.profile.parallel_memory else ""
-                raise ModelError(where, f"thresholds must satisfy 1 <= success <= {count} and 1 <= failure{bound} "
-                                        f"(negative ones count from the end: -1 is all {count} children)")
+                zero = "" if low else " (0 is BehaviorTree.CPP's, under semantics: btcpp)"
+                raise ModelError(where, f"thresholds must satisfy {low} <= success <= {count} and {low} <= failure{bound} "
+                                        f"(negative ones count from the end: -1 is all {count} children){zero}")
             halts = tuple((k.flag, k.halt) for k in info.kids if k.can_run)
             if info.mems:
                 return self._parallel_memory(info, kids, need, fail_at, halts, finish)
@@ -730,7 +749,7 @@ class Program:
 
         if isinstance(n, SequenceWithMemory):
             keep, count = info.keep, len(kids)
-            wake = self.profile.loop_wake_up
+            wake, signal = self.profile.loop_wake_up, self._signal(info)
             steps = tuple((child, k.flag) for child, k in zip(kids, info.kids))
 
             def tick(ctx):
@@ -746,6 +765,8 @@ class Program:
                     i += 1
                     if wake and not was_running and i < count:
                         s[keep] = i  # the wake-up: RUNNING now, the next child on the next tick
+                        if signal is not None:
+                            s[signal] = 1
                         return finish(RUNNING, ctx)
                 s[keep] = 0
                 return finish(SUCCESS, ctx)
@@ -771,6 +792,8 @@ class Program:
             limit = n.attempts if isinstance(n, Retry) else n.times
 
             if self.profile.loop_wake_up:
+                signal = self._signal(info)
+
                 def tick(ctx):
                     s = ctx.s
                     k = s[mem]
@@ -789,6 +812,8 @@ class Program:
                             return finish(st, ctx)
                         if not was_running:  # the wake-up: RUNNING now, the next attempt next tick
                             s[mem] = k
+                            if signal is not None:
+                                s[signal] = 1
                             return finish(RUNNING, ctx)
                     raise AssertionError("unreachable: the second attempt started from idle")
                 return tick
@@ -806,6 +831,13 @@ class Program:
                     s[mem] = 0
                 return finish(st, ctx)
             return tick
+
+        if isinstance(n, SubTree):
+            # rule 'SubTree': the child's status. BT.CPP's SubTreeNode also resets its child
+            # when it finishes, which only matters to a stale condition (section 8.1): a
+            # SubTree is not a stateful leaf, so IfThenElse/WhileDoElse tick it afresh
+            child = kids[0]
+            return lambda ctx: finish(child(ctx), ctx)
 
         if isinstance(n, KeepRunningUntilFailure):
             child = kids[0]
@@ -1022,6 +1054,11 @@ class Program:
             return finish(FAILURE, ctx)
         return tick
 
+    def _signal(self, info):
+        """The wake-up slot a loop node of the main tree sets (rule 'tickOnce'), or None
+        (``tick: exactly-once``, or a subtree an FSM state runs: its FSM steps once a tick)."""
+        return self.wake if info.root == (self.model.tree.name if self.model.tree is not None else None) else None
+
     def _parallel_memory(self, info, kids, need, fail_at, halts, finish):
         """BehaviorTree.CPP's Parallel (profile switch ``parallel_memory``): finished children
         are not ticked again; after each child, success then failure is checked."""
@@ -1054,7 +1091,7 @@ class Program:
                         bad += 1
                 if ok >= need:
                     return done(ctx, SUCCESS)
-                if count - bad < need or bad >= fail_at:
+                if count - bad < need or bad == fail_at:  # BT.CPP's ==: a threshold of 0 holds until a failure
                     return done(ctx, FAILURE)
             return finish(RUNNING, ctx)
         return tick
@@ -1250,11 +1287,37 @@ class Program:
             return Step(None, FAILURE, ctx.rec, [("blocked", blocked)])
         try:
             status = self.root(ctx) if self.root is not None else SUCCESS
+            if self.wake is not None and status == RUNNING and s[self.wake]:
+                status = self._reticks(ctx, status)
         except _Late as late:
             return Step(None, FAILURE, ctx.rec, [("timing", late.site.label, late.text)])
         if self.exclusive:
             _exclusive_end(ctx, self.exclusive)
         return Step(tuple(s), status, ctx.rec, ctx.violations)
+
+    def _reticks(self, ctx, status):
+        """Rule 'tickOnce' (docs/semantics.md 8.1): BT.CPP's ``tickOnce()`` ticks the root
+        again while it returns RUNNING and a wake-up signal is pending (each tick takes the
+        signal). Each re-tick is a BT tick of its own (an FSM may step again). When the
+        state before a re-tick repeats, the oracle can answer as it did before, so the
+        loop can go on for ever: the violation ``("tick-loop", root)`` ends the tick (the
+        state is the repeated one; property ``contracts`` reports it)."""
+        s, wake, seen = ctx.s, self.wake, []
+        while status == RUNNING and s[wake]:
+            s[wake] = 0
+            if s in seen:
+                name = self.model.tree.name
+                ctx.violations.append(("tick-loop", name))
+                if ctx.rec is not None:
+                    ctx.rec.append(("violation", name, f"tickOnce never returns: re-tick {len(seen) + 1} "
+                                                       "starts from the state of an earlier one"))
+                return RUNNING
+            seen.append(list(s))
+            ctx.fsm_done = {}
+            if ctx.rec is not None:
+                ctx.rec.append(("wake-up", self.model.tree.name))
+            status = self.root(ctx)
+        return status
 
     def environment_phase(self, s, oracle, rec=None, indices=None) -> "str | None":
         """Tick step 1 (docs/semantics.md section 1): the environment entries (those at
@@ -1339,7 +1402,9 @@ class Program:
 
 
 def _stateful(info) -> bool:
-    """A leaf that keeps a status between ticks in BehaviorTree.CPP (a StatefulActionNode)."""
+    """A leaf that keeps a status between ticks in BehaviorTree.CPP (a StatefulActionNode).
+    Only a leaf: every decorator, SubTree included, resets its child's status when the
+    child finishes (BT.CPP's ``DecoratorNode::executeTick`` and ``SubTreeNode::tick``)."""
     return isinstance(info.node, SkillRequest) or (isinstance(info.node, Action) and info.can_run)
 
 

@@ -154,7 +154,7 @@ def _node(draw, ctx, depth, leaves_only_fsm=False):
             return cls(name, kids, draw(st.one_of(st.integers(1, n), st.integers(-n, -1))))
         return cls(name, kids)
     if t in ("Inverter", "ForceSuccess", "ForceFailure", "Retry", "Repeat", "Guard", "Effects",
-             "KeepRunningUntilFailure", "RunOnce", "FailureIsRunning", "RunningIsFailure", "RunningIsSuccess"):
+             "KeepRunningUntilFailure", "RunOnce", "FailureIsRunning", "RunningIsFailure", "RunningIsSuccess", "SubTree"):
         child = _node(draw, ctx, depth - 1, leaves_only_fsm)
         if t == "RunOnce":
             return cls(name, child, then_skip=False)  # then_skip: true (SKIPPED) is refused

@@ -18,6 +18,7 @@ from hypothesis import strategies as st
 
 from btfsm import cli
 from btfsm.errors import ModelError
+from btfsm.status import Status
 from btfsm.files import load_model, load_xml_model, loads_model, model_to_data
 from btfsm.interop.btcpp_import import MAX_DEPTH, parse_xml, xml_to_data
 
@@ -70,6 +71,13 @@ CONTROL_TABLE = [
     (f'<Repeat num_cycles="2">{A}</Repeat>', "Repeat", {"times": 2}),
     (f"<KeepRunningUntilFailure>{A}</KeepRunningUntilFailure>", "KeepRunningUntilFailure", {}),
     (f'<RunOnce then_skip="false">{A}</RunOnce>', "RunOnce", {"then_skip": False}),
+    # issue 18: what BT.CPP accepts is read with BT.CPP's meaning
+    (f'<RunOnce then_skip="False">{A}</RunOnce>', "RunOnce", {"then_skip": False}),
+    (f'<RunOnce then_skip="FALSE">{A}</RunOnce>', "RunOnce", {"then_skip": False}),
+    (f'<RunOnce then_skip="0">{A}</RunOnce>', "RunOnce", {"then_skip": False}),
+    (f'<Parallel success_count="0" failure_count="1">{A}{B}</Parallel>', "Parallel", {"success_threshold": 0}),
+    (f'<Parallel success_count="2" failure_count="0">{A}{B}</Parallel>', "Parallel",
+     {"success_threshold": 2, "failure_threshold": 0}),
 ]
 
 
@@ -85,6 +93,24 @@ def test_control_and_decorator_nodes(tmp_path, body, key, fields):
     model = model_of(tmp_path, xml, LEAVES)
     assert type(model.tree).__name__ == key and model.semantics == "btcpp"
     assert btcpp_loads(xml)
+
+
+def test_one_undeclared_id_in_explicit_and_compact_form(tmp_path):
+    """Issue 18: BT.CPP runs what is registered under an ID whichever form names it, so
+    ``<Condition ID="IsReady" name="ready"/>`` and ``<IsReady/>`` are one undeclared
+    condition (the explicit form says its kind), in either order; an ID that the explicit
+    forms give two kinds keeps each leaf's kind, with a primitive of its own."""
+    for body in ('<Sequence><Condition ID="IsReady" name="ready"/><IsReady/></Sequence>',
+                 '<Sequence><IsReady/><Condition ID="IsReady" name="ready"/></Sequence>'):
+        model = model_of(tmp_path, doc(body))
+        kids = {n.name: n for n in model.tree.children}
+        assert {n.primitive for n in kids.values()} == {"IsReady"}
+        assert model.all_primitives()["IsReady"].statuses() == {Status.SUCCESS, Status.FAILURE}
+        assert btcpp_loads(doc(body))
+    both = doc('<Sequence><Action ID="Go" name="a"/><Condition ID="Go" name="c"/><Go/></Sequence>')
+    kids = {n.name: n for n in model_of(tmp_path, both).tree.children}
+    assert kids["a"].primitive == "Go" and kids["Go"].primitive == "Go"
+    assert kids["c"].primitive == "c" and {o.status for o in kids["c"].outcomes} == {Status.SUCCESS, Status.FAILURE}
 
 
 def test_run_once_default_then_skip(tmp_path):
@@ -191,7 +217,11 @@ def test_subtree_remapping_autoremap_and_unique_names():
               models=models, extra=sub)
     side = {"primitives": {"W": ["success"]}}
     r = data_of(xml, side)
-    kids = r.data["tree"]["children"]
+    subs = r.data["tree"]["children"]
+    # each SubTree is a node of its own (BT.CPP's SubTreeNode), named after the instance
+    assert [(k.get("SubTree"), k.get("tree_id")) for k in subs] == [("one", "S"), ("two", "S"), ("S", None),
+                                                                    ("L", None), (None, None)]
+    kids = [k.get("child", k) for k in subs]
     flat = [(k["MemorySequence"], [(c["Action"], c["args"]["out"]) for c in k["children"]]) for k in kids[:3]]
     assert flat == [("one/seq", [("one/w", "{a}"), ("one/w2", "{one__y}")]),  # x remapped; y local to the instance
                     ("two/seq", [("two/w", "{x}"), ("two/w2", "{y}")]),         # _autoremap: the parent's entries
@@ -199,7 +229,7 @@ def test_subtree_remapping_autoremap_and_unique_names():
     assert kids[3] == {"Action": "L/w", "primitive": "W", "args": {"out": "{L__z}"}}
     # a nodes entry by full name (SubTree prefix) comes before one by name or ID
     side2 = {**side, "nodes": {"two/w": {"outcomes": ["failure"]}, "w2": {"outcomes": ["success"]}}}
-    kids2 = data_of(xml, side2).data["tree"]["children"]
+    kids2 = [k.get("child", k) for k in data_of(xml, side2).data["tree"]["children"]]
     assert kids2[1]["children"][0]["outcomes"] == ["failure"] and "outcomes" not in kids2[0]["children"][0]
     assert all(k["children"][1]["outcomes"] == ["success"] for k in kids2[:3])
     assert kids[4]["Action"] == "w"
@@ -272,6 +302,7 @@ ERROR_TABLE = [
     (doc('<RetryUntilSuccessful num_attempts="-1"><A/></RetryUntilSuccessful>'), LEAVES, r"num_attempts=\"-1\": btfsm needs a bound", False),
     (doc('<Repeat num_cycles="0"><A/></Repeat>'), LEAVES, r"num_cycles=\"0\": btfsm needs a bound", False),
     (doc('<RunOnce then_skip="maybe"><A/></RunOnce>'), LEAVES, r"then_skip=\"maybe\": expected true or false", True),
+    (doc('<RunOnce then_skip=" false"><A/></RunOnce>'), LEAVES, r"then_skip=\" false\": expected true or false", True),
     (doc("<Inverter><A/><B/></Inverter>"), LEAVES, r"<Inverter>: a Inverter has exactly one child, has 2", True),
     (doc("<Sequence></Sequence>"), LEAVES, r"<Sequence>: a Sequence needs children", True),
     (doc("<IfThenElse><A/></IfThenElse>"), LEAVES, r"<IfThenElse>: a IfThenElse has 2 or 3 children", False),
@@ -616,8 +647,12 @@ def _exported_form(model):
             return ";".join(value(x) for x in v)
         return str(v)
 
+    names = _subtree_names(model)
+
     def fix(n):
         kw = {}
+        if names.get(n.name, n.name) != n.name:
+            kw["name"] = names[n.name]
         if isinstance(n, Action) and n.args:
             kw["args"] = tuple((k, value(v)) for k, v in n.args)
         if isinstance(n, Parallel) and n.success_threshold == -1:
@@ -630,7 +665,25 @@ def _exported_form(model):
             kw["child"] = fix(n.child)
         return dataclasses.replace(n, **kw) if kw else n
 
-    return dataclasses.replace(model, tree=fix(model.tree))
+    resources = tuple((r, tuple(names.get(m, m) for m in members)) for r, members in model.resources)
+    return dataclasses.replace(model, tree=fix(model.tree), resources=resources)
+
+
+def _subtree_names(model) -> dict:
+    """Node name -> the name the importer gives it: inside a SubTree, ``INSTANCE/NAME``
+    (the exporter writes the name without that prefix; the importer adds it again)."""
+    from btfsm.bt import SubTree
+
+    out = {}
+
+    def visit(n, prefix):
+        new = n.name if not prefix or n.name.startswith(prefix) else prefix + n.name
+        out[n.name] = new
+        inner = new + "/" if isinstance(n, SubTree) else prefix
+        for c in n.children_of():
+            visit(c, inner)
+    visit(model.tree, "")
+    return out
 
 
 def _side_of(model) -> dict:
@@ -640,6 +693,9 @@ def _side_of(model) -> dict:
 
     side = {k: v for k, v in to_data(model).items() if k != "tree"}
     side["semantics"] = model.semantics
+    if "resources" in side:  # node names inside SubTrees come back prefixed
+        names = _subtree_names(model)
+        side["resources"] = {r: [names.get(m, m) for m in ms] for r, ms in side["resources"].items()}
     nodes = {}
     tree = to_data(model)["tree"]
 

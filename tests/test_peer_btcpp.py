@@ -9,6 +9,8 @@ run, halt, tick, cond, in order) must be identical on every tick. docs/semantics
 """
 from __future__ import annotations
 
+import os
+
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
@@ -18,16 +20,27 @@ pytest.importorskip("behaviortreepy")
 from btcpp_peer import compare  # noqa: E402
 
 TICKS = 10
-TREES = 1000
+LONG = bool(os.environ.get("BTFSM_LONG"))
+TREES = 8000 if LONG else 1000  # ticked with tick_exactly_once()
+TREES_ONCE = 4000 if LONG else 300  # ticked with tick_once()
+TREES_LOOPY = 2000 if LONG else 60  # small trees of wake-up loops, some of which never return
 
 _COMPOSITES = ("ReactiveSequence", "MemorySequence", "SequenceWithMemory", "ReactiveFallback", "MemoryFallback",
                "Parallel", "ParallelAll", "IfThenElse", "WhileDoElse")
 _DECORATORS = ("Inverter", "ForceSuccess", "ForceFailure", "Retry", "Repeat", "KeepRunningUntilFailure", "RunOnce")
 
 
+def _has_skill(spec) -> bool:
+    if spec[0] in ("async", "sync", "cond", "skill"):
+        return spec[0] == "skill"
+    body = spec[2]
+    return any(_has_skill(c) for c in body) if isinstance(body, list) else _has_skill(body)
+
+
 @st.composite
 def trees(draw, depth=4):
     counter = iter(range(1000))
+    made = []  # SubTrees written so far without skill requests: (tree ID, child), reusable
 
     def node(d):
         if d == 0 or (d < depth and draw(st.integers(0, 3)) == 0):  # the root is never a leaf
@@ -36,6 +49,14 @@ def trees(draw, depth=4):
             table = "".join(draw(st.lists(st.sampled_from(alphabet), min_size=TICKS, max_size=TICKS)))
             return (kind, f"L{next(counter)}", table)
         name = f"n{next(counter)}"
+        if draw(st.integers(0, 4)) == 0:  # a SubTree: a new <BehaviorTree>, or one written before again
+            if made and draw(st.booleans()):
+                ident, child = draw(st.sampled_from(made))
+            else:
+                ident, child = f"T{name}", node(d - 1)
+                if not _has_skill(child):
+                    made.append((ident, child))
+            return ("SubTree", name, child, {"tree_id": ident})
         if draw(st.booleans()):
             t = draw(st.sampled_from(_COMPOSITES))
             lo, hi = (2, 3) if t in ("IfThenElse", "WhileDoElse") else (1, 4)
@@ -43,8 +64,8 @@ def trees(draw, depth=4):
             n = len(kids)
             params = {}
             if t == "Parallel":
-                s = draw(st.integers(-n, n).filter(lambda x: x != 0))
-                f = draw(st.integers(-n, n).filter(lambda x: x != 0))
+                s = draw(st.integers(-n - 1, n))  # 0 (and -n-1): BT.CPP decides after the first child
+                f = draw(st.integers(-n - 1, n))
                 params = {"success_threshold": s, "failure_threshold": f}
             elif t == "ParallelAll":
                 params = {"max_failures": draw(st.integers(1, n))}
@@ -61,6 +82,32 @@ def trees(draw, depth=4):
     return node(depth)
 
 
+@st.composite
+def loopy_trees(draw):
+    """A root of 2-3 children that emit wake-up signals (Retry/Repeat of bound 2-3,
+    SequenceWithMemory) or are leaves: where tick_once() re-ticks, and may never return."""
+    counter = iter(range(100))
+
+    def leaf():
+        kind = draw(st.sampled_from(("async", "sync", "sync", "cond")))
+        alphabet = "SFR" if kind == "async" else "SF"
+        return (kind, f"L{next(counter)}", "".join(draw(st.lists(st.sampled_from(alphabet), min_size=TICKS,
+                                                                  max_size=TICKS))))
+
+    def looping():
+        t = draw(st.sampled_from(("Retry", "Repeat", "SequenceWithMemory", "leaf")))
+        name = f"n{next(counter)}"
+        if t == "leaf":
+            return leaf()
+        if t == "SequenceWithMemory":
+            return (t, name, [leaf() for _ in range(draw(st.integers(2, 3)))], {})
+        return (t, name, leaf(), {"attempts" if t == "Retry" else "times": draw(st.integers(2, 3))})
+    t = draw(st.sampled_from(("ReactiveSequence", "ReactiveFallback", "Parallel", "MemorySequence", "IfThenElse",
+                              "WhileDoElse")))
+    n = 3 if t in ("IfThenElse", "WhileDoElse") else draw(st.integers(2, 3))
+    return (t, "root", [looping() for _ in range(n)], {})
+
+
 def _show(spec, a, b, xml):
     lines = [f"spec: {spec}", xml]
     for k, (x, y) in enumerate(zip(a, b)):
@@ -71,9 +118,28 @@ def _show(spec, a, b, xml):
 
 @settings(derandomize=True, max_examples=TREES, deadline=None, database=None,
           suppress_health_check=list(HealthCheck))
-@given(trees())
-def test_peer_btcpp_random_trees(spec):
-    a, b, xml = compare(spec, TICKS)
+@given(trees(), st.integers(0, 2**32))
+def test_peer_btcpp_random_trees(spec, seed):
+    a, b, xml = compare(spec, TICKS, seed)
+    assert a == b, _show(spec, a, b, xml)
+
+
+@settings(derandomize=True, max_examples=TREES_ONCE, deadline=None, database=None,
+          suppress_health_check=list(HealthCheck))
+@given(trees(), st.integers(0, 2**32))
+def test_peer_btcpp_random_trees_tick_once(spec, seed):
+    """The same trees ticked with tick_once() (rule 'tickOnce', the default tick)."""
+    a, b, xml = compare(spec, TICKS, seed, tick="once")
+    assert a == b, _show(spec, a, b, xml)
+
+
+@settings(derandomize=True, max_examples=TREES_LOOPY, deadline=None, database=None,
+          suppress_health_check=list(HealthCheck))
+@given(loopy_trees())
+def test_peer_btcpp_tick_once_loops(spec):
+    """tick_once() on trees of wake-up loops: where btfsm predicts that a tick never
+    returns, the real engine runs in a child process and must loop there too (LOOP)."""
+    a, b, xml = compare(spec, TICKS, tick="once")
     assert a == b, _show(spec, a, b, xml)
 
 

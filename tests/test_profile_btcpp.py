@@ -96,6 +96,16 @@ SCENARIOS = [
      ("WhileDoElse", "wde", [C("c", "SFSS"), A("do", "RRRR")]), "RFRR"),
     ("gtest_while_do_else (an async condition keeps its status while the branch runs)",
      ("WhileDoElse", "wde", [A("c", "SFFF"), A("do", "RRSS"), A("else", "RRRR")]), "RRSR"),
+    ("gtest_parallel (issue 18: success_count 0 succeeds once the first child was ticked)",
+     ("Parallel", "par", [A("a", "RRRR"), A("b", "RRRR")], {"success_threshold": 0, "failure_threshold": 1}), "SSSS"),
+    ("gtest_parallel (issue 18: failure_count 0 fails after the first child unless it failed)",
+     ("Parallel", "par", [S("a", "SFSF"), A("b", "RRSR")], {"success_threshold": 2, "failure_threshold": 0}), "FFFF"),
+    ("gtest_parallel (issue 18: failure_count 0 after a first failure: only the success rule decides)",
+     ("Parallel", "par", [S("a", "FSFS"), A("b", "RRSR")], {"success_threshold": 1, "failure_threshold": 0}), "RRSS"),
+    ("gtest_subtree (issue 18: a SubTree resets its child, so IfThenElse sees the leaf afresh)",
+     ("IfThenElse", "ite", [("SubTree", "Check", A("Detect", "FSSS")), S("ok", "SSSS")]), "FSSS"),
+    ("gtest_subtree (issue 18: WhileDoElse over a SubTree halts Do when the condition turns false)",
+     ("WhileDoElse", "wde", [("SubTree", "Check", A("Detect", "SSFF")), A("Pick", "RRRR"), A("Wait", "RRRR")]), "RRRR"),
 ]
 
 _LETTER = {"RUNNING": "R", "SUCCESS": "S", "FAILURE": "F"}
@@ -167,6 +177,72 @@ def test_profile_btcpp_stale_condition():
     real, ours, default = _both(spec, 2)
     assert ours == real and real[1] == ("RUNNING", [("do", "run")])
     assert default[1] == ("RUNNING", [("do", "halt"), ("c", "start"), ("else", "start")])  # halt before start
+
+
+def test_profile_btcpp_subtree_resets_its_child():
+    """Rule 'SubTree' (issue 18): BT.CPP's SubTreeNode resets its child when it finishes, so a
+    stateful leaf at a SubTree's root keeps no status: WhileDoElse sees the condition turn
+    false and halts Pick. The same leaf without the SubTree keeps its SUCCESS (stale
+    condition), and Pick keeps running: both as in the real engine."""
+    sub = ("WhileDoElse", "wde", [("SubTree", "Check", A("Detect", "SSFF")), A("Pick", "RRRR"), A("Wait", "RRRR")])
+    real, ours, _ = _both(sub, 3)
+    assert ours == real and real[2] == ("RUNNING", [("Detect", "start"), ("Pick", "halt"), ("Wait", "start")])
+    inline = ("WhileDoElse", "wde", [A("Detect", "SSFF"), A("Pick", "RRRR"), A("Wait", "RRRR")])
+    real, ours, _ = _both(inline, 3)
+    assert ours == real and real[2] == ("RUNNING", [("Pick", "run")])
+
+
+def test_profile_btcpp_tick_once():
+    """Rule 'tickOnce' (Model.tick, --tick): BT.CPP's tick_once() ticks the root again while
+    it returns RUNNING and a wake-up signal is pending; tick_exactly_once() does not. Both
+    against the real engine."""
+    spec = ("Retry", "retry", S("a", "FFFS"), {"attempts": 3})
+    real, ours, _ = compare(spec, 4, tick="once")
+    assert ours == real and real[0] == ("FAILURE", [("a", "tick")] * 3)  # three attempts in one tick_once()
+    real, ours, _ = compare(spec, 4, tick="exactly-once")
+    assert ours == real and [s for s, _ in real] == ["RUNNING", "RUNNING", "FAILURE", "SUCCESS"]
+
+
+_LOOPS = ("ReactiveSequence", "rs", [("Repeat", "r1", S("a", "SSSS"), {"times": 2}),
+                                     ("Repeat", "r2", S("b", "SSSS"), {"times": 2})])
+
+
+def test_profile_btcpp_tick_once_loop(tmp_path, capsys):
+    """A tick_once() that never returns: r1's first success wakes the tree up, r1 then
+    succeeds and r2 wakes it up, r1 starts again and halts r2 (a reactive sequence), and so
+    on for ever. The real engine loops (run apart, stopped after many callbacks); btfsm
+    finds the repeated state, and `btfsm check` reports it under `contracts` with a
+    counterexample that replays; with --tick exactly-once the property holds."""
+    real, ours, _ = compare(_LOOPS, 3, tick="once")
+    assert real == ours == [("LOOP", [])]
+    model, _ = build(_LOOPS, 3, tick="once")
+    from btfsm.cli import main
+    from btfsm.files import dump_model
+
+    path = tmp_path / "loop.yaml"
+    dump_model(model, path)
+    assert main(["check", str(path), "--property", "contracts", "--counterexample-dir", str(tmp_path / "ce")]) == 1
+    out = capsys.readouterr().out
+    assert "contracts: tickOnce() of 'rs' can loop for ever (the tick never returns)" in out
+    (ce,) = (tmp_path / "ce").iterdir()
+    assert main(["replay", str(ce), str(path)]) == 0
+    assert "confirmed: tick 1: tickOnce() re-ticks 'rs' in a loop" in capsys.readouterr().out
+    assert main(["check", str(path), "--property", "contracts", "--tick", "exactly-once"]) == 0
+
+
+def test_tick_option_in_files_and_flags():
+    """`tick:` in a model (or side) file and --tick: once (the default) or exactly-once;
+    anything else is a one-line error naming the field."""
+    from btfsm.errors import ModelError
+    from btfsm.files import load_model, loads_model, model_to_data
+
+    text = "name: m\nsemantics: btcpp\nprimitives: {a: [success]}\ntree: {Action: a}\n"
+    assert loads_model(text).tick == "once" and "tick" not in model_to_data(loads_model(text))
+    exact = loads_model(text + "tick: exactly-once\n")
+    assert exact.tick == "exactly-once" and model_to_data(exact)["tick"] == "exactly-once"
+    with pytest.raises(ModelError, match=r"tick: expected one of once, exactly-once, got 'sometimes'"):
+        loads_model(text + "tick: sometimes\n")
+    assert load_model("bt-cpp-1031", tick="exactly-once").tick == "exactly-once"
 
 
 def test_run_once_then_skip_refused():

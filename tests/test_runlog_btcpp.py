@@ -55,7 +55,7 @@ def _record(specs, folder, first=0):
     yet when it is destroyed, so the loggers of a batch stay alive until every file is read
     back complete: a file that is empty, ends inside a transition or does not conform is
     read again (for up to ``DRAIN`` seconds; the last reading is what the test judges)."""
-    out, live = [], []
+    out, live, paths = [], [], []
     for n, spec in enumerate(specs):
         model, leaves = build(spec, TICKS)
         factory = bt.BehaviorTreeFactory()
@@ -76,10 +76,11 @@ def _record(specs, folder, first=0):
             tree.tick_exactly_once()
         live.append([tree, logger])
         out.append([model, leaves, path, None])
+        paths.append(path)
     sizes = None
     for _ in range(50):  # first until the files stop growing (the writers wake every 10 ms)
         time.sleep(0.02)
-        now_sizes = [os.path.getsize(p) for _, _, p, _ in out]
+        now_sizes = [os.path.getsize(p) for p in paths]
         if now_sizes == sizes:
             break
         sizes = now_sizes
@@ -87,7 +88,7 @@ def _record(specs, folder, first=0):
     while pending:
         still = []
         for i in pending:
-            model, leaves, path, _ = out[i]
+            model, leaves, path = out[i][0], out[i][1], paths[i]
             try:
                 log = read_btlog(open(path, "rb").read(), path)
             except ModelError:  # the writer thread is inside a transition
@@ -116,7 +117,8 @@ def _pin(model, leaves):
             return False
         for ev in step.events:
             if ev[0] == "outcome":
-                leaf = ev[1].split("/")[0][:-len("_fsm")] if "/" in ev[1] else ev[1]
+                parts = ev[1].split("/")  # a skill's FSM state 'L_fsm/work', or 'INSTANCE/.../L' in a SubTree
+                leaf = parts[-2][:-len("_fsm")] if parts[-1] == "work" and parts[-2].endswith("_fsm") else parts[-1]
                 if ev[2][0].upper() != leaves[leaf][1][t]:
                     return False
         return True
@@ -126,13 +128,17 @@ def _pin(model, leaves):
 _SPECS: list = []
 
 
-def _retabled(spec, rng):
-    """The same tree with new random leaf answers."""
+def _retabled(spec, rng, done=None):
+    """The same tree with new random leaf answers (one table per leaf name: a SubTree's
+    tree used in two places has the same leaves in both)."""
+    done = {} if done is None else done
     if spec[0] in ("async", "sync", "cond", "skill"):
         alphabet = "SFR" if spec[0] in ("async", "skill") else "SF"
-        return (spec[0], spec[1], "".join(rng.choice(alphabet) for _ in spec[2]))
+        if spec[1] not in done:
+            done[spec[1]] = "".join(rng.choice(alphabet) for _ in spec[2])
+        return (spec[0], spec[1], done[spec[1]])
     body = spec[2]
-    body = [_retabled(c, rng) for c in body] if isinstance(body, list) else _retabled(body, rng)
+    body = [_retabled(c, rng, done) for c in body] if isinstance(body, list) else _retabled(body, rng, done)
     return (spec[0], spec[1], body, *spec[3:])
 
 

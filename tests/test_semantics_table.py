@@ -23,7 +23,7 @@ from btfsm import (FSM, Action, Bool, Condition, DomainError, Edge, Effects, Env
                    RunningIsFailure, RunningIsSuccess,
                    ForceFailure, ForceSuccess, Guard, Int, Inverter, Marker, MemoryFallback,
                    MemorySequence, Model, ModelError, Parallel, Primitive, ReactiveFallback,
-                   ReactiveSequence, Repeat, Retry, SkillRequest, State, Status, failure, running,
+                   ReactiveSequence, Repeat, Retry, SkillRequest, State, Status, SubTree, failure, running,
                    success)
 from btfsm.oracles import RandomOracle, ScriptOracle
 from btfsm.runtime import Runtime
@@ -350,6 +350,19 @@ def test_inverter():
     m = Model("inv", tree=Inverter("root", act("a")))
     run_rows(m, [Tick("a:S", "F", running=""), Tick("a:F", "S", running=""),
                  Tick("a:R", "R", running="root a"), Tick("a:S", "F", running="")])
+
+
+def test_subtree():
+    """Rule 'SubTree': the child's status, RUNNING included; halting it halts the child
+    (children first). Under btcpp it also resets its child when the child finishes, so a
+    stateful leaf below keeps no status for an IfThenElse above
+    (test_profile_btcpp_subtree_resets_its_child, against the real engine)."""
+    m = Model("sub", tree=SubTree("root", act("a"), tree_id="T"))
+    run_rows(m, [Tick("a:S", "S", running=""), Tick("a:F", "F", running=""),
+                 Tick("a:R", "R", running="root a"), Tick("a:S", "S", running="")])
+    halted = Model("sub_halt", tree=ReactiveSequence("root", [act("b", "SF"), SubTree("s", act("a"))]))
+    run_rows(halted, [Tick("b:S a:R", "R", running="root s a", halts=""),
+                      Tick("b:F", "F", running="", halts="a s")])
 
 
 def test_force_success():

@@ -150,7 +150,7 @@ def test_no_invariant_is_not_applicable():
     ("workable-reachability", "no skill FSM and no 'workable' expression", lambda: _counter(workable="n == 0")),
     ("goal-reachability", "no skill FSM", lambda: _worker(True)),
     ("determinism", "no skill FSM", lambda: _worker(True)),
-    ("contracts", "no skill FSM", lambda: _worker(True)),
+    ("contracts", "no skill FSM and no tickOnce wake-up", lambda: _worker(True)),
     ("request-latency", "no skill FSM", lambda: _targeted("immediate")),
     ("invariants", "no invariant declared", lambda: _counter(invariants={"r": "n <= 3"})),
     ("exclusive-actions", "no 'resources:' declared",

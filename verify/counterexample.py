@@ -567,6 +567,10 @@ def _confirm(ce, model, state, last, error) -> tuple:
         if last is not None and ("post", node) in [tuple(v) for v in last.violations]:
             return True, f"confirmed: tick {n}: '{node}' replied SUCCESS while its post-condition is false"
         return False, f"no contract violation of '{node}' at the last tick"
+    if kind == "tick-loop":
+        if last is not None and ("tick-loop", ce.violation.get("node")) in [tuple(v) for v in last.violations]:
+            return True, f"confirmed: tick {n}: tickOnce() re-ticks '{ce.violation.get('node')}' in a loop"
+        return False, "the last tick returns"
     if kind == "conflict":
         node = ce.violation["node"]
         if last is not None and ("busy", node, ce.violation.get("fsm")) in [tuple(v) for v in last.violations]:

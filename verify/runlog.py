@@ -27,7 +27,7 @@ import re
 import sys
 from dataclasses import dataclass, field
 
-from btfsm.bt import Condition, Leaf
+from btfsm.bt import Condition, Leaf, SubTree
 from btfsm.errors import ModelError
 from btfsm.interop.btcpp_import import CONTROLS, DECORATORS
 from btfsm.interop.btlog import MAGIC, STATUS_NAMES, read_btlog
@@ -142,6 +142,8 @@ def _map_tree(log_root, model, file, children, tag, name, label, key, wrapper, k
                               f"vs model node '{mn.name}' ({type(mn).__name__}): {why}", file)
 
     def walk(ln, mn, parent):
+        while isinstance(mn, SubTree):  # it returns its child's status: recorded SubTrees stand for the child
+            mn = mn.children_of()[0]
         kids, lkids = mn.children_of(), children(ln)
         if wrapper(ln) or (known(ln) is None and len(lkids) == 1 and len(kids) != 1):
             k = m.add(key(ln), label(ln), SUBTREE if tag(ln) == "SubTree" else CUSTOM, parent)
@@ -268,6 +270,8 @@ class _Matcher:
             k = item[1]
             cur = t[k]
             if item[0] == START:
+                if entry == (k, IDLE) and cur in (SUCCESS, FAILURE):
+                    continue  # BT.CPP reset this node before its tick began: the reset (pushed above) comes first
                 rule = rules[k]
                 need = ((rule == CONTROL and cur != RUNNING) or (rule == SUBTREE and cur == IDLE)
                         or (rule == ONCE and cur != RUNNING and not item[2]))

@@ -13,6 +13,9 @@ BehaviorTree.CPP and Groot2 load it once the leaves are registered. The node map
 * decorators: ``Inverter``, ``ForceSuccess``, ``ForceFailure``, ``Retry`` ->
   ``RetryUntilSuccessful num_attempts``, ``Repeat num_cycles``,
   ``KeepRunningUntilFailure``, ``RunOnce then_skip``;
+* ``SubTree`` -> ``<SubTree ID="tree_id" name="node"/>`` and a ``<BehaviorTree ID="tree_id">``
+  holding its child (written once per ID; SubTrees of one ID whose children differ get the
+  IDs ``tree_id_2``, ``tree_id_3``...);
 * leaves are callbacks the user registers by ID, written in the compact form ``<ID
   name="node" .../>`` (BehaviorTree.CPP's parser looks the tag of a ReactiveSequence's
   children up as a registered ID, so ``<Action ID=...>`` is refused there): an ``Action``
@@ -53,7 +56,7 @@ import re
 from ..bt import (Action, Condition, Effects, ForceFailure, ForceSuccess, Guard, IfThenElse, Inverter,
                   KeepRunningUntilFailure, MemoryFallback, MemorySequence, Parallel, ParallelAll,
                   ReactiveFallback, ReactiveSequence, Repeat, Retry, RunOnce, SequenceWithMemory,
-                  SkillRequest, WhileDoElse)
+                  SkillRequest, SubTree, WhileDoElse)
 from ..errors import ModelError
 from ..expr import to_text
 
@@ -105,12 +108,14 @@ def to_btcpp_xml(model) -> str:
     if model.tree is None:
         raise ModelError("tree", "btcpp export needs a tree; the model has none")
     leaves: dict = {}  # ID -> (kind, ports, description, node name)
-    lines = []
-    _node(model.tree, 2, lines, leaves)
+    lines: list = []
+    trees: dict = {model.name: (lines, None)}  # BehaviorTree ID -> (lines, leaves) (the main tree first)
+    _node(model.tree, 2, lines, leaves, trees)
     name = xml_attr(model.name, "name")
-    out = ['<?xml version="1.0" encoding="UTF-8"?>',
-           f'<root BTCPP_format="4" main_tree_to_execute="{name}">',
-           f'  <BehaviorTree ID="{name}">', *lines, "  </BehaviorTree>", "  <TreeNodesModel>"]
+    out = ['<?xml version="1.0" encoding="UTF-8"?>', f'<root BTCPP_format="4" main_tree_to_execute="{name}">']
+    for ident, (body, _) in trees.items():
+        out += [f'  <BehaviorTree ID="{xml_attr(ident, "name")}">', *body, "  </BehaviorTree>"]
+    out.append("  <TreeNodesModel>")
     for ident, (kind, ports, desc, _) in leaves.items():
         body = [f'      <input_port name="{xml_attr(p)}" type="std::string"/>' for p in ports]
         if desc is not None:
@@ -128,7 +133,7 @@ def _declare(leaves, ident, kind, ports, desc, node):
     if old is None:
         leaves[ident] = (kind, list(ports), desc, node)
         return
-    if old[0] != kind or old[2] != desc or kind == "Condition" or old[2] is not None:
+    if old[0] != kind or old[2] != desc:  # one ID is one leaf type: same kind, same description
         raise ModelError(f"tree.{node}", f"BehaviorTree.CPP ID '{ident}' is also used by node '{old[3]}' for another leaf")
     old[1].extend(p for p in ports if p not in old[1])
 
@@ -140,10 +145,13 @@ def _leaf_tag(ident, where) -> str:
     return ident
 
 
-def _node(n, depth, lines, leaves):
+def _node(n, depth, lines, leaves, trees, strip=""):
+    """Write node ``n``; inside a SubTree, names lose the SubTree's ``strip`` prefix
+    (``INSTANCE/``), which the importer adds again."""
     pad = "  " * depth
     where = f"tree.{n.name}"
-    name = xml_attr(n.name, where)
+    shown = n.name[len(strip):] if strip and n.name.startswith(strip) and len(n.name) > len(strip) else n.name
+    name = xml_attr(shown, where)
     if isinstance(n, Action):
         ports = [k for k, _ in n.args]
         attrs = "".join(f' {xml_attr(k, where)}="{xml_attr(_value(v), where)}"' for k, v in n.args)
@@ -151,14 +159,28 @@ def _node(n, depth, lines, leaves):
         lines.append(f'{pad}<{_leaf_tag(n.primitive, where)} name="{name}"{attrs}/>')
         return
     if isinstance(n, Condition):
-        _declare(leaves, n.name, "Condition", (), to_text(n.expr), n.name)
-        lines.append(f'{pad}<{_leaf_tag(n.name, where)} name="{name}"/>')
+        _declare(leaves, shown, "Condition", (), to_text(n.expr), n.name)
+        lines.append(f'{pad}<{_leaf_tag(shown, where)} name="{name}"/>')
         return
     if isinstance(n, SkillRequest):
         params = ", ".join(f"{k}={to_text(e)}" for k, e in n.params)
         desc = f"btfsm SkillRequest: fsm {n.fsm}, goal {n.goal}" + (f", params {params}" if params else "")
-        _declare(leaves, n.name, "Action", (), desc, n.name)
-        lines.append(f'{pad}<{_leaf_tag(n.name, where)} name="{name}"/>')
+        _declare(leaves, shown, "Action", (), desc, n.name)
+        lines.append(f'{pad}<{_leaf_tag(shown, where)} name="{name}"/>')
+        return
+    if isinstance(n, SubTree):
+        body: list = []
+        mine: dict = {}  # the leaves of this SubTree's tree, declared once per tree written
+        _node(n.child, 2, body, mine, trees, n.name + "/")
+        tree = (body, {lid: d[:3] for lid, d in mine.items()})  # with the leaves of SubTrees inside
+        ident, k = n.tree_id, 1
+        while trees.get(ident, tree) != tree:  # another tree under this ID: the next free one
+            k += 1
+            ident = f"{n.tree_id}_{k}"
+        trees.setdefault(ident, tree)
+        for lid, (kind, ports, desc, node) in mine.items():
+            _declare(leaves, lid, kind, ports, desc, node)
+        lines.append(f'{pad}<SubTree ID="{xml_attr(ident, where)}" name="{name}"/>')
         return
     if isinstance(n, (Guard, Effects)):
         raise ModelError(where, f"{type(n).__name__} has no BehaviorTree.CPP counterpart with the same rules; "
@@ -183,5 +205,5 @@ def _node(n, depth, lines, leaves):
         attrs = f' then_skip="{"true" if n.then_skip else "false"}"'
     lines.append(f'{pad}<{tag} name="{name}"{attrs}>')
     for child in n.children_of():
-        _node(child, depth + 1, lines, leaves)
+        _node(child, depth + 1, lines, leaves, trees, strip)
     lines.append(f"{pad}</{tag}>")

@@ -98,6 +98,8 @@ _PORT_TAGS = ("input_port", "output_port", "inout_port")
 _MODEL_KINDS = ("Action", "Condition", "Control", "Decorator", "SubTree")
 _IDENT = re.compile(r"[A-Za-z_][A-Za-z0-9_]*\Z")
 _REF = re.compile(r"\{(@?)([^{}]*)\}\Z")
+#: BT.CPP's ``convertFromString<bool>``: these spellings exactly (no spaces), nothing else
+BOOLS = ("true", "True", "TRUE", "1", "false", "False", "FALSE", "0")
 _BOOL_TYPES = ("bool",)
 _OUTCOMES = re.compile(r"btfsm outcomes:(?P<list>.*)\Z", re.S)
 _EXPR = re.compile(r"btfsm expr:(?P<expr>.*)\Z", re.S)
@@ -256,6 +258,8 @@ class _Importer:
         if main is not None and not isinstance(main, str):
             raise ModelError("main_tree", "expected the ID of a BehaviorTree", self.side_name)
         self.primitives: dict = {}  # generated primitives (undeclared and built-in leaves)
+        self.inline: set = set()  # primitives declared inline at one leaf
+        self.explicit: dict = {}  # ID -> the kinds its explicit <Action/Condition ID=...> forms give
         self.trees: dict = {}
         self.models: dict = {}  # TreeNodesModel: ID -> (kind, {port: (direction, type)}, description, element)
         self.names: set = set()
@@ -339,6 +343,7 @@ class _Importer:
     def main_part(self, root: El) -> XmlImport:
         if not self.trees:
             raise self.fail(root, "no <BehaviorTree> in the file")
+        self.explicit = _explicit_kinds(self.trees.values())
         main = self.main_override or self.side.get("main_tree") or root.attrs.get("main_tree_to_execute")
         if main is None:
             if len(self.trees) != 1:
@@ -458,9 +463,9 @@ class _Importer:
             if _REF.match(v.strip()):
                 raise self.fail(el, f"{a}=\"{v}\" reads the blackboard: not modelled by btfsm (give a constant)")
             if fname == "then_skip":
-                if v.strip() not in ("true", "false", "1", "0"):
-                    raise self.fail(el, f"{a}=\"{v}\": expected true or false")
-                val = v.strip() in ("true", "1")
+                val = _bool(v)
+                if val is None:
+                    raise self.fail(el, f"{a}=\"{v}\": expected true or false ({', '.join(BOOLS)}, as BT.CPP reads a bool)")
             else:
                 try:
                     val = int(v.strip())
@@ -496,9 +501,9 @@ class _Importer:
             raise self.fail(el, f"SubTree ID '{sid}' names no BehaviorTree (trees: {', '.join(self.trees)})")
         if sid in stack:
             raise self.fail(el, f"recursive SubTree: {' -> '.join(stack + (sid,))}")
-        auto = el.attrs.get("_autoremap", "false").strip()
-        if auto not in ("true", "false", "1", "0"):
-            raise self.fail(el, f"_autoremap=\"{auto}\": expected true or false")
+        auto = el.attrs.get("_autoremap", "false")
+        if _bool(auto) is None:
+            raise self.fail(el, f"_autoremap=\"{auto}\": expected true or false ({', '.join(BOOLS)}, as BT.CPP reads a bool)")
         remap = {}
         for a, v in el.attrs.items():
             if a in ("ID", "name", "_autoremap") + DOC_ATTRS:
@@ -507,8 +512,14 @@ class _Importer:
                 raise self.fail(el, f"unknown attribute '{a}'")
             remap[a] = scope.value(v.strip(), a) if _REF.match(v.strip()) else ("lit", v)
         inst = el.attrs.get("name") or sid
-        sub = scope.child(remap, auto in ("true", "1"), _ident(prefix + inst))
-        return self.node(self.trees[sid].children[0], path, sub, stack + (sid,), f"{prefix}{inst}/")
+        sub = scope.child(remap, _bool(auto), _ident(prefix + inst))
+        # a SubTree node (BT.CPP's SubTreeNode: it resets its child when the child finishes)
+        out = {"SubTree": self.unique(prefix + inst, el)}
+        self.lines[path] = el.where()
+        if sid != out["SubTree"]:
+            out["tree_id"] = sid
+        out["child"] = self.node(self.trees[sid].children[0], f"{path}.child", sub, stack + (sid,), f"{prefix}{inst}/")
+        return out
 
     # ---------------------------------------------------------------- leaves
     def leaf(self, el, ident, kind, shown, path, scope, prefix):
@@ -517,6 +528,10 @@ class _Importer:
         model = self.models.get(ident)
         if kind is None and model is not None:
             kind = model[0]
+        if kind is None and len(self.explicit.get(ident, ())) == 1:
+            # BT.CPP runs whatever is registered under the ID, whichever form names it: a
+            # compact <ID/> is of the kind an explicit <Condition ID=...> of it says
+            kind = next(iter(self.explicit[ident]))
         if kind in ("Control", "Decorator"):
             raise self.fail(el, f"{ident} is declared as a {kind} in TreeNodesModel but has no children")
         ports = {}
@@ -617,7 +632,13 @@ class _Importer:
         else:
             prev = self.primitives.setdefault(ident, outcomes)
             if prev != outcomes or ident in self.side_prims:
-                out["primitive"] = name
+                # another leaf of this ID has other outcomes: its own primitive, a fresh name
+                prim, k = name, 1
+                while prim in self.primitives or prim in self.side_prims or prim in self.inline:
+                    k += 1
+                    prim = f"{name}_{k}"
+                self.inline.add(prim)
+                out["primitive"] = prim
                 out["outcomes"] = outcomes
         if args:
             out["args"] = args
@@ -762,9 +783,27 @@ def _mark(el: El, file: str):
         stack.extend(e.children)
 
 
+def _explicit_kinds(trees) -> dict:
+    """ID -> {"Action", "Condition"}: the kinds the explicit ``<Action ID=..>`` /
+    ``<Condition ID=..>`` forms in the trees give it."""
+    out: dict = {}
+    stack = list(trees)
+    while stack:
+        el = stack.pop()
+        if el.tag in ("Action", "Condition") and el.attrs.get("ID"):
+            out.setdefault(el.attrs["ID"], set()).add(el.tag)
+        stack.extend(el.children)
+    return out
+
+
 def _ident(text: str) -> str:
     out = re.sub(r"[^A-Za-z0-9_]", "_", text)
     return out if _IDENT.match(out) else "_" + out
+
+
+def _bool(text: str) -> "bool | None":
+    """``text`` as BT.CPP reads a bool attribute; None when BT.CPP refuses it."""
+    return text in BOOLS[:4] if text in BOOLS else None
 
 
 def _text(v) -> str:

@@ -89,8 +89,10 @@ def not_applicable(model, name: str) -> "str | None":
     True
     """
     fsms = bool(model.fsms)
-    if name in ("goal-reachability", "determinism", "contracts") and not fsms:
+    if name in ("goal-reachability", "determinism") and not fsms:
         return "no skill FSM"
+    if name == "contracts" and not fsms and model.program.wake is None:
+        return "no skill FSM and no tickOnce wake-up"  # a tickOnce loop is a contract breach
     if name == "workable-reachability" and not fsms and model.workable is None:
         return "no skill FSM and no 'workable' expression"
     if name == "request-latency" and not any(f.params for f in model.fsms):

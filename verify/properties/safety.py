@@ -2,8 +2,10 @@
 
 * ``invariants``: each user invariant holds in every reachable state (model level).
 * ``contracts``: no reachable tick has a SkillRequest reply SUCCESS while its ``post`` is
-  false, and none has two requests use one FSM at once (a request refused as ``busy``,
-  docs/semantics.md rule 'Conflict') (``Step.violations``; model level).
+  false, none has two requests use one FSM at once (a request refused as ``busy``,
+  docs/semantics.md rule 'Conflict'), and every tick returns: under ``semantics: btcpp``
+  with ``tick: once`` BehaviorTree.CPP's ``tickOnce()`` can re-tick the root for ever
+  (``tick-loop``, rule 'tickOnce') (``Step.violations``; model level).
 * ``domain``: no effect writes outside its variable's domain. Model level; for a model
   without a tree (whose FSMs never step at model level) also each FSM as an open system.
 
@@ -48,19 +50,29 @@ def check_invariants(ctx) -> Result:
 
 def check_contracts(ctx) -> Result:
     ts = ctx.model_ts()
-    found = [(t, v) for t, vs in ts.violations for v in vs if v[0] in ("post", "busy")]
+    found = [(t, v) for t, vs in ts.violations for v in vs if v[0] in ("post", "busy", "tick-loop")]
     if not found:
         return Result("contracts", _undecided(ts), None, [] if ts.complete else [f"{budget_hit(ts)}: not decided"])
     posts = [p for p in found if p[1][0] == "post"]
     busy = [p for p in found if p[1][0] == "busy"]
+    loops = [p for p in found if p[1][0] == "tick-loop"]
     t, v = min(found, key=lambda p: (int(ts.src[p[0]]), p[0]))
     notes = []
+    if loops:
+        notes.append(f"{len(loops)} transition(s) whose tickOnce() never returns (wake-up re-ticks in a loop)")
     if posts:
         notes.append(f"{len(posts)} transition(s) reply SUCCESS with post false at {', '.join(sorted({v[1] for _, v in posts}))}")
     if busy:
         notes.append(f"{len(busy)} transition(s) with two requests using one FSM at once (refused: "
                      f"{', '.join(sorted({v[1] for _, v in busy}))})")
-    if v[0] == "post":
+    if v[0] == "tick-loop":
+        viol = {"kind": "tick-loop", "node": v[1],
+                "text": ("in the last tick BehaviorTree.CPP's tickOnce() never returns: a Retry, Repeat or "
+                         "SequenceWithMemory emits a wake-up signal and the root returns RUNNING on every re-tick, "
+                         "from a state it had before (docs/semantics.md 8.1, rule 'tickOnce'); tick it with "
+                         "tickExactlyOnce() (tick: exactly-once), or change the tree")}
+        summary = f"tickOnce() of '{v[1]}' can loop for ever (the tick never returns)"
+    elif v[0] == "post":
         viol = {"kind": "contract", "node": v[1],
                 "text": f"'{v[1]}' replied SUCCESS in the last tick while its post-condition is false"}
         summary = f"SkillRequest '{v[1]}' can reply SUCCESS with its post-condition false"
