@@ -38,7 +38,7 @@ from importlib import resources
 from .show import GraphvizError, fsm_to_dot, render, tree_to_dot
 
 __all__ = ["FORMAT", "view_tick", "counterexample_run", "trace_run", "RunRecorder", "page", "write_page",
-           "read_page", "require_dot", "check_page", "replay_page", "COLLAPSE_AT"]
+           "read_page", "require_dot", "check_page", "replay_page", "log_page", "COLLAPSE_AT"]
 
 FORMAT = "btfsm-view/1"
 _NAMES = ("RUNNING", "SUCCESS", "FAILURE")
@@ -527,3 +527,33 @@ def replay_page(model, path, ok: bool, text: str, ce=None, cell: "dict | None" =
                          "run": len(runs)})
         runs.append(cell)
     return {"title": f"btfsm replay {name} {model.name}", "verdicts": verdicts, "runs": runs}
+
+
+def log_page(model, path, verdict, text: str) -> dict:
+    """``page`` keywords for ``btfsm conform --log RUN MODEL --html``: the run of the model
+    that explains the recording (``verdict.steps`` of ``btfsm.verify.runlog``: every tick
+    re-run through ``Program.step`` while it was checked) as a run of the page; when the
+    recording does not conform, the run up to the furthest point explained, with the first
+    recorded transition no run explains marked on its last tick."""
+    import os
+
+    prog = model.program
+    name = os.path.basename(os.fspath(path))
+    state = verdict.steps[0][0] if verdict.steps else prog.initial
+    ticks = [_initial_tick(prog, state)]
+    for k, (before, step) in enumerate(verdict.steps, start=1):
+        ticks.append(view_tick(prog, k, step, before))
+    run = _run("log", f"recorded run {name}", prog.decode(state), ticks)
+    if verdict.conforms:
+        run["summary"] = f"the model's run that explains {name}: {len(verdict.steps)} tick(s)"
+        entry = {"name": f"conform --log {name}", "verdict": "conforms", "cls": "holds", "summary": text, "run": 0}
+    else:
+        why = (verdict.first or {}).get("text", "incomplete: the search budget was hit")
+        run["marks"].append([len(ticks) - 1, f"the first recorded transition no run explains: {why}"])
+        run["summary"] = f"the model's run up to the furthest point of {name} explained: {len(verdict.steps)} tick(s)"
+        entry = {"name": f"conform --log {name}", "verdict": "does not conform" if not verdict.incomplete
+                 else "incomplete", "cls": "violated" if not verdict.incomplete else "undecided",
+                 "summary": text, "run": 0}
+    return {"title": f"btfsm conform --log {name} {model.name}", "verdicts": [entry], "runs": [run],
+            "notes": [f"recorded by {'BehaviorTree.CPP (FileLogger2)' if verdict.engine == 'btcpp' else 'py_trees'}; "
+                      f"checked under {verdict.semantics}"]}

@@ -298,3 +298,51 @@ def test_conform_page_shows_the_first_mismatch_and_the_cell(browser, tmp_path):
     browser.execute_script("window.btfsmView.setTick(1)")
     src = browser.execute_script("var i = document.querySelector('#picture img'); return i && i.src")
     assert src and src.startswith("data:image/png;base64,")
+
+
+def test_a_recorded_btlog_opens_in_the_same_viewer(browser, tmp_path, capsys):
+    """``conform --log RUN --html``: the model's run that explains a log real BT.CPP wrote
+    (docs/examples/btcpp_record.py) is a run of the page, whose leaves finish in the order
+    and with the statuses the log records; a log that does not conform is marked where the
+    explanation stops."""
+    import subprocess
+    import sys
+
+    pytest.importorskip("behaviortreepy")
+    from selenium.webdriver.common.keys import Keys
+
+    from btfsm.html import read_page
+    from btfsm.interop.btlog import read_btlog
+
+    root = Path(__file__).resolve().parent.parent
+    record, tree = root / "docs" / "examples" / "btcpp_record.py", root / "models" / "examples" / "pick_place_btcpp.xml"
+    good, bad = tmp_path / "run.btlog", tmp_path / "stuck.btlog"
+    subprocess.run([sys.executable, str(record), str(good)], check=True, capture_output=True)
+    subprocess.run([sys.executable, str(record), str(bad), "--stuck-sensor"], check=True, capture_output=True)
+    page = tmp_path / "log.html"
+    assert main(["conform", "--log", str(good), str(tree), "--html", str(page)]) == 0
+    capsys.readouterr()
+    log = read_btlog(good.read_bytes(), str(good))
+    leaves = {uid for uid, nd in log.nodes.items() if not nd.children}
+    names = {"SUCCESS": 2, "FAILURE": 3}
+    recorded = [(log.nodes[uid].name, status) for _, uid, status in log.transitions
+                if uid in leaves and status in (2, 3)]
+    run = read_page(page)["runs"][0]
+    assert run["kind"] == "log" and not run["marks"]
+    leaf_names = {n.rsplit("/", 1)[-1] for n in (x for t in run["ticks"] for x in t["nodes"])}
+    shown = [(n.rsplit("/", 1)[-1], names[s]) for t in run["ticks"] for n, s in t["nodes"].items()
+             if s in names and n.rsplit("/", 1)[-1] in {log.nodes[u].name for u in leaves}]
+    # every leaf result the page shows is one BT.CPP recorded, and every leaf is shown (a
+    # leaf that finishes twice in one tick, retried, shows its last result there: 3 here)
+    from collections import Counter
+
+    assert leaf_names and not Counter(shown) - Counter(recorded)
+    assert {n for n, _ in shown} == {n for n, _ in recorded} and len(shown) >= len(recorded) - 5
+    _open(browser, page)
+    for k in range(1, len(run["ticks"])):
+        _key(browser, Keys.ARROW_RIGHT)
+        assert _shown(browser)["tick"] == k
+    assert main(["conform", "--log", str(bad), str(tree), "--html", str(page)]) == 1
+    run = read_page(page)["runs"][0]
+    assert [m[0] for m in run["marks"]] == [len(run["ticks"]) - 1] and "no run explains" in run["marks"][0][1]
+    _open(browser, page)

@@ -57,6 +57,9 @@ class LogVerdict:
     searched: int
     first: "dict | None" = None
     incomplete: bool = False
+    #: the explaining run as ``(state before, Step)`` pairs (the whole run when the log
+    #: conforms, else the run up to the furthest point explained): what the HTML page shows
+    steps: list = field(default_factory=list, repr=False, compare=False)
 
     def as_dict(self) -> dict:
         return {"conforms": self.conforms, "engine": self.engine, "semantics": self.semantics,
@@ -346,6 +349,8 @@ def check_btlog(model, log, file: str = "log", allow=None, max_configs: int = DE
         if p is not None:
             children[p].append(k)
     start = (program.initial, 0, (IDLE,) * len(mp.keys))
+    parents = {start: None}  # configuration -> (configuration before, Step): the explaining run
+    furthest = start
     seen = {0: {start}}  # log position -> configurations found there
     heap = [(0, 0, 0, start)]  # (position, ticks, order, configuration)
     counter = searched = 1
@@ -355,8 +360,10 @@ def check_btlog(model, log, file: str = "log", allow=None, max_configs: int = DE
         for old in [p for p in seen if p < pos]:
             del seen[old]  # every configuration there was expanded
         state, _, t = config
+        if pos > furthest[1]:
+            furthest = config
         if matcher.tail(pos, t, children):
-            return LogVerdict(True, "btcpp", model.semantics, n, ticks, searched)
+            return LogVerdict(True, "btcpp", model.semantics, n, ticks, searched, steps=_path(parents, config, lambda c: c[0]))
         reached = matcher.best
         ends = _Ends(matcher, pos, t)
 
@@ -371,6 +378,7 @@ def check_btlog(model, log, file: str = "log", allow=None, max_configs: int = DE
                 there = seen.setdefault(pos2, set())
                 if nxt not in there:
                     there.add(nxt)
+                    parents.setdefault(nxt, (config, step))
                     heapq.heappush(heap, (pos2, ticks + 1, counter, nxt))
                     counter += 1
                     searched += 1
@@ -379,7 +387,18 @@ def check_btlog(model, log, file: str = "log", allow=None, max_configs: int = DE
         if matcher.best > reached:
             done_ticks = ticks
     return LogVerdict(False, "btcpp", model.semantics, n, done_ticks, searched,
-                      first=_first_btlog(log, mp, entries, matcher, done_ticks))
+                      first=_first_btlog(log, mp, entries, matcher, done_ticks), steps=_path(parents, furthest, lambda c: c[0]))
+
+
+def _path(parents, last, state_of) -> list:
+    """The ``(state before, Step)`` pairs that lead to key ``last`` (``parents``: key ->
+    (key before, Step), None at the start; ``state_of(key)``: its model state)."""
+    out = []
+    while parents.get(last) is not None:
+        before, step = parents[last]
+        out.append((state_of(before), step))
+        last = before
+    return out[::-1]
 
 
 def _first_btlog(log, mp, entries, matcher, ticks) -> dict:
@@ -492,6 +511,7 @@ def check_pytrees_run(model, run, file: str = "run", allow=None, max_configs: in
     program = model.program
     flags = [(info.flag, name) for name, info in program.nodes.items() if info.flag is not None and name in mp.prim]
     states = {program.initial}
+    parents = {(0, program.initial): None}  # (tick, state) -> ((tick, state) before, Step)
     searched = 1
     for tick, (visited, running) in enumerate(run.ticks):
         want = [(index[i], _PY_STATUS.get(s)) for i, s in visited]
@@ -542,14 +562,17 @@ def check_pytrees_run(model, run, file: str = "run", allow=None, max_configs: in
                     continue
                 if allow is None or allow(tick, step):
                     nxt.add(step.state)
+                    parents.setdefault((tick + 1, step.state), ((tick, state), step))
         searched += len(nxt)
         if not nxt:
             return LogVerdict(False, "pytrees", model.semantics, len(run.ticks), tick, searched,
-                              first=_first_pytrees(tick, want, best, why_running, mp))
+                              first=_first_pytrees(tick, want, best, why_running, mp),
+                              steps=_path(parents, (tick, min(states)), lambda k: k[1]))
         if len(nxt) > max_configs:  # the states a tick may have left the model in
             return LogVerdict(False, "pytrees", model.semantics, len(run.ticks), tick, searched, incomplete=True)
         states = nxt
-    return LogVerdict(True, "pytrees", model.semantics, len(run.ticks), len(run.ticks), searched)
+    return LogVerdict(True, "pytrees", model.semantics, len(run.ticks), len(run.ticks), searched,
+                      steps=_path(parents, (len(run.ticks), min(states)), lambda k: k[1]))
 
 
 def _first_pytrees(tick, want, best, why_running, mp) -> dict:
@@ -597,6 +620,11 @@ def cli_conform_log(args) -> int:
         raise ModelError("", "not a BehaviorTree.CPP FileLogger2 log (.btlog) nor a py_trees run recorded by "
                              "btfsm.interop.pytrees.RunRecorder", path)
     model = load_model(args.model, semantics=semantics)
+    page = getattr(args, "html", None)
+    if page:
+        from btfsm.html import require_dot
+
+        require_dot()
     budget = args.max_states if args.max_states is not None else DEFAULT_MAX_CONFIGS
     if engine == "btcpp":
         verdict = check_btlog(model, read_btlog(data, path), path, max_configs=budget)
@@ -608,16 +636,24 @@ def cli_conform_log(args) -> int:
             raise ModelError(f"byte {exc.start}", "not UTF-8", path) from None
         verdict = check_pytrees_run(model, read_pytrees_run(text, path), path, max_configs=budget)
         what = f"{verdict.entries} tick(s)"
+    if verdict.incomplete:
+        text = f"incomplete: more than --max-states {budget:,} configurations alive at once after {verdict.ticks} tick(s)"
+    elif verdict.conforms:
+        text = (f"{path}: conforms to {model.name} under {semantics}: {what} explained by a run of "
+                f"{verdict.ticks} tick(s) ({verdict.searched:,} configurations searched)")
+    else:
+        text = f"{path}: does not conform to {model.name} under {semantics}: {verdict.first['text']}"
+    if page:
+        from btfsm.html import log_page, write_page
+
+        written = write_page(page, model, **log_page(model, path, verdict, text))
+        print(f"html: {written}", file=sys.stderr if getattr(args, "json", False) else sys.stdout)
     if getattr(args, "json", False):
         print(json.dumps(dict(verdict.as_dict(), log=path, model=model.name)))
     elif verdict.incomplete:
-        print(f"btfsm conform: incomplete: more than --max-states {budget:,} configurations alive at once after "
-              f"{verdict.ticks} tick(s); raise it", file=sys.stderr)
-    elif verdict.conforms:
-        print(f"{path}: conforms to {model.name} under {semantics}: {what} explained by a run of "
-              f"{verdict.ticks} tick(s) ({verdict.searched:,} configurations searched)")
+        print(f"btfsm conform: {text}; raise it", file=sys.stderr)
     else:
-        print(f"{path}: does not conform to {model.name} under {semantics}: {verdict.first['text']}")
+        print(text)
     if verdict.incomplete:
         return 3
     return 0 if verdict.conforms else 1
