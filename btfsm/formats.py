@@ -24,7 +24,8 @@ import json
 import math
 from importlib import resources
 
-__all__ = ["FormatError", "parse_json", "decode_utf8", "validate", "load_schema", "printable", "describe", "json_path"]
+__all__ = ["FormatError", "parse_json", "decode_utf8", "validate", "load_schema", "printable", "describe", "json_path",
+           "jsonable"]
 
 
 class FormatError(ValueError):
@@ -208,3 +209,19 @@ def validate(obj, name: str, file: str, where: str = "", definition: "str | None
         err = best_match(err.context)
     path, problem = _message(err)
     raise FormatError(file, ": ".join(p for p in (where, json_path(path)) if p), problem)
+
+
+def jsonable(x):
+    """``x`` with tuples as lists, keys as strings and numpy scalars as Python numbers.
+
+    >>> import numpy as np
+    >>> jsonable({1: (np.int64(2), [3])})
+    {'1': [2, [3]]}
+    """
+    if isinstance(x, (list, tuple)):
+        return [jsonable(y) for y in x]
+    if isinstance(x, dict):
+        return {str(k): jsonable(v) for k, v in x.items()}
+    if hasattr(x, "item"):
+        return x.item()
+    return x

@@ -35,6 +35,7 @@ import json
 import xml.etree.ElementTree as ET
 from importlib import resources
 
+from .formats import jsonable
 from .show import GraphvizError, fsm_to_dot, render, tree_to_dot
 
 __all__ = ["FORMAT", "view_tick", "counterexample_run", "trace_run", "RunRecorder", "page", "write_page",
@@ -63,16 +64,6 @@ def require_dot(flag: str = "--html") -> None:
 # ============================================================================ per-tick records
 
 
-def _jsonable(x):
-    if isinstance(x, (list, tuple)):
-        return [_jsonable(y) for y in x]
-    if isinstance(x, dict):
-        return {str(k): _jsonable(v) for k, v in x.items()}
-    if hasattr(x, "item"):
-        return x.item()
-    return x
-
-
 def _fsm_of(program, state) -> dict:
     return {f.name: [ids[state[tok]], f.goals[state[g] - 1] if state[g] else None]
             for f, ids, tok, g, _ in program.fsm_info}
@@ -81,7 +72,7 @@ def _fsm_of(program, state) -> dict:
 def _values(program, state) -> dict:
     """Readable values of every slot (``Program.decode``; node memory and timers have a
     ``:`` in their names, and the page lists them apart)."""
-    return {program.slots[i].name: _jsonable(program.decode_slot(i, state[i])) for i in range(len(state))}
+    return {program.slots[i].name: jsonable(program.decode_slot(i, state[i])) for i in range(len(state))}
 
 
 def view_tick(program, tick: int, step, before, time=None, keep=None) -> dict:
@@ -111,7 +102,7 @@ def view_tick(program, tick: int, step, before, time=None, keep=None) -> dict:
         lines.append("violation: " + " ".join(str(x) for x in v))
     after = step.state
     idx = range(len(after)) if keep is None else keep
-    changes = {program.slots[i].name: _jsonable(program.decode_slot(i, after[i])) for i in idx if before[i] != after[i]}
+    changes = {program.slots[i].name: jsonable(program.decode_slot(i, after[i])) for i in idx if before[i] != after[i]}
     return {"tick": tick, "time": time, "status": _NAMES[step.status], "nodes": nodes, "halted": halted,
             "fsm": _fsm_of(program, after), "fired": fired, "changes": changes, "env": env, "lines": lines}
 
@@ -207,7 +198,7 @@ def _rerun(prog, runner, keep, st, state):
     if step is None or step.state is None:
         return None, None
     want = st.get("state") or {}
-    have = {prog.slots[i].name: _jsonable(prog.decode_slot(i, step.state[i])) for i in range(len(step.state))}
+    have = {prog.slots[i].name: jsonable(prog.decode_slot(i, step.state[i])) for i in range(len(step.state))}
     if any(have.get(k) != v for k, v in want.items()):
         return None, None
     rec = view_tick(prog, st["tick"], step, state, keep=keep)

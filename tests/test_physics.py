@@ -12,6 +12,7 @@ from hypothesis import strategies as st
 
 from btfsm.errors import ModelError
 from btfsm.sim.scene import FLOOR, Place, World, scene_from_data
+from test_scene import drive
 
 
 def _arm_scene(max_force: float, mass: float = 2.0, acceleration: float = 8.0) -> dict:
@@ -175,16 +176,7 @@ def test_every_part_is_in_exactly_one_place_under_physics(case):
     runs = []
     for _ in range(2):
         w = World(scene)
-        for cmd, x, y, n in commands:
-            if cmd == "move" and scene.reachable("r", (x, y)):
-                w.move_to("r", (x, y), 1.0)
-            elif cmd == "grip":
-                w.grip("r")
-            elif cmd == "release":
-                w.release("r")
-            for _ in range(n):
-                w.step()
-                w.check_invariant()
+        drive(w, scene, commands)
         runs.append((w.digest(), [str(p.place) for p in w.parts], list(w.events), list(w.incidents)))
     assert runs[0] == runs[1]
 

@@ -204,6 +204,23 @@ def random_scenes(draw):
     return data, commands
 
 
+def drive(w, scene, commands) -> None:
+    """Run drawn ``(command, x, y, steps)`` on world ``w`` of ``scene``, checking the part
+    accounting after every step (robot ``r``, door ``d``)."""
+    for cmd, x, y, n in commands:
+        if cmd == "move" and scene.reachable("r", (x, y)):
+            w.move_to("r", (x, y), 1.0)
+        elif cmd == "grip":
+            w.grip("r")
+        elif cmd == "release":
+            w.release("r")
+        elif cmd == "door" and scene.doors:
+            w.set_door("d", x > 0)
+        for _ in range(n):
+            w.step()
+            w.check_invariant()
+
+
 @settings(derandomize=True, max_examples=200, deadline=None, database=None,
           suppress_health_check=[HealthCheck.too_slow])
 @given(random_scenes())
@@ -217,18 +234,7 @@ def test_every_part_is_in_exactly_one_place(case):
     for _ in range(2):
         w = World(scene)
         w.check_invariant()
-        for cmd, x, y, n in commands:
-            if cmd == "move" and scene.reachable("r", (x, y)):
-                w.move_to("r", (x, y), 1.0)
-            elif cmd == "grip":
-                w.grip("r")
-            elif cmd == "release":
-                w.release("r")
-            elif cmd == "door" and scene.doors:
-                w.set_door("d", x > 0)
-            for _ in range(n):
-                w.step()
-                w.check_invariant()
+        drive(w, scene, commands)
         runs.append((w.digest(), [str(p.place) for p in w.parts], list(w.events)))
         assert sum(len(v) for v in w.members.values()) == len(w.parts)
     assert runs[0] == runs[1]  # same seed and commands: the same world

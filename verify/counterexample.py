@@ -20,7 +20,7 @@ import os
 from dataclasses import dataclass, field
 
 from btfsm.errors import ConformanceError, DomainError
-from btfsm.formats import FormatError, decode_utf8, json_path, parse_json, printable, validate
+from btfsm.formats import FormatError, decode_utf8, json_path, jsonable, parse_json, printable, validate
 from btfsm.status import Status
 
 from .explore import run_script, script_of
@@ -173,25 +173,15 @@ def _sequence_text(seq) -> list:
 # ---------------------------------------------------------------------- building
 
 
-def _jsonable(x):
-    if isinstance(x, tuple) or isinstance(x, list):
-        return [_jsonable(y) for y in x]
-    if isinstance(x, dict):
-        return {str(k): _jsonable(v) for k, v in x.items()}
-    if hasattr(x, "item"):
-        return x.item()
-    return x
-
-
 def _decode_full(prog, state, keep=None) -> dict:
-    return {prog.slots[k].name: _jsonable(prog.decode_slot(k, state[k]))
+    return {prog.slots[k].name: jsonable(prog.decode_slot(k, state[k]))
             for k in (keep if keep is not None else range(len(state)))}
 
 
 def _step_record(ts, k, before, script, step, oracle, error=None) -> dict:
     prog = ts.model.program
     label = readable(prog, tuple(oracle.picks), ts.open)[0]
-    rec = {"tick": k, "script": list(script), "choices": _jsonable(label)}
+    rec = {"tick": k, "script": list(script), "choices": jsonable(label)}
     if ts.kind == "fsm":
         req = {"goal": None, "params": {}, "inputs": {}}
         f = ts.model.fsm(ts.fsm)
@@ -199,9 +189,9 @@ def _step_record(ts, k, before, script, step, oracle, error=None) -> dict:
             if item[0] == "goal":
                 req["goal"] = item[1]
             elif item[0] == "param":
-                req["params"][item[1].split(".", 1)[1] if item[1].startswith(f.name + ".") else item[1]] = _jsonable(item[2])
+                req["params"][item[1].split(".", 1)[1] if item[1].startswith(f.name + ".") else item[1]] = jsonable(item[2])
             elif item[0] == "input":
-                req["inputs"][item[1]] = _jsonable(item[2])
+                req["inputs"][item[1]] = jsonable(item[2])
         rec["request"] = req
     rec["env"] = [it[1] for it in label if it[0] == "env"] + [it[2] for it in label if it[0] == "choice"]
     rec["outcomes"] = [[it[1], it[2]] for it in label if it[0] == "outcome"]
@@ -217,7 +207,7 @@ def _step_record(ts, k, before, script, step, oracle, error=None) -> dict:
         rec["status"] = _NAMES[step.status]
         after = step.state
         keep = range(len(after)) if ts.kind == "model" else ts.slots
-        rec["changes"] = {prog.slots[i].name: _jsonable(prog.decode_slot(i, after[i])) for i in keep if before[i] != after[i]}
+        rec["changes"] = {prog.slots[i].name: jsonable(prog.decode_slot(i, after[i])) for i in keep if before[i] != after[i]}
         rec["fsm"] = {f.name: [ids[after[tok]], f.goals[after[g] - 1] if after[g] else None]
                       for f, ids, tok, g, _ in prog.fsm_info}
         rec["state"] = _decode_full(prog, after, keep)
@@ -234,7 +224,7 @@ _SEQUENCE = ("outcome", "halt", "fire") + _NOTES
 def _sequence_item(e) -> list:
     """One event of a step, in the order it happened: [kind, ...] (outcome: site, outcome;
     halt: node; fire: fsm, element; notes: fsm, node)."""
-    return [e[0]] + [_jsonable(x) for x in e[1:3]]
+    return [e[0]] + [jsonable(x) for x in e[1:3]]
 
 
 def path_counterexample(ts, transitions, prop: str, summary: str, violation: dict, *, loop=None,
@@ -354,7 +344,7 @@ def replay_counterexample(source, model) -> tuple:
 
 
 def _same(prog, state, want: dict) -> "str | None":
-    have = {prog.slots[k].name: _jsonable(prog.decode_slot(k, state[k])) for k in range(len(state))}
+    have = {prog.slots[k].name: jsonable(prog.decode_slot(k, state[k])) for k in range(len(state))}
     diff = [k for k, v in want.items() if have.get(k) != v]
     return None if not diff else ", ".join(f"{k}={_v(have.get(k))} (counterexample: {_v(want[k])})" for k in diff[:5])
 
@@ -483,7 +473,7 @@ class _ChoiceOracle(EnumOracle):
             src = self.inputs if tag[0] == "input" else self.params
             name = prog.slots[tag[1]].name
             want = src.get(name, src.get(name.split(".", 1)[-1]))
-            c = next((k for k, v in enumerate(enabled) if _jsonable(prog.decode_slot(tag[1], v)) == want), None)
+            c = next((k for k, v in enumerate(enabled) if jsonable(prog.decode_slot(tag[1], v)) == want), None)
         if c is None:
             self.error = f"no recorded answer fits choice {tag!r}"
             c = 0
@@ -686,7 +676,7 @@ def _confirm_fsm(ce, model, state, kind) -> tuple:
         want = ce.violation["request"]
         for req in late_requests(model, op, state):
             goal = next(it[1] for it in req if it[0] == "goal")
-            params = {it[1].split(".", 1)[1]: _jsonable(it[2]) for it in req if it[0] == "param"}
+            params = {it[1].split(".", 1)[1]: jsonable(it[2]) for it in req if it[0] == "param"}
             if goal == want["goal"] and params == want["params"]:
                 return True, (f"confirmed: after {n} request(s), requesting '{goal}' with new parameters is not "
                               "served in the same tick (its results differ from a tick toward that goal)")

@@ -114,8 +114,6 @@ def run_property(ctx, name: str) -> Result:
     fn = _registry()[name]
     t0 = time.perf_counter()
     why = not_applicable(ctx.model, name)
-    if name == "response" and getattr(ctx, "responses", None):
-        why = None  # requirements given beside the model
     if why is not None:
         res = Result(name, True, None, [], {}, not_applicable=why)
     else:

@@ -318,8 +318,7 @@ def _fmt(rb, ticks) -> str:
 
 
 def _requirements(ctx) -> tuple:
-    extra = getattr(ctx, "responses", None) or ()
-    return tuple(ctx.model.responses) + tuple(extra)
+    return tuple(ctx.model.responses)  # --trigger/--response/--within are added to the model (verify.cli)
 
 
 def counterexample(rb, transitions, trigger_step, loop, summary, bound):
