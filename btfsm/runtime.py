@@ -23,6 +23,7 @@ from __future__ import annotations
 from typing import Callable, Iterable, Mapping
 
 from .errors import ConformanceError
+from .oracles import Oracle
 from .clock import Clock
 from .status import Status
 from .trace import TraceWriter, render_answers, tick_record
@@ -67,7 +68,7 @@ class Call:
         self.goal = goal
 
 
-class _ImplOracle:
+class _ImplOracle(Oracle):
     """Answers the step function from implementations and observed events.
 
     One per Runtime, reset each tick (no per-tick allocation); it caches, per site, the

@@ -29,6 +29,7 @@ from .clock import Clock
 from .outputs import atomic_writer
 from .errors import DomainError
 from .formats import FormatError, decode_utf8, parse_json, printable, validate
+from .oracles import Oracle
 
 __all__ = ["TraceWriter", "tick_record", "read_trace", "replay", "ReplayOracle", "AnswerOracle",
            "render_answers", "FORMAT", "FormatError"]
@@ -244,7 +245,7 @@ def encode_state(program, values: dict) -> tuple:
     return tuple(state)
 
 
-class _NamedEvents:
+class _NamedEvents(Oracle):
     """Environment answers by event name, for oracles that replay what was recorded.
     Replay drives no implementation, so there is nothing to halt."""
 

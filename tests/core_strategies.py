@@ -28,6 +28,7 @@ from btfsm import (FSM, Action, Bool, Condition, Edge, Effects, Enum, EnvChoice,
                    MemorySequence, Model, Outcome, Parallel, ReactiveFallback, ReactiveSequence,
                    Repeat, Retry, SkillRequest, State, Status, walk)
 from btfsm.expr import BOOL, INT, BinOp, BoolOp, Call, Compare, Const, IfElse, Name, Type, Unary
+from btfsm.oracles import Oracle
 
 __all__ = [
     "act", "Tick", "TableOracle", "ModOracle", "run_rows", "running_nodes", "slot_of",
@@ -72,7 +73,7 @@ class Tick:
     env: str = ""
 
 
-class TableOracle:
+class TableOracle(Oracle):
     """Answers exactly the scripted outcomes, in order; anything else fails the test.
 
     Records the sites the step function halted (``halted``, site labels), which
@@ -125,7 +126,7 @@ def _split(item: str) -> tuple:
     return label, STATUS_LETTERS.get(out, out)
 
 
-class ModOracle:
+class ModOracle(Oracle):
     """Random answers that shrink well: choice point k gets ``numbers[k] % arity``, cycling
     through ``numbers`` from ``offset`` (pass the last oracle's ``pos`` to go on). Records
     the choices (``taken``, a ScriptOracle script) and the halted sites (``halted``,
