@@ -23,7 +23,7 @@ from btfsm.errors import DomainError
 
 from .codec import codec, decode, rows
 from .labels import readable
-from .search import DEFAULT_MAX_STATES, Budget, EnumOracle, run_environment
+from .search import DEFAULT_MAX_STATES, Budget, EnumOracle, Search, run_environment
 from .system import DomainViolation, TransitionSystem
 
 __all__ = ["search", "TreeCache", "OutOfTime"]
@@ -325,3 +325,6 @@ def search(model, kind, fsm, kept, run, initial, budget, progress, op, split=Non
                             complete=complete, seconds=seconds, status=stat_a, goal=goal_a, expanded=expanded,
                             errors=tuple(errors), violations=tuple(violations), open=op,
                             stopped=None if complete else budget.hit)
+
+
+_declared: Search = search  # an engine of the shared interface (btfsm.verify.search.Search; mypy holds it to it)

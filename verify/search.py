@@ -1,14 +1,25 @@
 """The pieces every exploration engine shares: the enumerating oracle (``EnumOracle``),
-the environment step (``run_environment``) and the budgets (``Budget``).
+the environment step (``run_environment``), the budgets (``Budget``) and the engines'
+interfaces (``Search``: what ``btfsm.verify.scalar.search`` and
+``btfsm.verify.traced.search`` are; ``Engine``: a whole exploration with its budgets, what
+``btfsm.verify.vector.explore`` is; tests/test_engines_shared.py runs one suite over them).
 """
 from __future__ import annotations
 
 import time
+from typing import TYPE_CHECKING, Any, Callable, Protocol, Sequence
 
 from btfsm.oracles import ScriptOracle
 
+if TYPE_CHECKING:
+    from btfsm.model import Model
+    from btfsm.semantics import Step
+
+    from .explore import OpenFSM
+    from .system import TransitionSystem
+
 __all__ = ["EnumOracle", "run_environment", "DEFAULT_MAX_STATES", "DEFAULT_MAX_TRANSITIONS", "Budget", "BudgetExceeded",
-           "describe_hit", "HIT_WORDS"]
+           "describe_hit", "HIT_WORDS", "Search", "Engine", "Progress", "Run"]
 
 DEFAULT_MAX_STATES = 5_000_000
 DEFAULT_MAX_TRANSITIONS = 50_000_000  # the command line's default: about 1.3 GB of transition arrays
@@ -150,3 +161,37 @@ class BudgetExceeded(Exception):
     def __init__(self, hit: str, message: str):
         super().__init__(message)
         self.hit = hit
+
+
+# ---------------------------------------------------------------------- the engines' interfaces
+
+#: ``progress(states, transitions, seconds)``, called by an engine as it goes
+Progress = Callable[[int, int, float], Any]
+#: one transition: ``run(state, oracle, record=False) -> Step`` (``Program.step``, or
+#: ``OpenFSM.run`` at FSM level)
+Run = Callable[..., "Step"]
+
+
+class Search(Protocol):
+    """An exploration engine of ``btfsm.verify.explore`` (``scalar.search``,
+    ``traced.search``; ``explore._explore_with`` picks one): breadth-first from
+    ``initial`` by ``run``, states coded over the ``kept`` slots (``kind`` is ``"model"``,
+    or ``"fsm"`` with the FSM's name ``fsm`` and its ``OpenFSM`` ``op``); the search stops
+    at the first bound of ``budget`` hit and records which in ``budget.hit``. Engines
+    give the same system, numbering included. (An engine may take more arguments after
+    these, with defaults: the scalar engine's ``split``, the traced engine's ``fallback``.)"""
+
+    def __call__(self, model: Model, kind: str, fsm: str | None, kept: Sequence[int], run: Run,
+                 initial: tuple[int, ...], budget: Budget, progress: Progress | None, op: OpenFSM | None,
+                 /) -> TransitionSystem: ...
+
+
+class Engine(Protocol):
+    """A whole exploration: the model (``fsm`` None) or its FSM ``fsm`` as an open system
+    (requests for ``goals``, all when None) to its ``TransitionSystem``, under the budgets
+    (None: unbounded; see ``Budget``): ``btfsm.verify.vector.explore``, and
+    ``btfsm.verify.explore.explore``/``explore_fsm`` with an ``engine`` name."""
+
+    def __call__(self, model: Model, *, fsm: str | None = None, goals: Sequence[str] | None = None,
+                 max_states: int | None = None, max_transitions: int | None = None,
+                 max_seconds: float | None = None, progress: Progress | None = None) -> TransitionSystem: ...

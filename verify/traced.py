@@ -44,7 +44,7 @@ from btfsm.errors import DomainError
 
 from .codec import code_dtype, codec
 from .labels import readable
-from .search import DEFAULT_MAX_STATES, Budget, EnumOracle
+from .search import DEFAULT_MAX_STATES, Budget, EnumOracle, Search
 from .system import DomainViolation, TransitionSystem
 
 __all__ = ["search", "BatchSuccessors", "Untraceable", "TooManyPaths", "CHUNK", "DENSE_LIMIT", "PATHS_MIN", "ROWS_LIMIT"]
@@ -1436,3 +1436,6 @@ class _Staged:
 def _dfs_key(script) -> tuple:
     """The order of a choice script in the scalar engine's depth-first search."""
     return tuple(c and _LAST - c for c in script)
+
+
+_declared: Search = search  # an engine of the shared interface (btfsm.verify.search.Search; mypy holds it to it)

@@ -39,7 +39,7 @@ from btfsm.errors import DomainError, ModelError
 from btfsm.expr import INT, names_in, to_numpy_source
 from btfsm.model import EnvChoice
 
-from .search import Budget
+from .search import Budget, Engine
 from .stepspec import StepSpec, int_bounds, step_spec
 from .system import DomainViolation, TransitionSystem
 
@@ -963,3 +963,6 @@ def _domain_errors(model, spec, eng, codes, states, goals=None) -> tuple:
                 for c in range(1, o.arities[k]):
                     stack.append(tuple(o.taken[:k]) + (c,))
     return tuple(out)
+
+
+_declared: Engine = explore  # a whole exploration (btfsm.verify.search.Engine; mypy holds it to it)
