@@ -39,10 +39,10 @@ both ways): ``Parallel(synchronise=s)`` is ``SuccessOnAll(synchronise=s)``,
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Iterator
+from typing import Any, Iterator, Mapping, Sequence
 
-from .expr import Expr, as_expr
-from .primitives import Outcome, effects_of
+from .expr import ExprLike, as_expr
+from .primitives import EffectsLike, Outcome, effects_of
 from .timing import duration_of
 
 __all__ = [
@@ -66,7 +66,7 @@ class Node:
 
 @dataclass(frozen=True)
 class Composite(Node):
-    children: tuple = ()
+    children: Sequence[Node] = ()  # a tuple once built
 
     def __post_init__(self):
         object.__setattr__(self, "children", tuple(self.children))
@@ -111,7 +111,7 @@ class Parallel(Composite):
     success_threshold: "int | None" = None
     failure_threshold: int = 1
     synchronise: bool = False
-    selected: tuple = ()
+    selected: Sequence[str] = ()
 
     def __post_init__(self):
         super().__post_init__()
@@ -234,7 +234,7 @@ class Guard(Decorator):
     """Checks ``condition`` before every tick of the child; when false, halts the child
     and returns FAILURE (py_trees' EternalGuard)."""
 
-    condition: Expr = None  # type: ignore[assignment]
+    condition: ExprLike = None  # type: ignore[assignment]  # an Expr once built
 
     def __post_init__(self):
         object.__setattr__(self, "condition", as_expr(self.condition))
@@ -245,10 +245,10 @@ class Effects(Decorator):
     """Applies effects when the child starts, succeeds, fails or is halted
     (BehaviorTree.CPP's ``_onSuccess`` / ``_onFailure`` / ``_onHalted`` scripts)."""
 
-    on_start: tuple = ()
-    on_success: tuple = ()
-    on_failure: tuple = ()
-    on_halt: tuple = ()
+    on_start: EffectsLike = ()  # each a tuple of (var, Expr) once built
+    on_success: EffectsLike = ()
+    on_failure: EffectsLike = ()
+    on_halt: EffectsLike = ()
 
     def __post_init__(self):
         for f in ("on_start", "on_success", "on_failure", "on_halt"):
@@ -279,7 +279,7 @@ class Leaf(Node):
 class Condition(Leaf):
     """SUCCESS when the expression holds, else FAILURE. Never RUNNING."""
 
-    expr: Expr = None  # type: ignore[assignment]
+    expr: ExprLike = None  # type: ignore[assignment]  # an Expr once built
 
     def __post_init__(self):
         object.__setattr__(self, "expr", as_expr(self.expr))
@@ -292,8 +292,8 @@ class Action(Leaf):
     ``args`` are constants handed to the implementation."""
 
     primitive: str = ""
-    outcomes: "tuple | None" = None
-    args: tuple = ()
+    outcomes: "Sequence[Any] | None" = None
+    args: "Mapping[str, Any] | Sequence[Any]" = ()
     duration: "tuple | None" = None  # (min, max) seconds at this node; default: the primitive's
 
     def __post_init__(self):
@@ -317,9 +317,9 @@ class SkillRequest(Leaf):
 
     fsm: str = ""
     goal: str = ""
-    params: tuple = ()
-    pre: "Expr | None" = None
-    post: "Expr | None" = None
+    params: "Mapping[str, Any] | Sequence[Any]" = ()
+    pre: "ExprLike | None" = None  # an Expr once built
+    post: "ExprLike | None" = None
 
     def __post_init__(self):
         object.__setattr__(self, "params", tuple((str(k), as_expr(x)) for k, x in _pairs(self.params)))

@@ -187,6 +187,9 @@ class _Vars:
 
 v = _Vars()
 
+#: what ``as_expr`` accepts (the fields of the model's classes take any of these)
+ExprLike = Union["Expr", E, str, int]
+
 
 def as_expr(x: object) -> Expr:
     """Any accepted form (AST, builder, string syntax, bool, int) as an AST node."""

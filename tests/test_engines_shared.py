@@ -1,4 +1,4 @@
-"""One test suite for every exploration engine (``btfsm.verify.search.Engine``: a model,
+"""One test suite for every exploration engine (``btfsm.verify.search.Explorer``: a model,
 or one of its FSMs as an open system, to its ``TransitionSystem`` under budgets),
 parametrized over the implementations (the pattern of dd's ``tests/common.py``): the
 scalar and traced engines of ``btfsm.verify.explore`` (the ``Search`` Protocol; reached
@@ -25,7 +25,7 @@ from btfsm.oracles import all_choices
 from btfsm.verify import vector
 from btfsm.verify.explore import explore, explore_fsm, open_fsm
 from btfsm.verify.labels import readable
-from btfsm.verify.search import Engine, EnumOracle
+from btfsm.verify.search import EnumOracle, Explorer
 
 
 def _by_name(name: str, model, *, fsm=None, goals=None, **budgets):
@@ -34,8 +34,8 @@ def _by_name(name: str, model, *, fsm=None, goals=None, **budgets):
     return explore_fsm(model, fsm, goals=goals, engine=name, **budgets)
 
 
-#: name -> engine (each an ``Engine``)
-ENGINES: dict[str, Engine] = {
+#: name -> engine (each an ``Explorer``)
+ENGINES: dict[str, Explorer] = {
     "scalar": partial(_by_name, "scalar"),
     "traced": partial(_by_name, "traced"),
     "auto": partial(_by_name, "auto"),

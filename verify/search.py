@@ -1,7 +1,7 @@
 """The pieces every exploration engine shares: the enumerating oracle (``EnumOracle``),
 the environment step (``run_environment``), the budgets (``Budget``) and the engines'
 interfaces (``Search``: what ``btfsm.verify.scalar.search`` and
-``btfsm.verify.traced.search`` are; ``Engine``: a whole exploration with its budgets, what
+``btfsm.verify.traced.search`` are; ``Explorer``: a whole exploration with its budgets, what
 ``btfsm.verify.vector.explore`` is; tests/test_engines_shared.py runs one suite over them).
 """
 from __future__ import annotations
@@ -19,7 +19,7 @@ if TYPE_CHECKING:
     from .system import TransitionSystem
 
 __all__ = ["EnumOracle", "run_environment", "DEFAULT_MAX_STATES", "DEFAULT_MAX_TRANSITIONS", "Budget", "BudgetExceeded",
-           "describe_hit", "HIT_WORDS", "Search", "Engine", "Progress", "Run"]
+           "describe_hit", "HIT_WORDS", "Search", "Explorer", "Progress", "Run"]
 
 DEFAULT_MAX_STATES = 5_000_000
 DEFAULT_MAX_TRANSITIONS = 50_000_000  # the command line's default: about 1.3 GB of transition arrays
@@ -186,7 +186,7 @@ class Search(Protocol):
                  /) -> TransitionSystem: ...
 
 
-class Engine(Protocol):
+class Explorer(Protocol):
     """A whole exploration: the model (``fsm`` None) or its FSM ``fsm`` as an open system
     (requests for ``goals``, all when None) to its ``TransitionSystem``, under the budgets
     (None: unbounded; see ``Budget``): ``btfsm.verify.vector.explore``, and

@@ -39,7 +39,7 @@ from btfsm.errors import DomainError, ModelError
 from btfsm.expr import INT, names_in, to_numpy_source
 from btfsm.model import EnvChoice
 
-from .search import Budget, Engine
+from .search import Budget, Explorer
 from .stepspec import StepSpec, int_bounds, step_spec
 from .system import DomainViolation, TransitionSystem
 
@@ -965,4 +965,4 @@ def _domain_errors(model, spec, eng, codes, states, goals=None) -> tuple:
     return tuple(out)
 
 
-_declared: Engine = explore  # a whole exploration (btfsm.verify.search.Engine; mypy holds it to it)
+_declared: Explorer = explore  # a whole exploration (btfsm.verify.search.Explorer; mypy holds it to it)
