@@ -111,7 +111,8 @@ class Budget:
 
     __slots__ = ("max_states", "max_transitions", "max_seconds", "start", "hit")
 
-    def __init__(self, max_states=None, max_transitions=None, max_seconds=None):
+    def __init__(self, max_states: "int | None" = None, max_transitions: "int | None" = None,
+                 max_seconds: "float | None" = None) -> None:
         self.max_states = None if max_states is None else max(int(max_states), 1)
         self.max_transitions = None if max_transitions is None else max(int(max_transitions), 0)
         self.max_seconds = None if max_seconds is None else float(max_seconds)
