@@ -1098,6 +1098,8 @@ class _Reader:
         if "terminal" in spec:
             kw["terminal"] = self.names(spec["terminal"], f"{path}.terminal", spec, "terminal", "states")
         kw["params"] = self.variables(spec.get("params"), f"{path}.params", f"fsms.{name}.params")
+        edges: list
+        markers: list
         edges, markers = [], []
         for key, build, out in (("edges", self.edge, edges), ("markers", self.marker, markers)):
             items = spec.get(key)
@@ -1711,6 +1713,7 @@ def _state_data(st: State):
 def _ids_to_write(elements, default_id) -> list:
     """Per element, whether its id must be written (it differs from the one the FSM
     would give it when loaded without an id; mirrors ``btfsm.fsm._with_ids``)."""
+    used: dict
     used, out = {}, []
     for el in elements:
         base = default_id(el)

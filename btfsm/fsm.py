@@ -277,6 +277,7 @@ class FSM:
 
 
 def _with_ids(elements, goals, default_id) -> tuple:
+    used: dict
     out, used = [], {}
     for el in elements:
         if ALL_GOALS in el.goals:

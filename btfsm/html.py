@@ -462,6 +462,7 @@ def check_page(model, report) -> dict:
     """``page`` keywords for a ``btfsm check`` report: the verdicts and one run per counterexample."""
     from btfsm.verify.report import lint_summary
 
+    runs: list
     verdicts, runs = [], []
     for r in report.results:
         verdict = "holds" if r.holds else ("VIOLATED" if r.holds is False else "undecided")

@@ -32,7 +32,7 @@ __all__ = ["Runtime", "Call", "Clock"]
 
 _RUNNING = int(Status.RUNNING)
 _STATUS = tuple(sorted(Status, key=int))  # int status -> Status, without Status(x)
-_NO_EVENTS = frozenset()
+_NO_EVENTS: frozenset = frozenset()
 
 
 class _VarView(Mapping):
@@ -209,7 +209,7 @@ class Runtime:
         self._last_status: dict = {}
         self._oracle = _ImplOracle(self)
         self._answers: list = []
-        self._render_from = (self.state, 0, {})  # state, tick and statuses where rendering resumes
+        self._render_from: tuple = (self.state, 0, {})  # state, tick and statuses where rendering resumes
         self.last = None
         self.last_record = None
 

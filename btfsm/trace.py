@@ -198,6 +198,7 @@ def read_trace(source) -> tuple[dict, list]:
     checked against the format (``btfsm/schema/trace.schema.json``); blank lines are
     skipped. Raises ``FormatError`` (a ValueError) naming the file, line and field."""
     name, lines = _lines_of(source)
+    records: list
     header, records = None, []
     for no, line in lines:
         if not line.strip():
@@ -337,6 +338,7 @@ def replay(source, model, state=None) -> "tuple[int, str] | None":
         except ValueError as exc:
             return (0, f"the trace's initial state does not fit this model ({exc})")
     s = tuple(state)
+    last: dict
     clock, last = Clock(model.tick_rate), {}
     for rec in records:
         oracle = ReplayOracle(program, rec)

@@ -167,7 +167,7 @@ def movement_manager(n_targets: int = len(TARGETS)) -> FSM:
 def transit_table(fsm: FSM) -> dict:
     """``{(state, track): "S:target" | "D:target" | "marker ..."}`` for the table of
     original-design.md section 3.3 (first element per state and track)."""
-    out = {}
+    out: dict = {}
     for e in fsm.edges:
         for g in e.goals:
             out.setdefault((e.source, g), f"{'D' if e.direct else 'S'}:{e.target}")

@@ -91,7 +91,7 @@ class ConformViews:
         """``btfsm.html.page`` keywords: one verdict per scenario (``rows``: the command's
         JSON rows), the chosen scenario as the run."""
         index, view, res = self.failed or self.first or (None, None, None)
-        runs = []
+        runs: list = []
         if view is not None:
             what = "the first that does not conform" if res.mismatch is not None else "every scenario conforms; the first"
             runs.append(view.run(summary=f"scenario {index}: {what}; {res.ticks} tick(s)", mismatch=res.mismatch))

@@ -121,6 +121,7 @@ def _sim_scene(args, model, scene) -> int:
 
     from .scene_trial import run_scene
 
+    frames: list
     frames, every = [], max(1, round(model.tick_rate / args.fps)) if args.gif else 0
     seen = {}
 
@@ -180,7 +181,7 @@ def cli_sim(args) -> int:
 
     dialect = dialect_of(model)
     spec = TrialSpec(variant, args.k, parts=model.var(dialect.tray_var).hi, time_limit=args.time)
-    frames = []
+    frames: list = []
     every = max(1, round(model.tick_rate / args.fps)) if args.gif else 0
     last = {}
 

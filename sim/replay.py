@@ -100,7 +100,7 @@ class _Pacer:
     visit whose state differs from the counterexample's (``diverged``)."""
 
     def __init__(self, states: list):
-        runs = []  # [state, ticks] of each visit; states[0] is the state before the first tick
+        runs: list = []  # [state, ticks] of each visit; states[0] is the state before the first tick
         for st in states:
             if runs and runs[-1][0] == st:
                 runs[-1][1] += 1
@@ -252,7 +252,7 @@ def replay_in_cell(model, ce, *, time_limit: float = 120.0, render: "str | None"
     d = binding.d
     pending = [t for t in triggers_of(ce, d.fsm) if t[1] == "arrive"]
     result = CellReplay(model.name, list(pending), kind=kind, paced=pacer.ticks if pacer else 0)
-    frames = [] if gif else None
+    frames: "list | None" = [] if gif else None
     hooks = _CellHooks(d.fsm, world.scene.sensors[binding.sensor]["region"], result, pending, pacer, arrive_at,
                        frames, settle, on_tick)
     end = run_loop(rt, world, binding, time_limit, hooks, stop_at_mismatch=False)

@@ -430,7 +430,7 @@ class World:
         self.doors = {n: (1.0 if d["open"] else 0.0) for n, d in scene.doors.items()}  # openness 0..1
         self.door_goal = {n: (1.0 if d["open"] else 0.0) for n, d in scene.doors.items()}
         self.robots = {n: _Robot(n, spec) for n, spec in scene.robots.items()}
-        self.inside = {n: set() for n in scene.sensors}
+        self.inside: dict = {n: set() for n in scene.sensors}
         self.incidents: list = []  # (time, kind, part id, cause): what physics did that nobody commanded
         self._sensed_log = -1
         self.arrivals = {n: self._arrival_times(b) for n, b in scene.belts.items()}
@@ -591,6 +591,7 @@ class World:
         if "random" in arr:
             r = arr["random"]
             mean, lo = float(r["mean_interval"]), float(r.get("min_interval", 0.0))
+            out: list
             t, out = float(arr.get("first", 0.0)), []
             while (count is None and t <= limit) or (count is not None and len(out) < count):
                 if len(out) >= MAX_ARRIVALS:
@@ -1148,7 +1149,7 @@ class World:
     # ---- invariant, digest, snapshot
     def check_invariant(self) -> None:
         """Raise AssertionError unless every part is in exactly one consistent place."""
-        seen = {}
+        seen: dict = {}
         for place, ids in self.members.items():
             for pid in ids:
                 assert pid not in seen, f"part {pid} is in both {seen[pid]} and {place}"

@@ -183,7 +183,7 @@ def _step_record(ts, k, before, script, step, oracle, error=None) -> dict:
     label = readable(prog, tuple(oracle.picks), ts.open)[0]
     rec = {"tick": k, "script": list(script), "choices": jsonable(label)}
     if ts.kind == "fsm":
-        req = {"goal": None, "params": {}, "inputs": {}}
+        req: dict = {"goal": None, "params": {}, "inputs": {}}
         f = ts.model.fsm(ts.fsm)
         for item in label:
             if item[0] == "goal":

@@ -107,7 +107,7 @@ def _round(spec, me: int, parts: int, message_min: int, part, *incoming):
     if got:
         visited, new = _merge(visited, np.unique(np.concatenate(got)))
         frontier = np.union1d(frontier, new)
-    out = [[] for _ in range(parts)]
+    out: list = [[] for _ in range(parts)]
     nt = sent = 0
     while len(frontier):
         targets = []
@@ -153,7 +153,7 @@ def explore_distributed(client, factory, args=(), kwargs=None, *, workers=None,
     empty = np.zeros(0, np.int64)
     part = [client.scatter((start, start) if j == home else (empty, empty), workers=[addrs[j]], hash=False)
             for j in range(parts)]
-    inbox = [[] for _ in range(parts)]
+    inbox: list = [[] for _ in range(parts)]
     counts = DistributedCounts(states=0, transitions=0, levels=0, seconds=0.0)
     while True:
         res = [on(j, _round, spec, j, parts, message_min, part[j], *inbox[j]) for j in range(parts)]

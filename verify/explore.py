@@ -68,7 +68,7 @@ class OpenFSM:
         picks = oracle.picks
         for slot, vals in self.inputs:
             s[slot] = vals[oracle.choose(("input", slot), vals)]
-        rec = [] if record else None
+        rec: "list | None" = [] if record else None
         if not run_environment(prog, s, oracle, self.env, rec):
             return None
         goals = self.goals

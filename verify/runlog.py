@@ -344,7 +344,7 @@ def check_btlog(model, log, file: str = "log", allow=None, max_configs: int = DE
     program = model.program
     matcher = _Matcher(entries, mp.rule)
     n = len(entries)
-    children = [[] for _ in mp.keys]
+    children: list = [[] for _ in mp.keys]
     for k, p in enumerate(mp.parent):
         if p is not None:
             children[p].append(k)
@@ -439,6 +439,7 @@ class PytreesRun:
 
 def read_pytrees_run(text: str, file: str) -> PytreesRun:
     """The ``PytreesRun`` in a recording's text (JSON lines; errors name the line)."""
+    ticks: list
     nodes, ticks = None, []
     for no, line in enumerate(text.splitlines(), 1):
         if not line.strip():

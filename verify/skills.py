@@ -245,7 +245,7 @@ def derive(model, *, max_states: "int | None" = None, max_transitions: "int | No
                     k = skill_of_goal.get((f.name, f.goals[g - 1]))
                     if k is not None:
                         d.held.setdefault(k, set()).add(state)
-        kept = [] if fresh else None
+        kept: "list | None" = [] if fresh else None
         for item in succ:
             if item is None:  # out of time while enumerating
                 d.complete, d.stopped = False, "seconds"
@@ -265,7 +265,7 @@ def derive(model, *, max_states: "int | None" = None, max_transitions: "int | No
                     d.params.setdefault(b, set()).add(ev[2])
                     kind = "first" if cur is None else {"success": "completion", "halted": "preemption",
                                                          "failure": "failure", "running": "concurrent"}[cur[1]]
-                    a = None if cur is None else cur[0]
+                    a: Any = None if cur is None else cur[0]
                     pair = d.pairs.get((a, b, kind))
                     if pair is None:
                         pair = d.pairs[(a, b, kind)] = Pair(a, b, kind, 0, _path(parent, i) + (script,))
@@ -493,7 +493,7 @@ def check_support(d: Derivation, *, where: str = "switch", budget: int = 1_000_0
 # --------------------------------------------------------------------------- output
 def _matrix(d: Derivation) -> list:
     names = [d.name(i) for i in range(len(d.skills))]
-    cells = {}
+    cells: dict = {}
     for (a, b, kind) in d.pairs:
         if a is not None:
             cells.setdefault((a, b), []).append(_MARK[kind])

@@ -483,7 +483,7 @@ class _Gen:
 def _unique(items, order: dict) -> list:
     """Edges or markers (tuples ending with their id) without repeats, in declaration
     order (``order``: id -> index), so "the first enabled one" means what it does in btfsm."""
-    seen = {}
+    seen: dict = {}
     for it in items:
         seen.setdefault(it[-1], it)
     return sorted(seen.values(), key=lambda it: order[it[-1]])

@@ -147,6 +147,10 @@ def _rows(prog, fi) -> tuple:
         outcomes = tuple((int(o.status), o.effects, o.name) for o in prim.outcomes)
         per_goal = []
         for g in f.goals:
+            dedges: list
+            dmarkers: list
+            edges: tuple
+            markers: tuple
             dedges, dmarkers, edges, markers, applicable = [], [], ([], [], []), ([], [], []), False
             for e in f.edges:
                 if e.source != st.id or g not in e.goals:

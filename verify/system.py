@@ -226,7 +226,7 @@ class TransitionSystem:
             raise ValueError(f"{self.n_states} states: too many for networkx (max_states={max_states})")
         import networkx as nx
 
-        g = nx.MultiDiGraph(model=self.model.name, kind=self.kind, fsm=self.fsm)
+        g: nx.MultiDiGraph = nx.MultiDiGraph(model=self.model.name, kind=self.kind, fsm=self.fsm)
         for i in range(self.n_states):
             g.add_node(i, **self.decode(i))
         for t in range(self.n_transitions):

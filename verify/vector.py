@@ -270,7 +270,7 @@ class Engine:
         ``(pos, codes, labels, status, post)`` arrays per final batch, as a list."""
         prog = self.prog
         c = chunk_codes.astype(self.S)
-        out = []
+        out: list = []
         self.memo = {}
         tm = self.mult[self.tok]
         bounds = np.searchsorted(chunk_codes, np.arange(len(self.ids) + 1, dtype=np.int64) * tm)

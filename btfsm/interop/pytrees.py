@@ -282,7 +282,7 @@ def node_names(root) -> list:
     ['Tür offen', 'a', 'a_2', 'a_3']
     """
     root = _root_of(root)
-    order = []
+    order: list = []
     _walk_behaviours(root, order)
     labels = [_label(b.name) for b in order]
     taken = set(labels)

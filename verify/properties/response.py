@@ -344,6 +344,7 @@ def check(ctx) -> Result:
     if not reqs:
         return Result(NAME, True, None, [], not_applicable="no 'responses:' declared")
     ts = ctx.model_ts()
+    info: dict
     notes, info, verdict, ce = [], {"responses": {}}, True, None
     for req in reqs:
         rb = ResponseBound(ts, req)
