@@ -19,6 +19,8 @@ module describes the systems (``open_fsm``) and picks the engine.
 """
 from __future__ import annotations
 
+from typing import Any, cast
+
 from dataclasses import dataclass
 
 from btfsm.bt import Action, Condition, Effects, Guard, SkillRequest, walk
@@ -48,7 +50,7 @@ class OpenFSM:
     that can be requested; ``pres``: per goal, the ``pre`` conditions of the tree's
     SkillRequests for it (None: always requestable); ``params``: ``(slot, values)``."""
 
-    program: object
+    program: Any  # btfsm.semantics.Program
     fsm: str
     index: int
     kept: tuple
@@ -71,7 +73,7 @@ class OpenFSM:
         rec: "list | None" = [] if record else None
         if not run_environment(prog, s, oracle, self.env, rec):
             return None
-        goals = self.goals
+        goals: Any = self.goals
         if self.pres:
             goals = [g for g in goals if _requestable(self.pres.get(g), s)]
             if not goals:
@@ -184,7 +186,7 @@ def _tree_footprint(prog, root, seen) -> tuple:
             reads |= r
             writes |= w
         elif isinstance(n, SkillRequest):
-            for e in (n.pre, n.post, *(x for _, x in n.params)):
+            for e in (n.pre, n.post, *(x for _, x in cast("tuple[tuple[str, Any], ...]", n.params))):
                 if e is not None:
                     reads |= _expr_slots(e, scope)
             r, w = _fsm_footprint(prog, n.fsm, seen)
@@ -228,7 +230,7 @@ def open_fsm(model, fsm: str, goals=None) -> OpenFSM:
                 pres.setdefault(g, []).append(fn)
                 if n.pre is not None:
                     reads |= _expr_slots(n.pre, prog.scope)
-            goal_idx = tuple(sorted(pres))
+            goal_idx: Any = tuple(sorted(pres))
             pres = {g: (None if any(p is None for p in ps) else tuple(ps)) for g, ps in pres.items()}
             if all(p is None for p in pres.values()):
                 pres = {}

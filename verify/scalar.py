@@ -12,6 +12,8 @@ traced engine cannot follow the model).
 """
 from __future__ import annotations
 
+from typing import Any
+
 import time
 from array import array
 from collections import deque
@@ -137,8 +139,8 @@ def search(model, kind, fsm, kept, run, initial, budget, progress, op, split=Non
     timed = budget.max_seconds is not None
     runs, check_at = 0, _CLOCK_EVERY  # step runs, and when to read the clock next
     visited: dict = {}
-    codes = array("q") if small else []
-    tuples: "list | None" = None if small else []
+    codes: Any = array("q") if small else []
+    tuples: Any = None if small else []
     parent = array("q", [-1])
     src, dst, lab, stat = array("q"), array("q"), array("q"), array("b")
     label_ids: dict = {}
@@ -147,6 +149,7 @@ def search(model, kind, fsm, kept, run, initial, budget, progress, op, split=Non
     label_goal: list = []
     errors, violations = [], []
     s0 = tuple(initial)
+    c: Any  # a state code: an int, or the kept values when the codes would not fit one
     c0 = sum(map(mul, s0, mults)) if small else tuple(s0[k] for k in kept)
     visited[c0] = 0
     if small:

@@ -38,6 +38,8 @@ True
 """
 from __future__ import annotations
 
+from typing import Any
+
 import json
 import time
 from collections import deque
@@ -87,7 +89,7 @@ class Pair:
 class Derivation:
     """What ``derive`` found; ``pairs`` maps ``(a, b, kind)`` to a Pair."""
 
-    model: object
+    model: Any  # btfsm.model.Model
     skills: list
     pairs: dict
     states: int  # product states (model state x last skill)
@@ -225,7 +227,7 @@ def derive(model, *, max_states: "int | None" = None, max_transitions: "int | No
     skill_of_goal = {(s.fsm, s.goal): i for i, s in enumerate(skills)}
     held_code = [(prog.fsm_info[prog.fsm_index[s.fsm]][3], prog.model.fsm(s.fsm).goals.index(s.goal) + 1) for s in skills]
     d = Derivation(model, skills, {}, 0, 0, 0, True, 0.0)
-    start = (prog.initial, None)
+    start: Any = (prog.initial, None)
     index = {start: 0}
     parent = [(-1, ())]
     order = [start]
@@ -233,7 +235,7 @@ def derive(model, *, max_states: "int | None" = None, max_transitions: "int | No
     i = met = 0  # met: model states whose successors were enumerated (at least in part)
     while i < len(order) and d.complete:
         state, last = order[i]
-        succ = cache.get(state)
+        succ: Any = cache.get(state)
         fresh = succ is None
         if fresh:
             met += 1
@@ -245,7 +247,7 @@ def derive(model, *, max_states: "int | None" = None, max_transitions: "int | No
                     k = skill_of_goal.get((f.name, f.goals[g - 1]))
                     if k is not None:
                         d.held.setdefault(k, set()).add(state)
-        kept: "list | None" = [] if fresh else None
+        kept: Any = [] if fresh else None
         for item in succ:
             if item is None:  # out of time while enumerating
                 d.complete, d.stopped = False, "seconds"
@@ -469,7 +471,7 @@ def check_support(d: Derivation, *, where: str = "switch", budget: int = 1_000_0
         for params in sorted(by_params):
             keys = by_params[params]
             cache_key = (b, params)
-            region = regions.get(cache_key)
+            region: Any = regions.get(cache_key)
             missing = [k for k in keys if region is None or k not in region[1]]
             if missing:
                 start = set(missing) | (region[1] if region else set())
@@ -622,7 +624,7 @@ def cli_skills(args) -> int:
     with ExplorationProgress() as bar:  # on a terminal only, after a second
         d = derive(model, max_states=max_states, max_transitions=max_transitions, max_seconds=max_seconds,
                    progress=lambda states, seconds: bar("skills", states))
-    support = None
+    support: Any = None
     if d.complete:
         try:
             support = check_support(d, budget=min(max_states, 1_000_000),

@@ -12,6 +12,8 @@ range of an int expression.
 """
 from __future__ import annotations
 
+from typing import Any
+
 from dataclasses import dataclass
 
 from btfsm.bt import SkillRequest
@@ -52,8 +54,8 @@ class StepSpec:
     expressions ``params`` as ``((slot, AST), ...)``). ``stored``: the program slots a
     state holds."""
 
-    model: object
-    program: object
+    model: Any  # btfsm.model.Model
+    program: Any  # btfsm.semantics.Program
     kind: str
     fsm: str
     index: int
@@ -149,8 +151,9 @@ def _rows(prog, fi) -> tuple:
         for g in f.goals:
             dedges: list
             dmarkers: list
-            edges: tuple
-            markers: tuple
+            edges: Any
+            markers: Any
+            item: tuple
             dedges, dmarkers, edges, markers, applicable = [], [], ([], [], []), ([], [], []), False
             for e in f.edges:
                 if e.source != st.id or g not in e.goals:

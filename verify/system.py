@@ -313,7 +313,7 @@ def shortest_path(ts: TransitionSystem, start: int, goal, mask: "np.ndarray | No
     elif isinstance(goal, (set, frozenset)):
         is_goal = goal.__contains__
     else:
-        is_goal = (lambda i, g=int(goal): i == g)
+        is_goal = (lambda i, g=int(goal): i == g)  # type: ignore[misc]  # (mypy cannot type a lambda default)
     if is_goal(start):
         return []
     offs = ts.offsets

@@ -35,6 +35,8 @@ a run of ``Program.step``.
 """
 from __future__ import annotations
 
+from typing import Any, Callable
+
 import time
 from array import array
 
@@ -236,6 +238,10 @@ class _Visited:
         self.codes = np.zeros(1024, code_dtype(total))
         self.codes[0] = c0
         self.n = 1
+
+    # each subclass's set of codes
+    ids: Callable[[np.ndarray], np.ndarray]
+    index: Callable[[np.ndarray], Any]
 
     def batch(self, head: int, k: int) -> np.ndarray:
         return self.codes[head:head + k].astype(np.int64)
@@ -614,7 +620,7 @@ class _Engine:
         out = []
         emitted, wide = 0, len(codes) > 1
         every = len(codes)
-        stack = [(self.root, None, np.arange(every), ())]
+        stack: list = [(self.root, None, np.arange(every), ())]
         pop, push = stack.pop, stack.append
         while stack:
             holder, key, rows, script = pop()
@@ -637,6 +643,7 @@ class _Engine:
                     push((kids, c, rows, script + (c,)))
                 continue
             vals = ev(what)
+            groups: Any
             if not isinstance(vals, np.ndarray):  # a constant: every row goes one way
                 groups = ((bool(vals) if kind == "b" else int(vals), rows),)
             elif kind == "b":
@@ -965,7 +972,7 @@ def search(model, kind, fsm, kept, run, s0, budget, progress, op, fallback: bool
             visited.add(newcodes)
             parent.extend(firstpos + nt, nt + cut)
             n += len(newcodes)
-        cut_row = None if complete else int(rows[cut])
+        cut_row: Any = None if complete else int(rows[cut])
         if staged is not None:
             lid = staged.kinds(cut + 1)
         stop = None if complete or staged is not None else (cut_row, int(ords[lid[cut]]))
