@@ -85,8 +85,8 @@ class Response:
     expression. ``within``: seconds, or None to measure only (``btfsm bound``)."""
 
     name: str
-    trigger: str
-    response: object
+    trigger: Any  # an expression (text, then an Expr once built) or "event:<name>"
+    response: Any  # an expression (an Expr once built)
     within: "float | None" = None
 
     def __post_init__(self):

@@ -14,6 +14,7 @@ from __future__ import annotations
 import json
 import os
 import sys
+from typing import cast
 
 from btfsm import reserve
 
@@ -148,7 +149,7 @@ def cli_bound(args) -> int:
            "best_ticks": figure(best), "best_seconds": None if figure(best) is None else rb.seconds(best)}
     written = None
     if args.output and worst is not None:
-        path, k, loop = rb.worst_witness()
+        path, k, loop = cast(tuple, rb.worst_witness())
         summary = (f"'{args.response}' may never come after '{args.trigger}'" if worst == INF else
                    f"the worst case: '{args.response}' {worst} tick(s) ({rb.seconds(worst):g} s) after '{args.trigger}'")
         ce = counterexample(rb, path, k, loop, summary, None)

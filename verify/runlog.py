@@ -26,6 +26,7 @@ import json
 import re
 import sys
 from dataclasses import dataclass, field
+from typing import cast
 
 from btfsm.bt import Condition, Leaf, SubTree
 from btfsm.errors import ModelError
@@ -349,7 +350,7 @@ def check_btlog(model, log, file: str = "log", allow=None, max_configs: int = DE
         if p is not None:
             children[p].append(k)
     start = (program.initial, 0, (IDLE,) * len(mp.keys))
-    parents = {start: None}  # configuration -> (configuration before, Step): the explaining run
+    parents: dict = {start: None}  # configuration -> (configuration before, Step): the explaining run
     furthest = start
     seen = {0: {start}}  # log position -> configurations found there
     heap = [(0, 0, 0, start)]  # (position, ticks, order, configuration)
@@ -450,7 +451,7 @@ def read_pytrees_run(text: str, file: str) -> PytreesRun:
         try:
             rec = json.loads(line)
         except ValueError as exc:
-            raise fail(f"not JSON ({exc.msg})") from None
+            raise fail(f"not JSON ({getattr(exc, 'msg', exc)})") from None
         if not isinstance(rec, dict):
             raise fail("expected a JSON object")
         if nodes is None:
@@ -512,12 +513,12 @@ def check_pytrees_run(model, run, file: str = "run", allow=None, max_configs: in
     program = model.program
     flags = [(info.flag, name) for name, info in program.nodes.items() if info.flag is not None and name in mp.prim]
     states = {program.initial}
-    parents = {(0, program.initial): None}  # (tick, state) -> ((tick, state) before, Step)
+    parents: dict = {(0, program.initial): None}  # (tick, state) -> ((tick, state) before, Step)
     searched = 1
     for tick, (visited, running) in enumerate(run.ticks):
         want = [(index[i], _PY_STATUS.get(s)) for i, s in visited]
         want_running = {index[i] for i in running}
-        best = [-1, set()]
+        best: list = [-1, set()]
 
         def expected(events):
             out = []
@@ -643,7 +644,7 @@ def cli_conform_log(args) -> int:
         text = (f"{path}: conforms to {model.name} under {semantics}: {what} explained by a run of "
                 f"{verdict.ticks} tick(s) ({verdict.searched:,} configurations searched)")
     else:
-        text = f"{path}: does not conform to {model.name} under {semantics}: {verdict.first['text']}"
+        text = f"{path}: does not conform to {model.name} under {semantics}: {cast(dict, verdict.first)['text']}"
     if page:
         from btfsm.html import log_page, write_page
 

@@ -32,6 +32,7 @@ from __future__ import annotations
 import re
 import time
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -222,7 +223,8 @@ class Engine:
         if not effects:
             return batch
         cols = batch.cols
-        values, bad = {}, _F
+        values: dict = {}
+        bad: Any = _F
         for name, value in effects:
             slot = self.scope[name]
             v = self.ev(value, cols, False, slot.type)
@@ -279,7 +281,7 @@ class Engine:
             if a == b:
                 continue
             part = c[a:b]
-            cols = [None] * len(prog.slots)
+            cols: list = [None] * len(prog.slots)
             for k, v in self.fixed_cols.items():
                 cols[k] = v
             for k in self.order:

@@ -131,7 +131,8 @@ def _shortest_cycle(ts, c, sub) -> list:
 
 def check(ctx) -> Result:
     model = ctx.model
-    notes, info = [], {}
+    notes: list = []
+    info: dict = {}
     ts = ctx.model_ts()
     dead = dead_states(ts)
     info["dead_states"] = int(dead.size)

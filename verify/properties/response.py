@@ -33,6 +33,8 @@ both.
 """
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 
 from btfsm.errors import ModelError
@@ -176,7 +178,7 @@ class ResponseBound:
                 tmask = evaluate(ts, req.trigger)
             except ModelError as exc:
                 raise ModelError(f"responses.{req.name}.trigger", exc.problem) from None
-            self.trigger_edges = None
+            self.trigger_edges = None  # type: ignore[assignment]  # (no trigger edges: trigger states only)
             tstates = np.flatnonzero(tmask)
         self.triggers = tstates
         n = ts.n_states
@@ -237,11 +239,11 @@ class ResponseBound:
             u = int(ts.dst[t])
         return out
 
-    def worst_witness(self) -> tuple:
+    def worst_witness(self) -> "tuple | None":
         """(transitions, trigger step index, loop or None): a run reaching a trigger state with
         the worst case and following a longest response-free path; for an unbounded worst
         case, the lasso into a response-free cycle (or the path to a state without successors)."""
-        worst = self.worst
+        worst: Any = self.worst
         at = self.triggers[self.worst_at[self.triggers] == worst]
         prefix, t = self._entry(at)
         if worst != INF:
@@ -281,7 +283,7 @@ class ResponseBound:
             u = int(ts.dst[e])
         return prefix + walk, len(prefix), None
 
-    def _lasso(self, prefix, t) -> tuple:
+    def _lasso(self, prefix, t) -> "tuple | None":
         ts, stop = self.ts, self.stop
         free = ~stop[ts.src]
         idx = np.flatnonzero(free)
@@ -345,11 +347,13 @@ def check(ctx) -> Result:
         return Result(NAME, True, None, [], not_applicable="no 'responses:' declared")
     ts = ctx.model_ts()
     info: dict
+    verdict: "bool | None"
     notes, info, verdict, ce = [], {"responses": {}}, True, None
     for req in reqs:
         rb = ResponseBound(ts, req)
         bound = rb.bound_ticks()
-        worst, best = rb.worst, rb.best
+        worst: Any = rb.worst
+        best = rb.best
         entry = {"trigger": req.trigger if isinstance(req.trigger, str) else str(req.trigger),
                  "response": str(req.response), "within_seconds": req.within, "bound_ticks": bound,
                  "triggers": int(rb.triggers.size),
@@ -367,7 +371,7 @@ def check(ctx) -> Result:
             text += f"; bound {req.within:g} s = {bound} ticks"
         notes.append(text)
         if bound is not None and worst > bound:
-            witness = rb.violation_witness(bound) if ce is None else None
+            witness: Any = rb.violation_witness(bound) if ce is None else None
             if ce is None and witness is None:  # a cut system: look for a run of `bound` ticks inside it
                 witness = rb.bounded_witness(bound)
             if ce is None and witness is None:  # ... and there is none
