@@ -29,9 +29,12 @@ as soon as a belt part is detected; ``baseline`` puts all four in one memory fal
 """
 from __future__ import annotations
 
+from typing import cast
+
 from btfsm import (FSM, Action, Bool, Condition, Edge, Effects, Int, Marker, MemoryFallback,
                    MemorySequence, Model, Parallel, Primitive, ReactiveFallback, ReactiveSequence,
                    SkillRequest, State, EnvEvent, failure, running, success)
+from btfsm.bt import Node
 from btfsm.timing import Response
 
 __all__ = ["AREAS", "ROTATIONS", "SKILLS", "PRIMITIVES", "ARM_REQUESTS", "generate_fsm", "unite", "arm_fsm",
@@ -174,7 +177,7 @@ def unite(parts) -> tuple:
                 seen.add(s.id)
                 states.append(s)
         for e in ed:
-            key = (e.source, e.target, e.direct, e.on, e.guard, e.effects)
+            key: tuple = (e.source, e.target, e.direct, e.on, e.guard, e.effects)
             edges[key] = edges[key] + tuple(g for g in e.goals if g not in edges[key]) if key in edges else e.goals
         for m in mk:
             key = (m.state, m.direct, m.on, m.guard, m.outcome)
@@ -231,7 +234,7 @@ def tree(n_tray: int = 18, variant: str = "preemptive"):
                 on_halt={"tray": "tray + 1 if not gripper_full else tray"})])
     pick = MemorySequence("pick_branch", [Condition("gripper_empty", "not gripper_full"), s1])
     if variant == "preemptive":
-        executive = ReactiveFallback("executive", [belt, MemoryFallback("kitting", [done, place, pick])])
+        executive: Node = ReactiveFallback("executive", [belt, MemoryFallback("kitting", [done, place, pick])])
     elif variant == "baseline":
         executive = MemoryFallback("executive", [belt, done, place, pick])
     else:
@@ -308,7 +311,7 @@ def timed(model: Model) -> Model:
     f = model.fsms[0]
     states = tuple(dataclasses.replace(s, duration=(0.0, ARM_DURATIONS[s.id])) if s.id in ARM_DURATIONS else s
                    for s in f.states)
-    env = tuple(dataclasses.replace(e, min_interval=ARRIVAL_MIN_INTERVAL) for e in model.environment)
+    env = tuple(dataclasses.replace(cast(EnvEvent, e), min_interval=ARRIVAL_MIN_INTERVAL) for e in model.environment)
     reach = Response("reach", "event:arrive", "arm.state == 'grasp_conveyor'", PICK_WINDOW)
     return dataclasses.replace(model, name=f"{model.name}-timed", fsms=(dataclasses.replace(f, states=states),),
                                environment=env, responses=(reach,),

@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import cast
 
 from btfsm.errors import ModelError
 
@@ -152,7 +153,7 @@ class KittingBinding(Binding):
     def __init__(self, scene, model, world, *, robot: str = "arm", bins=("bin2", "bin3"), tray: str = "tray",
                  belt: str = "conveyor", sensor: str = "beam", speed_scale: float = 0.5, clearance: float = 0.2):
         self.scene, self.world, self.model = scene, world, model
-        self.d = dialect_of(model)
+        self.d = cast(Dialect, dialect_of(model))  # None is refused just below
         if self.d is None:
             raise ModelError("binding", f"the kitting binding cannot run model '{model.name}' ({unsupported(model)})",
                              scene.file)

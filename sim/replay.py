@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import json
 from dataclasses import dataclass, field
+from typing import Any, cast
 
 from .loop import Hooks, run_loop, start
 
@@ -109,6 +110,7 @@ class _Pacer:
         self.visits = runs
         self.ticks = len(states) - 1
         self.v = self.c = 0  # the current visit, and the ticks the cell spent in it so far
+        self.diverged: "tuple | None"
         self.now, self.held, self.diverged = None, 0, None
         self.tick = 0
 
@@ -240,9 +242,9 @@ def replay_in_cell(model, ce, *, time_limit: float = 120.0, render: "str | None"
     spec = TrialSpec("preemptive", 1, time_limit=time_limit)
     pacer = arrive_at = None
     if pace if pace is not None else kind == "response":
-        from .binding import dialect_of
+        from .binding import Dialect, dialect_of
 
-        pacer = _Pacer(fsm_states_of(ce, dialect_of(model).fsm))
+        pacer = _Pacer(fsm_states_of(ce, cast(Dialect, dialect_of(model)).fsm))
         # a part for the counterexample's tick i reaches the sensor in the world steps before
         # the cell's tick at the same point of the same visit
         arrive_at = [pacer.position(i) for i, step in enumerate(ce["steps"], start=1)
@@ -351,6 +353,7 @@ class _SceneReplayHooks(Hooks):
         pending = self.pending
         if pending and all(now.get(f) == s for f, s in pending[0][0].items() if s is not None):
             states, ev = pending.pop(0)
+            pid: "str | None"
             if ev in self.exits and ev not in self.sensors:
                 pid = "world"  # a part leaving: it happens in the world, or it does not
             else:
@@ -419,7 +422,8 @@ def replay_for_cli(model, ce_json: dict, args, record: bool = False):
     from .scene_trial import scene_for
 
     path = getattr(args, "scene", None)
-    view = None
+    view: Any = None
+    out: Any
     if path is None and dialect_of(model) is not None:
         if record:
             from .cell_view import CellView

@@ -99,6 +99,8 @@ class Scene:
         self.part_friction.update({k: float(v.get("friction", DEFAULT_FRICTION)) for k, v in ptypes.items()})
         self.part_colours = {DEFAULT_PART: None}
         self.part_colours.update({k: v.get("colour") for k, v in ptypes.items()})
+        self.doors: dict
+        self.faults: dict
         self.areas, self.belts, self.sinks, self.doors = {}, {}, {}, {}
         self.sensors, self.faults, self.robots = {}, {}, {}
         for name, a in data.get("areas", {}).items():
