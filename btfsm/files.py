@@ -34,6 +34,7 @@ import os
 import re
 import stat
 from pathlib import Path
+from typing import Any, cast
 
 import yaml
 
@@ -1092,9 +1093,9 @@ class _Reader:
             raise self.fail(f"{path}.states", f"expected a list of states, got {_kind(states_data)}", spec, "states")
         states = tuple(self.state(name, s, f"{path}.states[{i}]", states_data, i) for i, s in enumerate(states_data))
         kw = {}
-        for f in ("initial", "retarget", "withdraw_goal"):
-            if f in spec:
-                kw[f] = self.string(spec[f], f"{path}.{f}", spec, f)
+        for k in ("initial", "retarget", "withdraw_goal"):
+            if k in spec:
+                kw[k] = self.string(spec[k], f"{path}.{k}", spec, k)
         if "terminal" in spec:
             kw["terminal"] = self.names(spec["terminal"], f"{path}.terminal", spec, "terminal", "states")
         kw["params"] = self.variables(spec.get("params"), f"{path}.params", f"fsms.{name}.params")
@@ -1375,16 +1376,17 @@ def load_model(ref, *, file_name: "str | None" = None, semantics: "str | None" =
     tick = model.tick if tick is None else tick
     if semantics == model.semantics and tick == model.tick:
         return model
+    source = getattr(model, "source")  # set by _with_source
     if semantics not in PROFILES:
-        raise _err("semantics", f"unknown semantics {semantics!r} (one of: {', '.join(PROFILES)})", model.source)
+        raise _err("semantics", f"unknown semantics {semantics!r} (one of: {', '.join(PROFILES)})", source)
     if tick not in TICKS:
-        raise _err("tick", f"unknown tick {tick!r} (one of: {', '.join(TICKS)})", model.source)
+        raise _err("tick", f"unknown tick {tick!r} (one of: {', '.join(TICKS)})", source)
     try:
         new = dataclasses.replace(model, semantics=semantics, tick=tick)
         object.__setattr__(new, "warnings", new.warnings + tuple(w for w in model.warnings if w not in new.warnings))
-        return _with_source(new, model.source)
+        return _with_source(new, source)
     except ModelError as exc:
-        raise (exc if exc.file else exc.at(file=model.source)) from None
+        raise (exc if exc.file else exc.at(file=source)) from None
 
 
 def load_cli_model(args) -> Model:
@@ -1454,7 +1456,7 @@ def load_xml_model(path, *, leaves=None, file_name: "str | None" = None, node_li
             side_models = [side_models]
         if not isinstance(side_models, list) or not all(isinstance(x, str) for x in side_models):
             raise _err("node_models", "expected a node model file (or a list of them), relative to the side file", side_name)
-        base = Path(side_name).parent
+        base = Path(cast(str, side_name)).parent
         files += [(os.fspath(base / x), x) for x in side_models]
     models: dict = {}
     for f, _text in files:
@@ -1593,7 +1595,7 @@ def _load_builtin(name, entry, file_name):
 # ============================================================================ Model -> data
 
 
-def _expr_data(e: Expr):
+def _expr_data(e: Any):  # an Expr (the model's expressions are Exprs once built)
     """Bool and int constants as YAML scalars, anything else as expression text."""
     if isinstance(e, Const) and isinstance(e.value, (bool, int)):
         return e.value
@@ -1607,6 +1609,7 @@ def _effects_data(effects) -> dict:
 def _var_data(var: Var):
     if var.kind == "bool":
         return {"bool": True} if var.init else "bool"
+    out: dict
     if var.kind == "enum":
         out = {"enum": list(var.values)}
         if var.init != var.values[0]:
@@ -1619,10 +1622,10 @@ def _var_data(var: Var):
 
 
 def _outcome_data(o: Outcome):
-    key = o.status.name.lower()
+    key = cast(Status, o.status).name.lower()
     if not o.effects and o.name == key:
         return key
-    out = {key: _effects_data(o.effects)}
+    out: dict = {key: _effects_data(o.effects)}
     if o.name != key:
         out["name"] = o.name
     return out
@@ -1682,7 +1685,7 @@ def _node_data(n) -> dict:
     if isinstance(n, SkillRequest):
         out["fsm"], out["goal"] = n.fsm, n.goal
         if n.params:
-            out["params"] = {k: _expr_data(e) for k, e in n.params}
+            out["params"] = {k: _expr_data(e) for k, e in cast("tuple[tuple[str, Expr], ...]", n.params)}
         for f in ("pre", "post"):
             if getattr(n, f) is not None:
                 out[f] = _expr_data(getattr(n, f))
@@ -1696,7 +1699,7 @@ def _node_data(n) -> dict:
 def _state_data(st: State):
     if not st.primitive and not st.args and st.outcomes is None and st.subtree is None and st.duration is None:
         return st.id
-    out = {"id": st.id}
+    out: dict = {"id": st.id}
     if st.primitive:
         out["primitive"] = st.primitive
     if st.args:
@@ -1731,7 +1734,7 @@ def _trigger(el) -> "str | None":
 
 
 def _fsm_data(f: FSM) -> dict:
-    out = {"goals": list(f.goals), "initial": f.initial}
+    out: dict = {"goals": list(f.goals), "initial": f.initial}
     if f.params:
         out["params"] = {p.name: _var_data(p) for p in f.params}
     if f.retarget != "immediate":
@@ -1741,7 +1744,7 @@ def _fsm_data(f: FSM) -> dict:
     out["states"] = [_state_data(s) for s in f.states]
     edges = []
     for e, write_id in zip(f.edges, _ids_to_write(f.edges, lambda e: f"{e.source}->{e.target}")):
-        d = {"from": e.source, "to": e.target, "goals": list(e.goals)}
+        d: dict = {"from": e.source, "to": e.target, "goals": list(e.goals)}
         if _trigger(e) != "success":
             d["when"] = _trigger(e)
         if e.guard is not None:
@@ -1759,7 +1762,7 @@ def _fsm_data(f: FSM) -> dict:
         if _trigger(m) != "success":
             d["when"] = _trigger(m)
         if m.outcome != Status.SUCCESS:
-            d["outcome"] = m.outcome.name.lower()
+            d["outcome"] = cast(Status, m.outcome).name.lower()
         if m.guard is not None:
             d["guard"] = _expr_data(m.guard)
         if write_id:
@@ -1773,7 +1776,7 @@ def _fsm_data(f: FSM) -> dict:
 
 
 def _event_data(ev: EnvEvent) -> dict:
-    out = {"event": ev.name}
+    out: dict = {"event": ev.name}
     if ev.guard is not None:
         out["guard"] = _expr_data(ev.guard)
     if ev.effects:
@@ -1810,16 +1813,17 @@ def model_to_data(model: Model) -> dict:
             {"choice": ev.name, "options": [_event_data(o) for o in ev.options]} if isinstance(ev, EnvChoice) else _event_data(ev)
             for ev in model.environment]
     if model.invariants:
-        out["invariants"] = {k: _expr_data(e) for k, e in model.invariants}
+        out["invariants"] = {k: _expr_data(e) for k, e in cast("tuple[tuple[str, Expr], ...]", model.invariants)}
     for key in ("workable", "terminal"):
         if getattr(model, key) is not None:
             out[key] = _expr_data(getattr(model, key))
     if model.resources:
-        out["resources"] = {name: list(members) for name, members in model.resources}
+        out["resources"] = {name: list(members) for name, members in cast("tuple[tuple[str, tuple[str, ...]], ...]", model.resources)}
     if model.responses:
         out["responses"] = {r.name: {"trigger": r.trigger if isinstance(r.trigger, str) else _expr_data(r.trigger),
                                      "response": _expr_data(r.response),
-                                     **({} if r.within is None else {"within": r.within})} for r in model.responses}
+                                     **({} if r.within is None else {"within": r.within})}
+                            for r in cast("tuple[Response, ...]", model.responses)}
     return out
 
 
