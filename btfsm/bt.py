@@ -39,7 +39,7 @@ both ways): ``Parallel(synchronise=s)`` is ``SuccessOnAll(synchronise=s)``,
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any, Iterator, Mapping, Sequence
+from typing import Any, Iterator, Mapping, Sequence, cast
 
 from .expr import ExprLike, as_expr
 from .primitives import EffectsLike, Outcome, effects_of
@@ -72,7 +72,7 @@ class Composite(Node):
         object.__setattr__(self, "children", tuple(self.children))
 
     def children_of(self) -> tuple:
-        return self.children
+        return cast("tuple[Node, ...]", self.children)  # a tuple once built
 
 
 class ReactiveSequence(Composite):

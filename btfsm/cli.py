@@ -39,6 +39,7 @@ import importlib
 import json
 import os
 import sys
+from typing import cast
 
 from .errors import ConformanceError, DomainError, ModelError, Terminated, UsageError
 from . import reserve, signals
@@ -375,7 +376,7 @@ def _refuse_input_as_output(args) -> None:
             continue
         for inp in inputs:
             try:
-                same = os.path.samefile(out, inp)
+                same = os.path.samefile(out, cast(str, inp))
             except OSError:
                 same = False
             if same:
@@ -419,7 +420,7 @@ def _describe(exc: BaseException, command: str) -> dict:
                     exit_code=EXIT_BUDGET)
     elif isinstance(exc, ImportError) and (getattr(exc, "name", None) or "").split(".")[0] in OPTIONAL_MODULES:
         info.update(kind="usage", exit_code=EXIT_INPUT,
-                    problem=f"this command needs the Python package '{exc.name.split('.')[0]}' "
+                    problem=f"this command needs the Python package '{(exc.name or '').split('.')[0]}' "
                             f"(install it with: pip install 'btfsm[sim]')")
     elif isinstance(exc, OSError) and not isinstance(exc, (BlockingIOError, ChildProcessError)) and (
             getattr(exc, "filename", None) is not None):
@@ -464,7 +465,7 @@ def _safe_streams() -> None:
     """Names from a model may hold characters the terminal cannot encode: escape them."""
     for stream in (sys.stdout, sys.stderr):
         try:
-            stream.reconfigure(errors="backslashreplace")
+            stream.reconfigure(errors="backslashreplace")  # type: ignore[union-attr]  # (AttributeError: not a text file)
         except (AttributeError, ValueError, OSError):
             pass
 

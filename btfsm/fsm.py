@@ -18,7 +18,7 @@ from __future__ import annotations
 
 from collections import defaultdict
 from dataclasses import dataclass
-from typing import Any, Mapping, Sequence
+from typing import Any, Mapping, Sequence, cast
 
 from .bt import Node
 from .errors import ModelError
@@ -188,6 +188,7 @@ class FSM:
         for t in self.terminal:
             if t not in ids:
                 raise ModelError(f"{where}.terminal", f"unknown state '{t}'")
+        el: Any
         for kind, items in (("edge", self.edges), ("marker", self.markers)):
             for i, el in enumerate(items):
                 check_label(el.id, f"{where}.{kind}s[{i}]", f"{kind} id", limit=None)
@@ -332,7 +333,7 @@ def describe(el) -> str:
     """One line for an edge or marker, for messages and pictures."""
     guard = f" [{to_text(el.guard)}]" if el.guard is not None else ""
     if isinstance(el, Edge):
-        trig = "direct" if el.direct else el.on.name.lower()
+        trig = "direct" if el.direct else cast(Status, el.on).name.lower()
         return f"{el.id}: {el.source} -> {el.target} on {trig}{guard}"
     trig = "direct" if el.direct else el.on.name.lower()
     return f"{el.id}: {el.state} on {trig}{guard} => {el.outcome.name.lower()}"

@@ -211,7 +211,7 @@ class Runtime:
         self._answers: list = []
         self._render_from: tuple = (self.state, 0, {})  # state, tick and statuses where rendering resumes
         self.last = None
-        self.last_record = None
+        self.last_record: "dict | None" = None
 
     @property
     def vars(self) -> dict:

@@ -28,6 +28,7 @@ import difflib
 import re
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import cast
 from xml.parsers import expat
 
 from ..bt import NODE_TYPES
@@ -45,7 +46,7 @@ MAX_INLINED = 100_000  # tree nodes after SubTrees are inlined (a SubTree "bomb"
 MAX_OUTCOMES = 64  # outcomes an undeclared leaf gets for the values its output ports may write
 
 #: BT.CPP control tag -> (btfsm type key, {XML attribute: (btfsm field, default)}).
-CONTROLS = {
+CONTROLS: dict[str, tuple[str, dict]] = {
     "Sequence": ("MemorySequence", {}),
     "SequenceWithMemory": ("SequenceWithMemory", {}),
     "ReactiveSequence": ("ReactiveSequence", {}),
@@ -756,7 +757,7 @@ class _Scope:
         return _Scope(self, remap, auto, prefix)
 
     def value(self, ref: str, port: str):
-        m = _REF.match(ref)
+        m = cast("re.Match[str]", _REF.match(ref))  # the callers matched it
         glob, key = m.group(1), m.group(2).strip()
         if key == "=":
             key = port
@@ -779,7 +780,7 @@ def _mark(el: El, file: str):
     stack = [el]
     while stack:
         e = stack.pop()
-        e.file = file
+        setattr(e, "file", file)  # (not a field: read with getattr)
         stack.extend(e.children)
 
 

@@ -58,7 +58,7 @@ LIBRARY_NAME = "nav2"
 COMMIT = "a3a97043ee93d92fe8d70ec56d183933169beb1c"
 
 #: Nav2 control tag -> (btfsm node type, {XML port: (btfsm field, kind, default)})
-CONTROLS = {
+CONTROLS: dict[str, tuple[str, dict]] = {
     "PipelineSequence": ("PipelineSequence", {}),
     "RecoveryNode": ("RecoveryNode", {"number_of_retries": ("retries", "int", 1)}),
     "RoundRobin": ("RoundRobin", {"wrap_around": ("wrap_around", "bool", False)}),
@@ -131,7 +131,7 @@ class NodeLibrary:
                                "(declare the node under nodes: with abstract: child, or rewrite it)")
         model = self.models.get(ident)
         fields = CONTROLS[ident][1] if ident in CONTROLS else {}
-        values = {}
+        values: dict = {}
         for a, v in el.attrs.items():
             if a in ("name", "ID", "_description", "_uid", "_fullpath"):
                 continue

@@ -62,7 +62,7 @@ import re
 import unicodedata
 import warnings
 from collections.abc import Mapping
-from typing import Callable
+from typing import Any, Callable, cast
 
 try:
     import py_trees
@@ -168,6 +168,7 @@ def to_pytrees(model: Model, behaviours: "Callable | dict | None" = None,
             count = len(kids)
             if n.failure_threshold != 1:
                 raise ModelError(where, f"py_trees' Parallel fails at the first failure; failure_threshold {n.failure_threshold} has no counterpart")
+            policy: Any
             if n.selected:
                 chosen = [k for k, c in zip(kids, n.children) if c.name in n.selected]
                 policy = Common.ParallelPolicy.SuccessOnSelected(chosen, synchronise=n.synchronise)
@@ -183,24 +184,24 @@ def to_pytrees(model: Model, behaviours: "Callable | dict | None" = None,
             if answer is None:
                 raise ModelError(where, "a Guard's condition needs answer= (asked with the guard's name)")
             name = n.name
-            return py_trees.decorators.EternalGuard(name=name, child=build(n.child),
+            return py_trees.decorators.EternalGuard(name=name, child=build(cast(Node, n.child)),
                                                     condition=lambda: _guard_open(answer(name), name))
-        simple = {Inverter: py_trees.decorators.Inverter, ForceSuccess: py_trees.decorators.FailureIsSuccess,
+        simple: dict[type, Any] = {Inverter: py_trees.decorators.Inverter, ForceSuccess: py_trees.decorators.FailureIsSuccess,
                   ForceFailure: py_trees.decorators.SuccessIsFailure}
-        for cls, pt in simple.items():
-            if type(n) is cls:
-                return pt(name=n.name, child=build(n.child))
+        for node_type, pt in simple.items():
+            if type(n) is node_type:
+                return pt(name=n.name, child=build(cast(Node, getattr(n, "child"))))
         if isinstance(n, Retry):
-            return py_trees.decorators.Retry(name=n.name, child=build(n.child), num_failures=n.attempts)
+            return py_trees.decorators.Retry(name=n.name, child=build(cast(Node, n.child)), num_failures=n.attempts)
         if isinstance(n, Repeat):
-            return py_trees.decorators.Repeat(name=n.name, child=build(n.child), num_success=n.times)
+            return py_trees.decorators.Repeat(name=n.name, child=build(cast(Node, n.child)), num_success=n.times)
         if type(n) is KeepRunningUntilFailure:
-            return py_trees.decorators.Repeat(name=n.name, child=build(n.child), num_success=-1)
-        remaps = {FailureIsRunning: py_trees.decorators.FailureIsRunning,
+            return py_trees.decorators.Repeat(name=n.name, child=build(cast(Node, n.child)), num_success=-1)
+        remaps: dict[type, Any] = {FailureIsRunning: py_trees.decorators.FailureIsRunning,
                   RunningIsFailure: py_trees.decorators.RunningIsFailure,
                   RunningIsSuccess: py_trees.decorators.RunningIsSuccess}
         if type(n) in remaps:
-            return remaps[type(n)](name=n.name, child=build(n.child))
+            return remaps[type(n)](name=n.name, child=build(cast(Node, getattr(n, "child"))))
         if isinstance(n, Effects):
             raise ModelError(where, "Effects has no py_trees counterpart (py_trees behaviours write the blackboard in code)")
         raise ModelError(where, f"{type(n).__name__} has no py_trees counterpart")
@@ -385,7 +386,7 @@ def _count(x, what, where):
     return x
 
 
-_OPERATORS = {operator.eq: "==", operator.ne: "!=", operator.lt: "<", operator.le: "<=", operator.gt: ">",
+_OPERATORS: dict[Any, str] = {operator.eq: "==", operator.ne: "!=", operator.lt: "<", operator.le: "<=", operator.gt: ">",
               operator.ge: ">="}
 
 
@@ -652,7 +653,7 @@ class RunRecorder(py_trees.visitors.VisitorBase):
             return
         if self._index is None:
             self._header(self._visited[-1][0])  # the root is visited last
-        index = self._index
+        index = cast(dict, self._index)  # set by _header
         try:
             visited = [[index[id(b)], status.name] for b, status in self._visited]
         except KeyError:
