@@ -20,13 +20,16 @@ An outcome is returned as its name, a Status (when only one outcome has it), or 
 """
 from __future__ import annotations
 
-from typing import Callable, Iterable, Mapping
+from typing import TYPE_CHECKING, Any, Callable, Iterable, Mapping, Sequence
 
 from .errors import ConformanceError
 from .oracles import Oracle
 from .clock import Clock
 from .status import Status
 from .trace import TraceWriter, render_answers, tick_record
+
+if TYPE_CHECKING:
+    from .semantics import Site
 
 __all__ = ["Runtime", "Call", "Clock"]
 
@@ -87,7 +90,7 @@ class _ImplOracle(Oracle):
         if self.used:
             self.used = set()
 
-    def env(self, i):
+    def env(self, i: int) -> bool:
         name = self.rt.program.env[i][0]
         if name in self.events:
             self.used.add(name)
@@ -98,7 +101,7 @@ class _ImplOracle(Oracle):
         f = self.rt.program.fsm_info[fsm_index][0]
         self.goals[f.name] = f.goals[goal_index]
 
-    def choose(self, i, enabled):
+    def choose(self, i: int | tuple[Any, ...], enabled: Sequence[Any]) -> int:
         name, _, _, options = self.rt.program.env[i]
         seen = [k for k, opt in enumerate(enabled) if options[opt][0] in self.events]
         if not seen and len(enabled) == 1:
@@ -109,7 +112,8 @@ class _ImplOracle(Oracle):
         self.used.add(options[enabled[seen[0]]][0])
         return seen[0]
 
-    def outcome(self, site):
+    def outcome(self, site: Site) -> int:
+        k: Any
         rt = self.rt
         impl = rt.implementations.get(site.primitive)
         if impl is None:
@@ -142,7 +146,7 @@ class _ImplOracle(Oracle):
             self.log.append(k)
         return k
 
-    def halt(self, site):
+    def halt(self, site: Site) -> None:
         rt = self.rt
         if site.index in rt._busy:
             rt._busy.discard(site.index)

@@ -24,12 +24,16 @@ from __future__ import annotations
 
 import json
 import os
+from typing import TYPE_CHECKING, Any, Sequence
 
 from .clock import Clock
 from .outputs import atomic_writer
 from .errors import DomainError
 from .formats import FormatError, decode_utf8, parse_json, printable, validate
 from .oracles import Oracle
+
+if TYPE_CHECKING:
+    from .semantics import Site
 
 __all__ = ["TraceWriter", "tick_record", "read_trace", "replay", "ReplayOracle", "AnswerOracle",
            "render_answers", "FORMAT", "FormatError"]
@@ -250,14 +254,17 @@ class _NamedEvents(Oracle):
     """Environment answers by event name, for oracles that replay what was recorded.
     Replay drives no implementation, so there is nothing to halt."""
 
-    def env(self, i):
+    program: Any  # the Program replayed
+    events: Any  # the names of the events that happened (a set or another collection)
+
+    def env(self, i: int) -> bool:
         return self.program.env[i][0] in self.events
 
     def _named(self, i, enabled):
         options = self.program.env[i][3]
         return next((k for k, opt in enumerate(enabled) if options[opt][0] in self.events), None)
 
-    def halt(self, site):
+    def halt(self, site: Site) -> None:
         return None
 
 
@@ -269,16 +276,16 @@ class ReplayOracle(_NamedEvents):
         self.events = set(record.get("env", ()))
         self.outcomes = list(record.get("outcomes", ()))
         self.pos = 0
-        self.error = None
+        self.error: "str | None" = None
 
-    def choose(self, i, enabled):
+    def choose(self, i: int | tuple[Any, ...], enabled: Sequence[Any]) -> int:
         k = self._named(i, enabled)
         if k is None:
             self.error = f"choice '{self.program.env[i][0]}': the trace names none of its enabled options"
             return 0
         return k
 
-    def outcome(self, site):
+    def outcome(self, site: Site) -> int:
         if self.pos >= len(self.outcomes):
             self.error = f"{site.label} ran but the trace records no more outcomes"
             return 0
@@ -302,11 +309,11 @@ class AnswerOracle(_NamedEvents):
     def __init__(self, program, events, outcome_indices):
         self.program, self.events, self.it = program, events, iter(outcome_indices)
 
-    def choose(self, i, enabled):
+    def choose(self, i: int | tuple[Any, ...], enabled: Sequence[Any]) -> int:
         k = self._named(i, enabled)
         return 0 if k is None else k  # a lone option may go unreported: it is forced
 
-    def outcome(self, site):
+    def outcome(self, site: Site) -> int:
         return next(self.it)
 
 

@@ -18,14 +18,14 @@ from functools import partial
 
 import pytest
 
-from btfsm import Action, Bool, Condition, EnvChoice, EnvEvent, Int, Model, ReactiveFallback, ReactiveSequence
-from btfsm import failure, running, success
 from btfsm.models.pickplace import pickplace
 from btfsm.oracles import all_choices
 from btfsm.verify import vector
 from btfsm.verify.explore import explore, explore_fsm, open_fsm
 from btfsm.verify.labels import readable
 from btfsm.verify.search import EnumOracle, Explorer
+
+from core_strategies import every_question_model
 
 
 def _by_name(name: str, model, *, fsm=None, goals=None, **budgets):
@@ -43,22 +43,9 @@ ENGINES: dict[str, Explorer] = {
 }
 
 
-def _tree_model() -> Model:
-    """An environment event and choice, a preempted running primitive (not a system the
-    vectorised engine describes: its tree is not a single SkillRequest)."""
-    return Model("engines", variables=[Bool("part", False), Int("n", 0, 2)],
-                 environment=[EnvEvent("arrive", "not part", {"part": True}),
-                              EnvChoice("light", [EnvEvent("red", None, {"n": 0}),
-                                                  EnvEvent("green", "n < 2", {"n": "n + 1"})])],
-                 tree=ReactiveFallback("root", [Condition("full", "n == 2"),
-                                                ReactiveSequence("seq", [Condition("has", "part"),
-                                                                         Action("pick", outcomes=[running(), success(part=False),
-                                                                                                  failure()])]),
-                                                Action("wait", outcomes=[running(), success()])]))
-
-
-#: (case name, model, fsm or None, engines that describe it)
-CASES = [("tree", _tree_model(), None, ("scalar", "traced", "auto")),
+#: (case name, model, fsm or None, engines that describe it: the vectorised engine describes
+#: single-SkillRequest trees and FSMs, not the "tree" model)
+CASES = [("tree", every_question_model(), None, ("scalar", "traced", "auto")),
          ("pickplace1", pickplace(1), None, tuple(ENGINES)),
          ("pickplace1-fsm", pickplace(1), "skill", tuple(ENGINES))]
 PAIRS = [(engine, case) for case, _, _, engines in CASES for engine in engines]

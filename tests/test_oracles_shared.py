@@ -14,8 +14,6 @@ from __future__ import annotations
 
 import pytest
 
-from btfsm import Action, Bool, Condition, EnvChoice, EnvEvent, Int, Model, ReactiveFallback, ReactiveSequence
-from btfsm import failure, running, success
 from btfsm.clock import Clock
 from btfsm.oracles import FirstOracle, Oracle, RandomOracle, ScriptOracle, SucceedOracle, all_choices
 from btfsm.runtime import Runtime
@@ -23,25 +21,11 @@ from btfsm.semantics import Site
 from btfsm.trace import AnswerOracle, ReplayOracle, tick_record
 from btfsm.verify.search import EnumOracle
 
-from core_strategies import ModOracle, TableOracle
+from core_strategies import ModOracle, TableOracle, every_question_model
 from oracle_bruteforce import _Watch
 
 
-def _model() -> Model:
-    """An environment event, an environment choice, primitives with several outcomes and
-    a running one that a reactive fallback preempts (so ``halt`` is called)."""
-    return Model("oracles", variables=[Bool("part", False), Int("n", 0, 2)],
-                 environment=[EnvEvent("arrive", "not part", {"part": True}),
-                              EnvChoice("light", [EnvEvent("red", None, {"n": 0}),
-                                                  EnvEvent("green", "n < 2", {"n": "n + 1"})])],
-                 tree=ReactiveFallback("root", [Condition("full", "n == 2"),
-                                                ReactiveSequence("seq", [Condition("has", "part"),
-                                                                         Action("pick", outcomes=[running(), success(part=False),
-                                                                                                  failure()])]),
-                                                Action("wait", outcomes=[running(), success()])]))
-
-
-MODEL = _model()
+MODEL = every_question_model()
 PROG = MODEL.program
 
 

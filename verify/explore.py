@@ -19,9 +19,8 @@ module describes the systems (``open_fsm``) and picks the engine.
 """
 from __future__ import annotations
 
-from typing import Any, cast
-
 from dataclasses import dataclass
+from typing import Any, cast
 
 from btfsm.bt import Action, Condition, Effects, Guard, SkillRequest, walk
 from btfsm.errors import DomainError

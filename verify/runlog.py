@@ -26,13 +26,16 @@ import json
 import re
 import sys
 from dataclasses import dataclass, field
-from typing import cast
+from typing import TYPE_CHECKING, Any, Sequence, cast
 
 from btfsm.bt import Condition, Leaf, SubTree
 from btfsm.errors import ModelError
 from btfsm.interop.btcpp_import import CONTROLS, DECORATORS
 from btfsm.interop.btlog import MAGIC, STATUS_NAMES, read_btlog
 from btfsm.oracles import ScriptOracle, all_choices
+
+if TYPE_CHECKING:
+    from btfsm.semantics import Site
 
 __all__ = ["LogVerdict", "check_btlog", "check_pytrees_run", "read_pytrees_run", "cli_conform_log",
            "PYTREES_FORMAT", "DEFAULT_MAX_CONFIGS", "MAX_LOG_BYTES"]
@@ -82,7 +85,7 @@ class _Pruning(ScriptOracle):
         super().__init__(script)
         self.events, self.fits = [], fits
 
-    def outcome(self, site) -> int:
+    def outcome(self, site: Site) -> int:
         if len(site.outcomes) > 1 and not self.fits(self.events):
             raise _Dead
         return super().outcome(site)

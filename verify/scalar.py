@@ -12,12 +12,11 @@ traced engine cannot follow the model).
 """
 from __future__ import annotations
 
-from typing import Any
-
 import time
 from array import array
 from collections import deque
 from operator import mul
+from typing import Any
 
 import numpy as np
 

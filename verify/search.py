@@ -13,7 +13,7 @@ from btfsm.oracles import ScriptOracle
 
 if TYPE_CHECKING:
     from btfsm.model import Model
-    from btfsm.semantics import Step
+    from btfsm.semantics import Site, Step
 
     from .explore import OpenFSM
     from .system import TransitionSystem
@@ -41,7 +41,7 @@ class EnumOracle(ScriptOracle):
         self.script, self.pos = script, 0
         self.arities, self.labels, self.taken, self.picks = [], [], [], []
 
-    def env(self, i):
+    def env(self, i: int) -> bool:
         k = self.pos
         self.pos = k + 1
         s = self.script
@@ -52,7 +52,7 @@ class EnumOracle(ScriptOracle):
         self.picks.append(("env", i, c))
         return c == 1
 
-    def choose(self, i, enabled):
+    def choose(self, i: int | tuple[Any, ...], enabled: Sequence[Any]) -> int:
         if len(enabled) == 1:
             return 0  # a lone option is no choice (as in ScriptOracle)
         k = self.pos
@@ -65,7 +65,7 @@ class EnumOracle(ScriptOracle):
         self.picks.append(("choice", i, enabled[c]))
         return c
 
-    def outcome(self, site):
+    def outcome(self, site: Site) -> int:
         n = len(site.outcomes)
         if n == 1:
             self.picks.append((site, 0))

@@ -38,12 +38,11 @@ True
 """
 from __future__ import annotations
 
-from typing import Any
-
 import json
 import time
 from collections import deque
 from dataclasses import dataclass, field
+from typing import Any
 
 from btfsm.oracles import SucceedOracle, all_choices
 from btfsm.bt import SkillRequest, walk

@@ -12,9 +12,8 @@ range of an int expression.
 """
 from __future__ import annotations
 
-from typing import Any
-
 from dataclasses import dataclass
+from typing import Any
 
 from btfsm.bt import SkillRequest
 from btfsm.errors import ModelError

@@ -35,10 +35,9 @@ a run of ``Program.step``.
 """
 from __future__ import annotations
 
-from typing import Any, Callable
-
 import time
 from array import array
+from typing import TYPE_CHECKING, Any, Callable, Sequence
 
 import numpy as np
 
@@ -48,6 +47,9 @@ from .codec import code_dtype, codec
 from .labels import readable
 from .search import DEFAULT_MAX_STATES, Budget, EnumOracle, Search
 from .system import DomainViolation, TransitionSystem
+
+if TYPE_CHECKING:
+    from btfsm.semantics import Site
 
 __all__ = ["search", "BatchSuccessors", "Untraceable", "TooManyPaths", "CHUNK", "DENSE_LIMIT", "PATHS_MIN", "ROWS_LIMIT"]
 
@@ -474,19 +476,19 @@ class _TracingOracle(EnumOracle):
         if len(self.arities) > k:
             self.path.append(("c", self.arities[k], self.taken[k]))
 
-    def env(self, i):
+    def env(self, i: int) -> bool:
         k = len(self.arities)
         r = EnumOracle.env(self, i)
         self._note(k)
         return r
 
-    def choose(self, i, enabled):
+    def choose(self, i: int | tuple[Any, ...], enabled: Sequence[Any]) -> int:
         k = len(self.arities)
         r = EnumOracle.choose(self, i, enabled)
         self._note(k)
         return r
 
-    def outcome(self, site):
+    def outcome(self, site: Site) -> int:
         k = len(self.arities)
         r = EnumOracle.outcome(self, site)
         self._note(k)
