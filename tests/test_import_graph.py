@@ -51,9 +51,10 @@ def _own(name):
 
 
 def _type_checking_only(tree) -> set:
-    """The import nodes inside ``if TYPE_CHECKING:`` (or ``typing.TYPE_CHECKING``) blocks."""
+    """The import nodes inside the module's ``if TYPE_CHECKING:`` (or
+    ``typing.TYPE_CHECKING``) blocks (at its top level, where such blocks are)."""
     out = set()
-    for node in ast.walk(tree):
+    for node in tree.body:
         if isinstance(node, ast.If) and ast.unparse(node.test) in ("TYPE_CHECKING", "typing.TYPE_CHECKING"):
             for stmt in node.body:
                 out.update(id(n) for n in ast.walk(stmt) if isinstance(n, (ast.Import, ast.ImportFrom)))
