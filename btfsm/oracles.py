@@ -1,7 +1,7 @@
 """Oracles answer the step function's questions (environment events, primitive outcomes).
 
 ``Oracle`` is the interface (a ``typing.Protocol``: what ``Program.step`` asks); every
-oracle of the library and of the tests is declared against it (tests/oracle_common.py
+oracle of the library and of the tests is declared against it (tests/test_oracles_shared.py
 runs one suite over them all).
 
 * ``FirstOracle``: no event happens, every primitive has its first declared outcome.
@@ -24,6 +24,7 @@ if TYPE_CHECKING:
     from .semantics import Site
 
 __all__ = ["Oracle", "FirstOracle", "SucceedOracle", "ScriptOracle", "RandomOracle", "all_choices"]
+
 
 class Oracle(Protocol):
     """What the step function asks (``Program.step``, docs/semantics.md). Answers must be

@@ -190,8 +190,9 @@ class Search(Protocol):
 class Explorer(Protocol):
     """A whole exploration: the model (``fsm`` None) or its FSM ``fsm`` as an open system
     (requests for ``goals``, all when None) to its ``TransitionSystem``, under the budgets
-    (None: unbounded; see ``Budget``): ``btfsm.verify.vector.explore``, and
-    ``btfsm.verify.explore.explore``/``explore_fsm`` with an ``engine`` name."""
+    (None: unbounded; see ``Budget``): ``btfsm.verify.vector.explore``; and the scalar,
+    traced and auto engines as ``btfsm.verify.explore.explore`` (``fsm`` None) or
+    ``explore_fsm`` with ``engine=`` their name (tests/test_engines_shared.py)."""
 
     def __call__(self, model: Model, *, fsm: str | None = None, goals: Sequence[str] | None = None,
                  max_states: int | None = None, max_transitions: int | None = None,
