@@ -5,7 +5,7 @@ import difflib
 import math
 import re
 
-from ..bt import NODE_TYPES, Action, walk
+from ..bt import NODE_TYPES, Action, Composite, Decorator, file_fields, walk
 from ..errors import ModelError
 from ..expr import Expr, as_expr
 from ..fsm import FSM, Edge, Marker, State
@@ -22,28 +22,27 @@ from .text import MAX_DEPTH, err, join_path, kind_of, loads_data, where_of
 
 _VAR_KINDS = ("bool", "enum", "int")
 _STATUS = ("success", "failure", "running")
-_NODE_FIELDS = {
-    "ReactiveSequence": ("children",), "MemorySequence": ("children",),
-    "ReactiveFallback": ("children",), "MemoryFallback": ("children",),
-    "Parallel": ("success_threshold", "failure_threshold", "synchronise", "selected", "children"),
-    "SequenceWithMemory": ("children",), "ParallelAll": ("max_failures", "children"),
-    "IfThenElse": ("children",), "WhileDoElse": ("children",),
-    "PipelineSequence": ("children",), "RecoveryNode": ("retries", "children"),
-    "RoundRobin": ("wrap_around", "children"),
-    "KeepRunningUntilFailure": ("child",), "RunOnce": ("then_skip", "child"), "SubTree": ("tree_id", "child"),
-    "FailureIsRunning": ("child",), "RunningIsFailure": ("child",), "RunningIsSuccess": ("child",),
-    "Inverter": ("child",), "ForceSuccess": ("child",), "ForceFailure": ("child",),
-    "Retry": ("attempts", "child"), "Repeat": ("times", "child"), "Guard": ("condition", "child"),
-    "Effects": ("on_start", "on_success", "on_failure", "on_halt", "child"),
-    "Condition": ("expr",), "Action": ("primitive", "args", "outcomes", "duration"),
-    "SkillRequest": ("fsm", "goal", "params", "pre", "post"),
-}
-_NODE_REQUIRED = {"Guard": ("condition", "child"), "Condition": ("expr",), "SkillRequest": ("fsm", "goal"),
-                  "Inverter": ("child",), "ForceSuccess": ("child",), "ForceFailure": ("child",),
-                  "Retry": ("child",), "Repeat": ("child",), "Effects": ("child",),
-                  "KeepRunningUntilFailure": ("child",), "RunOnce": ("child",), "SubTree": ("child",),
-                  "FailureIsRunning": ("child",), "RunningIsFailure": ("child",), "RunningIsSuccess": ("child",),
-                  "IfThenElse": ("children",), "WhileDoElse": ("children",)}
+#: node field kinds whose null stands for the default (the others refuse null)
+_NULL_IS_DEFAULT = ("opt_int", "opt_bool", "names", "opt_expr", "outcomes", "args", "duration", "params")
+
+
+def node_keys(cls) -> tuple:
+    """The keys a model file's node of type ``cls`` may have besides its type key."""
+    own = tuple(f.name for f in file_fields(cls))
+    if issubclass(cls, Composite):
+        return own + ("children",)
+    return own + ("child",) if issubclass(cls, Decorator) else own
+
+
+def node_required(cls) -> tuple:
+    """The keys a model file's node of type ``cls`` must have: its required fields, the
+    child of a decorator, the children when its type needs some (``btfsm.bt`` arity)."""
+    own = tuple(f.name for f in file_fields(cls) if f.metadata["required"])
+    if issubclass(cls, Decorator):
+        return own + ("child",)
+    return own + ("children",) if issubclass(cls, Composite) and cls.arity[0] > 0 else own
+
+
 TRIGGER_KEYS = ("when", "on", True)  # "on" and True (YAML 1.1's reading of on:) are older spellings
 TOP_FIELDS = ("name", "description", "semantics", "tick", "tick_rate", "variables", "primitives", "fsms", "tree",
               "environment", "invariants", "workable", "terminal", "resources", "responses")
@@ -274,7 +273,7 @@ class _Reader:
             hint = f" (did you mean '{close[0]}'?)" if close else ""
             raise self.fail(path, f"a node needs a type key{hint}: one of {', '.join(NODE_TYPES)}", obj)
         t = types[0]
-        self.fields(obj, path, (t,) + _NODE_FIELDS[t], _NODE_REQUIRED.get(t, ()))
+        self.fields(obj, path, (t,) + node_keys(NODE_TYPES[t]), node_required(NODE_TYPES[t]))
         name = obj[t]
         if not isinstance(name, str) or not name:
             raise self.fail(join_path(path, t), f"the node name (the value of '{t}') must be a non-empty string, got {kind_of(name)}", obj, t)
@@ -288,48 +287,39 @@ class _Reader:
             kw["children"] = tuple(self.node(c, f"{path}.children[{i}]", root, kids, i, depth + 1) for i, c in enumerate(kids))
         if "child" in obj:
             kw["child"] = self.node(obj["child"], f"{path}.child", root, obj, "child", depth + 1)
-        for f in ("attempts", "times", "failure_threshold", "max_failures", "retries"):
-            if f in obj:
-                kw[f] = self.integer(obj[f], f"{path}.{f}", obj, f)
-        for f in ("then_skip", "wrap_around"):
-            if f in obj:
-                if not isinstance(obj[f], bool):
-                    raise self.fail(f"{path}.{f}", f"expected true or false, got {kind_of(obj[f])}", obj, f)
-                kw[f] = obj[f]
-        if obj.get("tree_id") is not None:
-            kw["tree_id"] = self.string(obj["tree_id"], f"{path}.tree_id", obj, "tree_id", "a BehaviorTree ID")
-        if obj.get("synchronise") is not None:
-            if not isinstance(obj["synchronise"], bool):
-                raise self.fail(f"{path}.synchronise", f"expected true or false, got {kind_of(obj['synchronise'])}", obj, "synchronise")
-            kw["synchronise"] = obj["synchronise"]
-        if obj.get("selected") is not None:
-            kw["selected"] = self.names(obj["selected"], f"{path}.selected", obj, "selected", "children")
-        if obj.get("success_threshold") is not None:
-            kw["success_threshold"] = self.integer(obj["success_threshold"], f"{path}.success_threshold", obj, "success_threshold")
-        for f in ("condition", "expr", "pre", "post"):
-            if f in obj and (obj[f] is not None or f in ("condition", "expr")):
-                kw[f] = self.expr(obj[f], f"{path}.{f}", obj, f)
-        for f in ("on_start", "on_success", "on_failure", "on_halt"):
-            if f in obj:
-                kw[f] = self.effects(obj[f], f"{path}.{f}", obj, f)
-        if "primitive" in obj:
-            kw["primitive"] = self.string(obj["primitive"], f"{path}.primitive", obj, "primitive", "a primitive name")
-        if obj.get("outcomes") is not None:
-            kw["outcomes"] = self.outcomes(obj["outcomes"], f"{path}.outcomes", obj, "outcomes", f"tree.{name}")
-        if obj.get("args") is not None:
-            kw["args"] = self.constants(obj["args"], f"{path}.args", obj, "args")
-        if obj.get("duration") is not None:
-            kw["duration"] = self.duration(obj["duration"], f"{path}.duration", obj, "duration")
-        for f in ("fsm", "goal"):
-            if f in obj:
-                kw[f] = self.string(obj[f], f"{path}.{f}", obj, f, f"a{'n FSM' if f == 'fsm' else ' goal'} name")
-        if obj.get("params") is not None:
-            ps = obj["params"]
-            if not isinstance(ps, dict):
-                raise self.fail(f"{path}.params", f"expected a mapping of parameter names to expressions, got {kind_of(ps)}", obj, "params")
-            kw["params"] = tuple((self.string(k, f"{path}.params", ps, k, "a parameter name"), self.expr(v, f"{path}.params.{k}", ps, k))
-                                 for k, v in ps.items())
+        for f in file_fields(cls):
+            kind = f.metadata["file"]
+            if f.name in obj and (obj[f.name] is not None or kind not in _NULL_IS_DEFAULT):
+                kw[f.name] = self.node_field(kind, obj[f.name], f"{path}.{f.name}", obj, f.name, f.metadata, name)
         return cls(name, **kw)
+
+    def node_field(self, kind, value, path, obj, key, meta, name):
+        """One node field of file kind ``kind`` (``btfsm.bt.FILE_KINDS``)."""
+        if kind in ("int", "opt_int"):
+            return self.integer(value, path, obj, key)
+        if kind in ("bool", "opt_bool"):
+            if not isinstance(value, bool):
+                raise self.fail(path, f"expected true or false, got {kind_of(value)}", obj, key)
+            return value
+        if kind == "string":
+            return self.string(value, path, obj, key, meta["what"] or "a string")
+        if kind == "names":
+            return self.names(value, path, obj, key, meta["what"])
+        if kind in ("expr", "opt_expr"):
+            return self.expr(value, path, obj, key)
+        if kind == "effects":
+            return self.effects(value, path, obj, key)
+        if kind == "outcomes":
+            return self.outcomes(value, path, obj, key, f"tree.{name}")
+        if kind == "args":
+            return self.constants(value, path, obj, key)
+        if kind == "duration":
+            return self.duration(value, path, obj, key)
+        assert kind == "params", kind
+        if not isinstance(value, dict):
+            raise self.fail(path, f"expected a mapping of parameter names to expressions, got {kind_of(value)}", obj, key)
+        return tuple((self.string(k, path, value, k, "a parameter name"), self.expr(v, f"{path}.{k}", value, k))
+                     for k, v in value.items())
 
     def alias_declared_outcomes(self, kw):
         """Effects of a declared primitive are checked where it is used; point there at

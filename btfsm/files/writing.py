@@ -5,8 +5,7 @@ import json
 
 import yaml
 
-from ..bt import (Action, Composite, Condition, Decorator, Effects, Guard, Parallel, ParallelAll, RecoveryNode, Repeat, Retry,
-                  RoundRobin, RunOnce, SkillRequest, SubTree)
+from ..bt import Composite, Decorator, file_fields
 from ..expr import Const, Expr, to_text
 from ..fsm import FSM, State
 from ..model import EnvChoice, EnvEvent, Model
@@ -64,58 +63,24 @@ def _constant_data(v):
 def _node_data(n) -> dict:
     t = type(n).__name__
     out = {t: n.name}
-    if isinstance(n, Parallel):
-        if n.success_threshold is not None:
-            out["success_threshold"] = n.success_threshold
-        if n.failure_threshold != 1:
-            out["failure_threshold"] = n.failure_threshold
-        if n.synchronise:
-            out["synchronise"] = True
-        if n.selected:
-            out["selected"] = list(n.selected)
-    if isinstance(n, ParallelAll) and n.max_failures != 1:
-        out["max_failures"] = n.max_failures
-    if isinstance(n, RunOnce):
-        out["then_skip"] = n.then_skip
-    if isinstance(n, RecoveryNode) and n.retries != 1:
-        out["retries"] = n.retries
-    if isinstance(n, RoundRobin) and n.wrap_around:
-        out["wrap_around"] = True
-    if isinstance(n, SubTree) and n.tree_id != n.name:
-        out["tree_id"] = n.tree_id
-    if isinstance(n, Retry) and n.attempts != 1:
-        out["attempts"] = n.attempts
-    if isinstance(n, Repeat) and n.times != 1:
-        out["times"] = n.times
-    if isinstance(n, Guard):
-        out["condition"] = _expr_data(n.condition)
-    if isinstance(n, Effects):
-        for f in ("on_start", "on_success", "on_failure", "on_halt"):
-            if getattr(n, f):
-                out[f] = _effects_data(getattr(n, f))
-    if isinstance(n, Condition):
-        out["expr"] = _expr_data(n.expr)
-    if isinstance(n, Action):
-        if n.primitive != n.name:
-            out["primitive"] = n.primitive
-        if n.args:
-            out["args"] = _args_data(n.args)
-        if n.outcomes is not None:
-            out["outcomes"] = [_outcome_data(o) for o in n.outcomes]
-        if n.duration is not None:
-            out["duration"] = list(n.duration)
-    if isinstance(n, SkillRequest):
-        out["fsm"], out["goal"] = n.fsm, n.goal
-        if n.params:
-            out["params"] = {k: _expr_data(e) for k, e in n.params}
-        for f in ("pre", "post"):
-            if getattr(n, f) is not None:
-                out[f] = _expr_data(getattr(n, f))
+    for f in file_fields(type(n)):
+        value, write = getattr(n, f.name), f.metadata["write"]
+        if write == "always" or (value != n.name if write == "not_name" else value != f.default):
+            out[f.name] = _FIELD_DATA[f.metadata["file"]](value)
     if isinstance(n, Composite) and n.children:
         out["children"] = [_node_data(c) for c in n.children]
     if isinstance(n, Decorator) and n.child is not None:
         out["child"] = _node_data(n.child)
     return out
+
+
+#: node field kind (``btfsm.bt.FILE_KINDS``) -> its value as file data
+_FIELD_DATA = {
+    "int": lambda v: v, "opt_int": lambda v: v, "bool": lambda v: v, "opt_bool": lambda v: v, "string": lambda v: v,
+    "names": list, "expr": _expr_data, "opt_expr": _expr_data, "effects": _effects_data,
+    "outcomes": lambda v: [_outcome_data(o) for o in v], "args": _args_data, "duration": list,
+    "params": lambda v: {k: _expr_data(e) for k, e in v},
+}
 
 
 def _state_data(st: State):
