@@ -182,6 +182,8 @@ class Node:
     btcpp: ClassVar[Optional[str]] = None
     library: ClassVar[Optional[str]] = None
     pytrees: ClassVar[Optional[str]] = None
+    #: how ``btfsm show`` draws the type, when not by its name
+    glyph: ClassVar[Optional[str]] = None
 
     def children_of(self) -> "tuple[Node, ...]":
         return ()
@@ -203,6 +205,7 @@ class Composite(Node):
 class ReactiveSequence(Composite):
     """Ticks children from the first on every tick; fails or runs with the first child that does."""
 
+    glyph = "->"
     btcpp = "ReactiveSequence"
     pytrees = "Sequence(memory=False)"
 
@@ -210,6 +213,7 @@ class ReactiveSequence(Composite):
 class MemorySequence(Composite):
     """Resumes at the child that was running; starts again from the first after a result."""
 
+    glyph = "->*"
     btcpp = "Sequence"
     pytrees = "Sequence(memory=True)"
 
@@ -217,6 +221,7 @@ class MemorySequence(Composite):
 class ReactiveFallback(Composite):
     """Ticks children from the first on every tick; succeeds or runs with the first that does."""
 
+    glyph = "?"
     btcpp = "ReactiveFallback"
     pytrees = "Selector(memory=False)"
 
@@ -224,6 +229,7 @@ class ReactiveFallback(Composite):
 class MemoryFallback(Composite):
     """Resumes at the child that was running; starts again from the first after a result."""
 
+    glyph = "?*"
     btcpp = "Fallback"
     pytrees = "Selector(memory=True)"
 
@@ -338,6 +344,7 @@ class Decorator(Node):
 class Inverter(Decorator):
     """SUCCESS <-> FAILURE; RUNNING unchanged."""
 
+    glyph = "NOT"
     btcpp = "Inverter"
     pytrees = "Inverter"
 

@@ -14,23 +14,32 @@ the oracle's answers:
 The runtime answers from implementations and sensors, the model checker answers every
 way the model allows, replay answers from a trace. docs/semantics.md states the rules;
 each rule's implementation below carries the same name as its row there.
+
+Node types compile through ``RULES``: one function per row of docs/semantics.md sections
+2, 3 and 8.3, registered with ``@rule(NodeType)`` at the end of this module (a new node
+type: docs/nodes.md). Why one module of more than 1,000 lines: it is the one step
+function, written once. The layout of the state (slots, flags, memories), the rules'
+tick closures, the FSM tick and ``Program.step`` share compile-time facts (``_N``) and the
+helpers of the hot path (``_halt_running``, ``finish``); split across modules, each of
+those would become a public interface that only this function uses.
 """
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Callable
 
 from .bt import (Action, Condition, Effects, FailureIsRunning, ForceFailure, ForceSuccess, Guard, IfThenElse,
                  Inverter, KeepRunningUntilFailure, MemoryFallback, MemorySequence, Node, Parallel, ParallelAll,
                  PipelineSequence, RecoveryNode, RoundRobin, RunningIsFailure, RunningIsSuccess,
                  ReactiveFallback, ReactiveSequence, Repeat, Retry, RunOnce, SequenceWithMemory,
-                 SkillRequest, SubTree, WhileDoElse)
+                 SkillRequest, SubTree, WhileDoElse, check_arity, check_bounds)
 from .errors import ModelError
 from .expr import BOOL, Scope, Slot, Type, compile_effects, compile_fn
 from .profiles import profile
 from .timing import duration_ticks, interval_ticks
 from .status import Status
 
-__all__ = ["Program", "Site", "Step", "SlotInfo"]
+__all__ = ["Program", "Site", "Step", "SlotInfo", "RULES", "rule", "NodeRule", "Tick"]
 
 RUNNING, SUCCESS, FAILURE = int(Status.RUNNING), int(Status.SUCCESS), int(Status.FAILURE)
 _INVERT = (RUNNING, FAILURE, SUCCESS)
@@ -118,6 +127,57 @@ class _N:
         return tuple(x for x in (self.flag, self.mem, self.keep, self.stale, *self.mems, timer) if x is not None)
 
 
+
+#: a compiled node: ``tick(ctx) -> status`` (RUNNING, SUCCESS or FAILURE as ints)
+Tick = Callable[["_Ctx"], int]
+#: node type -> the function that compiles its tick rule: ``rule(program, NodeRule) -> Tick``
+RULES: "dict[type[Node], Callable[[Program, NodeRule], Tick]]" = {}
+
+
+def rule(*types: "type[Node]") -> "Callable[[Callable[[Program, NodeRule], Tick]], Callable[[Program, NodeRule], Tick]]":
+    """Register the decorated function as the tick rule of the node ``types``: called once
+    per node when a model compiles, it returns the node's tick function. docs/nodes.md
+    shows a whole new node type."""
+    def register(fn: "Callable[[Program, NodeRule], Tick]") -> "Callable[[Program, NodeRule], Tick]":
+        for t in types:
+            RULES[t] = fn
+        return fn
+    return register
+
+
+class NodeRule:
+    """What a node's rule is compiled from: ``node``; ``kids``, the tick functions of its
+    children; ``finish(status, ctx)``, which every tick function returns through (it keeps
+    the running flag and records the status); ``where`` (``tree.NAME``); ``flag``, its
+    running-flag slot or None; ``info``, the compile-time facts of the layout (memory
+    slots, children's flags and halts)."""
+
+    __slots__ = ("info", "node", "name", "where", "kids", "flag", "finish")
+
+    def __init__(self, info: "_N") -> None:
+        self.info, self.node = info, info.node
+        self.name, self.where = info.node.name, f"tree.{info.node.name}"
+        self.kids: "tuple[Tick, ...]" = tuple(k.tick for k in info.kids)
+        self.flag: "int | None" = info.flag
+        flag, evs = info.flag, tuple(("status", self.name, st) for st in (RUNNING, SUCCESS, FAILURE))
+
+        def finish(st: int, ctx: "_Ctx") -> int:
+            if flag is not None:
+                ctx.s[flag] = 1 if st == RUNNING else 0
+            if ctx.rec is not None:
+                ctx.rec.append(evs[st])  # preallocated: no tuple per tick
+            return st
+        self.finish = finish
+
+    def halts(self) -> "tuple[tuple[int, Tick], ...]":
+        """(flag, halt) of every child that can run."""
+        return self.later_halts(-1)
+
+    def later_halts(self, i: int) -> "tuple[tuple[int, Tick], ...]":
+        """(flag, halt) of the children after child ``i`` that can run."""
+        return tuple((k.flag, k.halt) for k in self.info.kids[i + 1:] if k.can_run)
+
+
 class Program:
     """A model compiled for execution and exploration. Build it with ``model.program``."""
 
@@ -188,6 +248,7 @@ class Program:
         for path, root in self.model.roots():
             self._collect(root, None, root.name)
         for info in reversed(list(self.nodes.values())):  # children before parents
+            check_bounds(info.node)  # fields below their declared bound (Retry's attempts...)
             info.can_run = self._can_run(info)
         for info in self.nodes.values():
             n = info.node
@@ -211,8 +272,6 @@ class Program:
             elif isinstance(n, PipelineSequence):
                 info.mem = self._slot(f"{n.name}:last", "memory", max(len(n.children), 1))
             elif isinstance(n, RecoveryNode):
-                if n.retries < 0:
-                    raise ModelError(f"tree.{n.name}.retries", "must be at least 0")
                 info.mem = self._slot(f"{n.name}:retries", "memory", n.retries + 1)
             elif isinstance(n, RoundRobin):
                 # the child to tick next (kept when the node finishes, reset by a halt) and the
@@ -260,12 +319,8 @@ class Program:
         if isinstance(n, SkillRequest):
             return True
         if isinstance(n, Retry):
-            if n.attempts < 1:
-                raise ModelError(f"tree.{n.name}.attempts", "must be at least 1")
             return n.attempts > 1 or info.kids[0].can_run
         if isinstance(n, Repeat):
-            if n.times < 1:
-                raise ModelError(f"tree.{n.name}.times", "must be at least 1")
             return n.times > 1 or info.kids[0].can_run
         if isinstance(n, (KeepRunningUntilFailure, FailureIsRunning)):
             return True
@@ -627,432 +682,15 @@ class Program:
             info.on_halt = lambda ctx: _apply(ctx, eff)
 
     def _compile_node(self, info):
+        """The tick function of one node: its type's rule (``RULES``, one function per row
+        of docs/semantics.md sections 2 and 3) compiled with what the layout gave it."""
         n = info.node
-        where = f"tree.{n.name}"
-        kids = tuple(k.tick for k in info.kids)
-        flag, name = info.flag, n.name
-
-        evs = (("status", name, RUNNING), ("status", name, SUCCESS), ("status", name, FAILURE))
-
-        def finish(st, ctx):
-            if flag is not None:
-                ctx.s[flag] = 1 if st == RUNNING else 0
-            if ctx.rec is not None:
-                ctx.rec.append(evs[st])  # preallocated: no tuple per tick
-            return st
-
-        def later_halts(i):
-            return tuple((k.flag, k.halt) for k in info.kids[i + 1:] if k.can_run)
-
-        if isinstance(n, (ReactiveSequence, ReactiveFallback)):
-            go_on = SUCCESS if isinstance(n, ReactiveSequence) else FAILURE
-            halts = tuple(later_halts(i) for i in range(len(kids)))
-            pairs = tuple(zip(kids, halts))
-
-            def tick(ctx):
-                for child, hs in pairs:
-                    st = child(ctx)
-                    if st != go_on:
-                        s = ctx.s
-                        for fl, h in hs:  # _halt_running, inlined: the hottest loop of a tick
-                            if s[fl]:
-                                h(ctx)
-                        return finish(st, ctx)
-                return finish(go_on, ctx)
-            return tick
-
-        if isinstance(n, (MemorySequence, MemoryFallback)):
-            go_on = SUCCESS if isinstance(n, MemorySequence) else FAILURE
-            mem, count = info.mem, len(kids)
-
-            def tick(ctx):
-                s = ctx.s
-                i = s[mem]
-                while i < count:
-                    st = kids[i](ctx)
-                    if st != go_on:
-                        s[mem] = i if st == RUNNING else 0
-                        return finish(st, ctx)
-                    i += 1
-                s[mem] = 0
-                return finish(go_on, ctx)
-            return tick
-
-        if isinstance(n, Parallel) and self.profile.parallel_memory and n.selected:
-            raise ModelError(f"{where}.selected", "selected children are py_trees' SuccessOnSelected policy; "
-                                                  "BehaviorTree.CPP's Parallel has thresholds only")
-        if isinstance(n, Parallel) and not self.profile.parallel_memory and (
-                n.synchronise or n.selected or self.profile.parallel_failure_first):
-            # py_trees' options and order (under parallel_memory finished children are never
-            # ticked again anyway, so synchronise changes nothing there)
-            return self._compile_parallel(info, kids, finish, where)
-
-        if isinstance(n, Parallel):
-            count = len(kids)
-            need = count if n.success_threshold is None else _threshold(n.success_threshold, count)
-            fail_at = _threshold(n.failure_threshold, count)
-            top = count if self.profile.parallel_memory else fail_at  # BT.CPP refuses failure > children
-            low = 0 if self.profile.parallel_memory else 1  # BT.CPP's 0: decide after the first child
-            if not low <= need <= count or not low <= fail_at <= top:
-                bound = f" <= {count}" if self.profile.parallel_memory else ""
-                zero = "" if low else " (0 is BehaviorTree.CPP's, under semantics: btcpp)"
-                raise ModelError(where, f"thresholds must satisfy {low} <= success <= {count} and {low} <= failure{bound} "
-                                        f"(negative ones count from the end: -1 is all {count} children){zero}")
-            halts = tuple((k.flag, k.halt) for k in info.kids if k.can_run)
-            if info.mems:
-                return self._parallel_memory(info, kids, need, fail_at, halts, finish)
-
-            def tick(ctx):
-                ok = bad = 0
-                for child in kids:
-                    st = child(ctx)
-                    if st == SUCCESS:
-                        ok += 1
-                    elif st == FAILURE:
-                        bad += 1
-                if ok >= need:
-                    st = SUCCESS
-                elif bad >= fail_at or bad > count - need:
-                    st = FAILURE
-                else:
-                    return finish(RUNNING, ctx)
-                _halt_running(ctx, halts)
-                return finish(st, ctx)
-            return tick
-
-        if isinstance(n, ParallelAll):
-            count, mems = len(kids), info.mems
-            most = _threshold(n.max_failures, count)
-            if not 1 <= most <= count:
-                raise ModelError(f"{where}.max_failures", f"must satisfy 1 <= max_failures <= {count} (negative ones count from the end)")
-            halts = tuple((k.flag, k.halt) for k in info.kids if k.can_run)
-            pairs = tuple(zip(kids, mems))
-
-            def tick(ctx):
-                s = ctx.s
-                for child, m in pairs:
-                    if not s[m]:
-                        st = child(ctx)
-                        if st != RUNNING:
-                            s[m] = st
-                bad = 0
-                for m in mems:
-                    if not s[m]:
-                        return finish(RUNNING, ctx)
-                    if s[m] == FAILURE:
-                        bad += 1
-                for m in mems:
-                    s[m] = 0
-                _halt_running(ctx, halts)
-                return finish(FAILURE if bad >= most else SUCCESS, ctx)
-            return tick
-
-        if isinstance(n, SequenceWithMemory):
-            keep, count = info.keep, len(kids)
-            wake, signal = self.profile.loop_wake_up, self._signal(info)
-            steps = tuple((child, k.flag) for child, k in zip(kids, info.kids))
-
-            def tick(ctx):
-                s = ctx.s
-                i = s[keep]
-                while i < count:
-                    child, fl = steps[i]
-                    was_running = fl is not None and s[fl]
-                    st = child(ctx)
-                    if st != SUCCESS:
-                        s[keep] = i  # RUNNING: resume here; FAILURE: tick this child again next time
-                        return finish(st, ctx)
-                    i += 1
-                    if wake and not was_running and i < count:
-                        s[keep] = i  # the wake-up: RUNNING now, the next child on the next tick
-                        if signal is not None:
-                            s[signal] = 1
-                        return finish(RUNNING, ctx)
-                s[keep] = 0
-                return finish(SUCCESS, ctx)
-            return tick
-
-        if isinstance(n, (PipelineSequence, RecoveryNode, RoundRobin)):
-            return self._nav2_control(info, kids, finish, where)
-
-        if isinstance(n, (IfThenElse, WhileDoElse)):
-            if len(kids) not in (2, 3):
-                raise ModelError(where, f"{type(n).__name__} needs 2 or 3 children, got {len(kids)}")
-            return self._if_then_else(info, kids, finish) if isinstance(n, IfThenElse) else self._while_do_else(info, kids, finish)
-
-        if isinstance(n, (Inverter, ForceSuccess, ForceFailure)):
-            child = kids[0]
-            table = _INVERT if isinstance(n, Inverter) else (
-                (RUNNING, SUCCESS, SUCCESS) if isinstance(n, ForceSuccess) else (RUNNING, FAILURE, FAILURE))
-            return lambda ctx: finish(table[child(ctx)], ctx)
-
-        if isinstance(n, (Retry, Repeat)):
-            child, mem, kid_flag = kids[0], info.mem, info.kids[0].flag
-            again, stop = (FAILURE, SUCCESS) if isinstance(n, Retry) else (SUCCESS, FAILURE)
-            limit = n.attempts if isinstance(n, Retry) else n.times
-
-            if self.profile.loop_wake_up:
-                signal = self._signal(info)
-
-                def tick(ctx):
-                    s = ctx.s
-                    k = s[mem]
-                    for _ in range(2):  # a child that had been running may finish and start again
-                        was_running = kid_flag is not None and s[kid_flag]
-                        st = child(ctx)
-                        if st == RUNNING:
-                            s[mem] = k
-                            return finish(RUNNING, ctx)
-                        if st == stop:
-                            s[mem] = 0
-                            return finish(st, ctx)
-                        k += 1
-                        if k >= limit:
-                            s[mem] = 0
-                            return finish(st, ctx)
-                        if not was_running:  # the wake-up: RUNNING now, the next attempt next tick
-                            s[mem] = k
-                            if signal is not None:
-                                s[signal] = 1
-                            return finish(RUNNING, ctx)
-                    raise AssertionError("unreachable: the second attempt started from idle")
-                return tick
-
-            def tick(ctx):
-                st = child(ctx)
-                s = ctx.s
-                if st == again:
-                    k = s[mem] + 1
-                    if k < limit:
-                        s[mem] = k
-                        return finish(RUNNING, ctx)
-                    s[mem] = 0
-                elif st == stop:
-                    s[mem] = 0
-                return finish(st, ctx)
-            return tick
-
-        if isinstance(n, SubTree):
-            # rule 'SubTree': the child's status. BT.CPP's SubTreeNode also resets its child
-            # when it finishes, which only matters to a stale condition (section 8.1): a
-            # SubTree is not a stateful leaf, so IfThenElse/WhileDoElse tick it afresh
-            child = kids[0]
-            return lambda ctx: finish(child(ctx), ctx)
-
-        if isinstance(n, KeepRunningUntilFailure):
-            child = kids[0]
-            table = (RUNNING, RUNNING, FAILURE)
-            return lambda ctx: finish(table[child(ctx)], ctx)
-
-        if isinstance(n, FailureIsRunning):
-            child = kids[0]
-            table = (RUNNING, SUCCESS, RUNNING)
-            return lambda ctx: finish(table[child(ctx)], ctx)
-
-        if isinstance(n, (RunningIsFailure, RunningIsSuccess)):
-            child, kid = kids[0], info.kids[0]
-            instead = FAILURE if isinstance(n, RunningIsFailure) else SUCCESS
-
-            def tick(ctx):
-                st = child(ctx)
-                if st != RUNNING:
-                    return finish(st, ctx)
-                kid.halt(ctx)  # it finished in its parent's eyes: stopped, as py_trees stops it
-                return finish(instead, ctx)
-            return tick
-
-        if isinstance(n, RunOnce):
-            if n.then_skip:
-                raise ModelError(f"{where}.then_skip", "RunOnce with then_skip: true returns SKIPPED after its first "
-                                                       "run, which btfsm does not model; use then_skip: false")
-            child, keep = kids[0], info.keep
-
-            def tick(ctx):
-                s = ctx.s
-                done = s[keep]
-                if done:
-                    return finish(done, ctx)
-                st = child(ctx)
-                if st != RUNNING:
-                    s[keep] = st
-                return finish(st, ctx)
-            return tick
-
-        if isinstance(n, Guard):
-            child, kid = kids[0], info.kids[0]
-            cond = compile_fn(n.condition, self.scope, f"{where}.condition", BOOL)
-
-            def tick(ctx):
-                s = ctx.s
-                if cond(s):
-                    return finish(child(ctx), ctx)
-                if kid.flag is not None and s[kid.flag]:
-                    kid.halt(ctx)
-                return finish(FAILURE, ctx)
-            return tick
-
-        if isinstance(n, Effects):
-            child = kids[0]
-            start = compile_effects(n.on_start, self.scope, f"{where}.on_start")
-            done = (None,
-                    compile_effects(n.on_success, self.scope, f"{where}.on_success"),
-                    compile_effects(n.on_failure, self.scope, f"{where}.on_failure"))
-
-            def tick(ctx):
-                if start is not None and (flag is None or not ctx.s[flag]):
-                    _apply(ctx, start)
-                st = child(ctx)
-                if done[st] is not None:
-                    _apply(ctx, done[st])
-                return finish(st, ctx)
-            return tick
-
-        if isinstance(n, Condition):
-            cond = compile_fn(n.expr, self.scope, f"{where}.expr", BOOL)
-            return lambda ctx: finish(SUCCESS if cond(ctx.s) else FAILURE, ctx)
-
-        conflicts = self._conflicts(info)
-
-        if isinstance(n, Action):
-            site = self._site("action", n.name, None, None, n.primitive, n.args, where, n.duration)
-            info.node_site = site
-            run = self._exclusive_start(info, self._primitive_runner(site))
-
-            def tick(ctx):
-                if flag is not None and not ctx.s[flag]:
-                    _halt_running(ctx, conflicts)
-                return finish(run(ctx), ctx)
-            return tick
-
-        if isinstance(n, SkillRequest):
-            fi = self.fsm_index[n.fsm]
-            f = self.model.fsms[fi]
-            g = f.goals.index(n.goal)
-            pre = compile_fn(n.pre, self.scope, f"{where}.pre", BOOL) if n.pre is not None else None
-            post = compile_fn(n.post, self.scope, f"{where}.post", BOOL) if n.post is not None else None
-            pfns = []
-            for p in f.params:
-                expr = dict(n.params)[p.name]
-                ptype = Type(p.kind, p.values) if p.kind == "enum" else Type(p.kind)
-                fn = compile_fn(expr, self.scope, f"{where}.params.{p.name}", ptype)
-                pfns.append((fn, p.lo, p.hi, p.kind == "bool", p.name))
-            pfns = tuple(pfns)
-            prog = self
-            rivals = self._rivals(info)
-
-            def tick(ctx):
-                s = ctx.s
-                starting = not s[flag]
-                if starting:
-                    _halt_running(ctx, conflicts)
-                if pre is not None and not pre(s):
-                    if s[flag]:  # a running request ends: withdraw its goal
-                        prog.fsm_ticks[fi].withdraw(ctx, name)
-                    return finish(FAILURE, ctx)
-                if starting and rivals:
-                    _exclusive_check(ctx, rivals)
-                pvals = tuple(_param(fn(s), lo, hi, is_bool, pname, name) for fn, lo, hi, is_bool, pname in pfns)
-                st = prog.fsm_ticks[fi](ctx, g, pvals, name, starting)
-                if st == SUCCESS and post is not None and not post(s):
-                    ctx.violations.append(("post", name))
-                    if ctx.rec is not None:
-                        ctx.rec.append(("violation", name, "post"))
-                return finish(st, ctx)
-            return tick
-        raise ModelError(where, f"unknown node type {type(n).__name__}")
-
-    def _nav2_control(self, info, kids, finish, where):
-        """Rules 'PipelineSequence', 'RecoveryNode', 'RoundRobin' (docs/semantics.md 8.3),
-        ported from navigation2's nav2_behavior_tree/plugins/control/*.cpp."""
-        n, s_mem, count = info.node, info.mem, len(kids)
-        every = tuple((k.flag, k.halt) for k in info.kids if k.can_run)  # BT.CPP's haltChildren()
-        if isinstance(n, PipelineSequence):
-            def tick(ctx):
-                s = ctx.s
-                last = s[s_mem]
-                for i in range(count):
-                    st = kids[i](ctx)
-                    if st == FAILURE:
-                        _halt_running(ctx, every)
-                        s[s_mem] = 0
-                        return finish(FAILURE, ctx)
-                    if st == RUNNING and i >= last:
-                        s[s_mem] = i
-                        return finish(RUNNING, ctx)
-                    # SUCCESS, or RUNNING of an earlier stage: it keeps running, go on
-                _halt_running(ctx, every)
-                s[s_mem] = 0
-                return finish(SUCCESS, ctx)
-            return tick
-
-        if isinstance(n, RecoveryNode):
-            if count != 2:
-                raise ModelError(where, f"a RecoveryNode has exactly 2 children, has {count}")
-            first, second = kids
-            k0, k1 = info.kids
-            limit = n.retries
-            halt0 = ((k0.flag, k0.halt),) if k0.can_run else ()
-            halt1 = ((k1.flag, k1.halt),) if k1.can_run else ()
-
-            def end(ctx, st):
-                _halt_running(ctx, every)  # halt(): the children, the index and the count
-                ctx.s[s_mem] = 0
-                return finish(st, ctx)
-
-            def tick(ctx):
-                s = ctx.s
-                retry = s[s_mem]
-                recovering = k1.flag is not None and s[k1.flag]  # current_child_idx_ == 1
-                while retry <= limit:
-                    if not recovering:
-                        st = first(ctx)
-                        if st == SUCCESS:
-                            _halt_running(ctx, halt1)
-                            return end(ctx, SUCCESS)
-                        if st == RUNNING:
-                            s[s_mem] = retry
-                            return finish(RUNNING, ctx)
-                        if retry >= limit:
-                            return end(ctx, FAILURE)
-                        _halt_running(ctx, halt0)
-                        recovering = True
-                    else:
-                        st = second(ctx)
-                        if st == RUNNING:
-                            s[s_mem] = retry
-                            return finish(RUNNING, ctx)
-                        if st == FAILURE:
-                            return end(ctx, FAILURE)
-                        _halt_running(ctx, halt1)
-                        retry += 1
-                        recovering = False
-                return end(ctx, FAILURE)  # pragma: no cover - the count never passes the limit
-            return tick
-
-        fail_mem, wrap = info.mems[0], n.wrap_around
-
-        def tick(ctx):  # RoundRobin
-            s = ctx.s
-            i, failed = s[s_mem], s[fail_mem]
-            while failed < count:
-                st = kids[i](ctx)
-                if st == RUNNING:
-                    s[s_mem], s[fail_mem] = i, failed
-                    return finish(RUNNING, ctx)
-                i += 1
-                if i == count:
-                    if not wrap:
-                        break  # the end of the children: FAILURE, whatever the last one returned
-                    i = 0
-                if st == SUCCESS:
-                    _halt_running(ctx, every)
-                    s[s_mem], s[fail_mem] = i, 0
-                    return finish(SUCCESS, ctx)
-                failed += 1
-            _halt_running(ctx, every)  # halt(): the children, the index and the count
-            s[s_mem] = s[fail_mem] = 0
-            return finish(FAILURE, ctx)
-        return tick
+        check_arity(n)
+        try:
+            compile_rule = RULES[type(n)]
+        except KeyError:
+            raise ModelError(f"tree.{n.name}", f"unknown node type {type(n).__name__}") from None
+        return compile_rule(self, NodeRule(info))
 
     def _signal(self, info):
         """The wake-up slot a loop node of the main tree sets (rule 'tickOnce'), or None
@@ -1094,68 +732,6 @@ class Program:
                 if count - bad < need or bad == fail_at:  # BT.CPP's ==: a threshold of 0 holds until a failure
                     return done(ctx, FAILURE)
             return finish(RUNNING, ctx)
-        return tick
-
-    def _if_then_else(self, info, kids, finish):
-        mem, stale, count = info.mem, info.stale, len(kids)
-        halts = tuple((k.flag, k.halt) for k in info.kids if k.can_run)
-
-        def tick(ctx):
-            s = ctx.s
-            i = s[mem]
-            if i == 0:
-                c = _condition(ctx, kids[0], stale)
-                if c == RUNNING:
-                    return finish(RUNNING, ctx)
-                if c == SUCCESS:
-                    i = 1
-                elif count == 3:
-                    i = 2
-                else:
-                    if stale is not None:
-                        s[stale] = c
-                    return finish(c, ctx)
-            st = kids[i](ctx)
-            if st == RUNNING:
-                s[mem] = i
-                return finish(RUNNING, ctx)
-            s[mem] = 0
-            if stale is not None:
-                s[stale] = 0
-            _halt_running(ctx, halts)
-            return finish(st, ctx)
-        return tick
-
-    def _while_do_else(self, info, kids, finish):
-        stale, count = info.stale, len(kids)
-        halts = tuple((k.flag, k.halt) for k in info.kids if k.can_run)
-        other = tuple((k.flag, k.halt) if k.can_run else None for k in info.kids)
-
-        def halt_kid(ctx, i):
-            if i < count and other[i] is not None and ctx.s[other[i][0]]:
-                other[i][1](ctx)
-
-        def tick(ctx):
-            s = ctx.s
-            c = _condition(ctx, kids[0], stale)
-            if c == RUNNING:
-                return finish(RUNNING, ctx)
-            if c == SUCCESS:
-                halt_kid(ctx, 2)
-                st = kids[1](ctx)
-            elif count == 3:
-                halt_kid(ctx, 1)
-                st = kids[2](ctx)
-            else:
-                st = FAILURE
-            if st == RUNNING:
-                if stale is not None:
-                    s[stale] = c
-                return finish(RUNNING, ctx)
-            if stale is not None:
-                s[stale] = 0
-            _halt_running(ctx, halts)
-            return finish(st, ctx)
         return tick
 
     def _compile_parallel(self, info, kids, finish, where):
@@ -1500,3 +1076,544 @@ def _lca(a, b):
     while id(y) not in seen:
         prev, y = y, y.parent
     return y, (prev.node if prev is not None else b.node)
+
+
+# ============================================================================ node rules
+# One function per row of docs/semantics.md sections 2, 3 and 8.3, registered for its node
+# types. Each runs once per node when a model compiles and returns the node's tick
+# function; the closures are the hot path of every tick.
+
+
+@rule(ReactiveSequence, ReactiveFallback)
+def _reactive(prog: Program, c: NodeRule) -> Tick:
+    """Rules 'ReactiveSequence' and 'ReactiveFallback' (docs/semantics.md section 2)."""
+    n, kids, finish = c.node, c.kids, c.finish
+    go_on = SUCCESS if isinstance(n, ReactiveSequence) else FAILURE
+    halts = tuple(c.later_halts(i) for i in range(len(kids)))
+    pairs = tuple(zip(kids, halts))
+
+    def tick(ctx):
+        for child, hs in pairs:
+            st = child(ctx)
+            if st != go_on:
+                s = ctx.s
+                for fl, h in hs:  # _halt_running, inlined: the hottest loop of a tick
+                    if s[fl]:
+                        h(ctx)
+                return finish(st, ctx)
+        return finish(go_on, ctx)
+    return tick
+
+
+@rule(MemorySequence, MemoryFallback)
+def _memory(prog: Program, c: NodeRule) -> Tick:
+    """Rules 'MemorySequence' and 'MemoryFallback' (section 2)."""
+    n, info, kids, finish = c.node, c.info, c.kids, c.finish
+    go_on = SUCCESS if isinstance(n, MemorySequence) else FAILURE
+    mem, count = info.mem, len(kids)
+
+    def tick(ctx):
+        s = ctx.s
+        i = s[mem]
+        while i < count:
+            st = kids[i](ctx)
+            if st != go_on:
+                s[mem] = i if st == RUNNING else 0
+                return finish(st, ctx)
+            i += 1
+        s[mem] = 0
+        return finish(go_on, ctx)
+    return tick
+
+
+@rule(Parallel)
+def _parallel(prog: Program, c: NodeRule) -> Tick:
+    """Rule 'Parallel' (section 2; BehaviorTree.CPP's and py_trees' variants: section 8)."""
+    n, info, kids, finish, where = c.node, c.info, c.kids, c.finish, c.where
+    if prog.profile.parallel_memory and n.selected:
+        raise ModelError(f"{where}.selected", "selected children are py_trees' SuccessOnSelected policy; "
+                                              "BehaviorTree.CPP's Parallel has thresholds only")
+    if not prog.profile.parallel_memory and (
+            n.synchronise or n.selected or prog.profile.parallel_failure_first):
+        # py_trees' options and order (under parallel_memory finished children are never
+        # ticked again anyway, so synchronise changes nothing there)
+        return prog._compile_parallel(info, kids, finish, where)
+
+    count = len(kids)
+    need = count if n.success_threshold is None else _threshold(n.success_threshold, count)
+    fail_at = _threshold(n.failure_threshold, count)
+    top = count if prog.profile.parallel_memory else fail_at  # BT.CPP refuses failure > children
+    low = 0 if prog.profile.parallel_memory else 1  # BT.CPP's 0: decide after the first child
+    if not low <= need <= count or not low <= fail_at <= top:
+        bound = f" <= {count}" if prog.profile.parallel_memory else ""
+        zero = "" if low else " (0 is BehaviorTree.CPP's, under semantics: btcpp)"
+        raise ModelError(where, f"thresholds must satisfy {low} <= success <= {count} and {low} <= failure{bound} "
+                                f"(negative ones count from the end: -1 is all {count} children){zero}")
+    halts = tuple((k.flag, k.halt) for k in info.kids if k.can_run)
+    if info.mems:
+        return prog._parallel_memory(info, kids, need, fail_at, halts, finish)
+
+    def tick(ctx):
+        ok = bad = 0
+        for child in kids:
+            st = child(ctx)
+            if st == SUCCESS:
+                ok += 1
+            elif st == FAILURE:
+                bad += 1
+        if ok >= need:
+            st = SUCCESS
+        elif bad >= fail_at or bad > count - need:
+            st = FAILURE
+        else:
+            return finish(RUNNING, ctx)
+        _halt_running(ctx, halts)
+        return finish(st, ctx)
+    return tick
+
+
+@rule(ParallelAll)
+def _parallel_all(prog: Program, c: NodeRule) -> Tick:
+    """Rule 'ParallelAll' (section 2)."""
+    n, info, kids, finish, where = c.node, c.info, c.kids, c.finish, c.where
+    count, mems = len(kids), info.mems
+    most = _threshold(n.max_failures, count)
+    if not 1 <= most <= count:
+        raise ModelError(f"{where}.max_failures", f"must satisfy 1 <= max_failures <= {count} (negative ones count from the end)")
+    halts = tuple((k.flag, k.halt) for k in info.kids if k.can_run)
+    pairs = tuple(zip(kids, mems))
+
+    def tick(ctx):
+        s = ctx.s
+        for child, m in pairs:
+            if not s[m]:
+                st = child(ctx)
+                if st != RUNNING:
+                    s[m] = st
+        bad = 0
+        for m in mems:
+            if not s[m]:
+                return finish(RUNNING, ctx)
+            if s[m] == FAILURE:
+                bad += 1
+        for m in mems:
+            s[m] = 0
+        _halt_running(ctx, halts)
+        return finish(FAILURE if bad >= most else SUCCESS, ctx)
+    return tick
+
+
+@rule(SequenceWithMemory)
+def _sequence_with_memory(prog: Program, c: NodeRule) -> Tick:
+    """Rule 'SequenceWithMemory' (section 2; the wake-up under ``loop_wake_up``: section 8.1)."""
+    info, kids, finish = c.info, c.kids, c.finish
+    keep, count = info.keep, len(kids)
+    wake, signal = prog.profile.loop_wake_up, prog._signal(info)
+    steps = tuple((child, k.flag) for child, k in zip(kids, info.kids))
+
+    def tick(ctx):
+        s = ctx.s
+        i = s[keep]
+        while i < count:
+            child, fl = steps[i]
+            was_running = fl is not None and s[fl]
+            st = child(ctx)
+            if st != SUCCESS:
+                s[keep] = i  # RUNNING: resume here; FAILURE: tick this child again next time
+                return finish(st, ctx)
+            i += 1
+            if wake and not was_running and i < count:
+                s[keep] = i  # the wake-up: RUNNING now, the next child on the next tick
+                if signal is not None:
+                    s[signal] = 1
+                return finish(RUNNING, ctx)
+        s[keep] = 0
+        return finish(SUCCESS, ctx)
+    return tick
+
+
+@rule(IfThenElse)
+def _if_then_else(prog: Program, c: NodeRule) -> Tick:
+    """Rule 'IfThenElse' (section 2; a stale condition under ``stale_condition``: section 8.1)."""
+    info, kids, finish = c.info, c.kids, c.finish
+    mem, stale, count = info.mem, info.stale, len(kids)
+    halts = tuple((k.flag, k.halt) for k in info.kids if k.can_run)
+
+    def tick(ctx):
+        s = ctx.s
+        i = s[mem]
+        if i == 0:
+            c = _condition(ctx, kids[0], stale)
+            if c == RUNNING:
+                return finish(RUNNING, ctx)
+            if c == SUCCESS:
+                i = 1
+            elif count == 3:
+                i = 2
+            else:
+                if stale is not None:
+                    s[stale] = c
+                return finish(c, ctx)
+        st = kids[i](ctx)
+        if st == RUNNING:
+            s[mem] = i
+            return finish(RUNNING, ctx)
+        s[mem] = 0
+        if stale is not None:
+            s[stale] = 0
+        _halt_running(ctx, halts)
+        return finish(st, ctx)
+    return tick
+
+@rule(WhileDoElse)
+def _while_do_else(prog: Program, c: NodeRule) -> Tick:
+    """Rule 'WhileDoElse' (section 2; a stale condition under ``stale_condition``: section 8.1)."""
+    info, kids, finish = c.info, c.kids, c.finish
+    stale, count = info.stale, len(kids)
+    halts = tuple((k.flag, k.halt) for k in info.kids if k.can_run)
+    other = tuple((k.flag, k.halt) if k.can_run else None for k in info.kids)
+
+    def halt_kid(ctx, i):
+        if i < count and other[i] is not None and ctx.s[other[i][0]]:
+            other[i][1](ctx)
+
+    def tick(ctx):
+        s = ctx.s
+        c = _condition(ctx, kids[0], stale)
+        if c == RUNNING:
+            return finish(RUNNING, ctx)
+        if c == SUCCESS:
+            halt_kid(ctx, 2)
+            st = kids[1](ctx)
+        elif count == 3:
+            halt_kid(ctx, 1)
+            st = kids[2](ctx)
+        else:
+            st = FAILURE
+        if st == RUNNING:
+            if stale is not None:
+                s[stale] = c
+            return finish(RUNNING, ctx)
+        if stale is not None:
+            s[stale] = 0
+        _halt_running(ctx, halts)
+        return finish(st, ctx)
+    return tick
+
+
+#: the child's status through a table (indexed by RUNNING, SUCCESS, FAILURE)
+_STATUS_TABLES = {
+    Inverter: _INVERT, ForceSuccess: (RUNNING, SUCCESS, SUCCESS), ForceFailure: (RUNNING, FAILURE, FAILURE),
+    KeepRunningUntilFailure: (RUNNING, RUNNING, FAILURE), FailureIsRunning: (RUNNING, SUCCESS, RUNNING),
+}
+
+
+@rule(*_STATUS_TABLES)
+def _status_map(prog: Program, c: NodeRule) -> Tick:
+    """Rules 'Inverter', 'ForceSuccess', 'ForceFailure', 'KeepRunningUntilFailure' and
+    'FailureIsRunning' (section 3): the child's status through the type's table."""
+    child, finish, table = c.kids[0], c.finish, _STATUS_TABLES[type(c.node)]
+    return lambda ctx: finish(table[child(ctx)], ctx)
+
+
+@rule(Retry, Repeat)
+def _retry_repeat(prog: Program, c: NodeRule) -> Tick:
+    """Rules 'Retry' and 'Repeat' (section 3; under ``loop_wake_up``: section 8.1)."""
+    n, info, kids, finish = c.node, c.info, c.kids, c.finish
+    child, mem, kid_flag = kids[0], info.mem, info.kids[0].flag
+    again, stop = (FAILURE, SUCCESS) if isinstance(n, Retry) else (SUCCESS, FAILURE)
+    limit = n.attempts if isinstance(n, Retry) else n.times
+
+    if prog.profile.loop_wake_up:
+        signal = prog._signal(info)
+
+        def tick(ctx):
+            s = ctx.s
+            k = s[mem]
+            for _ in range(2):  # a child that had been running may finish and start again
+                was_running = kid_flag is not None and s[kid_flag]
+                st = child(ctx)
+                if st == RUNNING:
+                    s[mem] = k
+                    return finish(RUNNING, ctx)
+                if st == stop:
+                    s[mem] = 0
+                    return finish(st, ctx)
+                k += 1
+                if k >= limit:
+                    s[mem] = 0
+                    return finish(st, ctx)
+                if not was_running:  # the wake-up: RUNNING now, the next attempt next tick
+                    s[mem] = k
+                    if signal is not None:
+                        s[signal] = 1
+                    return finish(RUNNING, ctx)
+            raise AssertionError("unreachable: the second attempt started from idle")
+        return tick
+
+    def tick(ctx):
+        st = child(ctx)
+        s = ctx.s
+        if st == again:
+            k = s[mem] + 1
+            if k < limit:
+                s[mem] = k
+                return finish(RUNNING, ctx)
+            s[mem] = 0
+        elif st == stop:
+            s[mem] = 0
+        return finish(st, ctx)
+    return tick
+
+
+@rule(SubTree)
+def _subtree(prog: Program, c: NodeRule) -> Tick:
+    """Rule 'SubTree' (section 3)."""
+    kids, finish = c.kids, c.finish
+    # rule 'SubTree': the child's status. BT.CPP's SubTreeNode also resets its child
+    # when it finishes, which only matters to a stale condition (section 8.1): a
+    # SubTree is not a stateful leaf, so IfThenElse/WhileDoElse tick it afresh
+    child = kids[0]
+    return lambda ctx: finish(child(ctx), ctx)
+
+
+@rule(RunningIsFailure, RunningIsSuccess)
+def _running_is(prog: Program, c: NodeRule) -> Tick:
+    """Rules 'RunningIsFailure' and 'RunningIsSuccess' (section 3)."""
+    n, info, kids, finish = c.node, c.info, c.kids, c.finish
+    child, kid = kids[0], info.kids[0]
+    instead = FAILURE if isinstance(n, RunningIsFailure) else SUCCESS
+
+    def tick(ctx):
+        st = child(ctx)
+        if st != RUNNING:
+            return finish(st, ctx)
+        kid.halt(ctx)  # it finished in its parent's eyes: stopped, as py_trees stops it
+        return finish(instead, ctx)
+    return tick
+
+
+@rule(RunOnce)
+def _run_once(prog: Program, c: NodeRule) -> Tick:
+    """Rule 'RunOnce' (section 3)."""
+    n, info, kids, finish, where = c.node, c.info, c.kids, c.finish, c.where
+    if n.then_skip:
+        raise ModelError(f"{where}.then_skip", "RunOnce with then_skip: true returns SKIPPED after its first "
+                                               "run, which btfsm does not model; use then_skip: false")
+    child, keep = kids[0], info.keep
+
+    def tick(ctx):
+        s = ctx.s
+        done = s[keep]
+        if done:
+            return finish(done, ctx)
+        st = child(ctx)
+        if st != RUNNING:
+            s[keep] = st
+        return finish(st, ctx)
+    return tick
+
+
+@rule(Guard)
+def _guard(prog: Program, c: NodeRule) -> Tick:
+    """Rule 'Guard' (section 3)."""
+    n, info, kids, finish, where = c.node, c.info, c.kids, c.finish, c.where
+    child, kid = kids[0], info.kids[0]
+    cond = compile_fn(n.condition, prog.scope, f"{where}.condition", BOOL)
+
+    def tick(ctx):
+        s = ctx.s
+        if cond(s):
+            return finish(child(ctx), ctx)
+        if kid.flag is not None and s[kid.flag]:
+            kid.halt(ctx)
+        return finish(FAILURE, ctx)
+    return tick
+
+
+@rule(Effects)
+def _effects(prog: Program, c: NodeRule) -> Tick:
+    """Rule 'Effects' (section 3)."""
+    n, kids, finish, where, flag = c.node, c.kids, c.finish, c.where, c.flag
+    child = kids[0]
+    start = compile_effects(n.on_start, prog.scope, f"{where}.on_start")
+    done = (None,
+            compile_effects(n.on_success, prog.scope, f"{where}.on_success"),
+            compile_effects(n.on_failure, prog.scope, f"{where}.on_failure"))
+
+    def tick(ctx):
+        if start is not None and (flag is None or not ctx.s[flag]):
+            _apply(ctx, start)
+        st = child(ctx)
+        if done[st] is not None:
+            _apply(ctx, done[st])
+        return finish(st, ctx)
+    return tick
+
+
+@rule(Condition)
+def _condition_leaf(prog: Program, c: NodeRule) -> Tick:
+    """Rule 'Condition' (section 3)."""
+    n, finish, where = c.node, c.finish, c.where
+    cond = compile_fn(n.expr, prog.scope, f"{where}.expr", BOOL)
+    return lambda ctx: finish(SUCCESS if cond(ctx.s) else FAILURE, ctx)
+
+
+@rule(Action)
+def _action(prog: Program, c: NodeRule) -> Tick:
+    """Rule 'Action' (section 3; halt before start: section 4)."""
+    n, info, finish, where, flag = c.node, c.info, c.finish, c.where, c.flag
+    conflicts = prog._conflicts(info)
+    site = prog._site("action", n.name, None, None, n.primitive, n.args, where, n.duration)
+    info.node_site = site
+    run = prog._exclusive_start(info, prog._primitive_runner(site))
+
+    def tick(ctx):
+        if flag is not None and not ctx.s[flag]:
+            _halt_running(ctx, conflicts)
+        return finish(run(ctx), ctx)
+    return tick
+
+
+@rule(SkillRequest)
+def _skill_request(prog: Program, c: NodeRule) -> Tick:
+    """Rule 'SkillRequest' (section 3; the FSM tick: section 5)."""
+    n, info, finish, where, flag, name = c.node, c.info, c.finish, c.where, c.flag, c.name
+    conflicts = prog._conflicts(info)
+    fi = prog.fsm_index[n.fsm]
+    f = prog.model.fsms[fi]
+    g = f.goals.index(n.goal)
+    pre = compile_fn(n.pre, prog.scope, f"{where}.pre", BOOL) if n.pre is not None else None
+    post = compile_fn(n.post, prog.scope, f"{where}.post", BOOL) if n.post is not None else None
+    pfns = []
+    for p in f.params:
+        expr = dict(n.params)[p.name]
+        ptype = Type(p.kind, p.values) if p.kind == "enum" else Type(p.kind)
+        fn = compile_fn(expr, prog.scope, f"{where}.params.{p.name}", ptype)
+        pfns.append((fn, p.lo, p.hi, p.kind == "bool", p.name))
+    pfns = tuple(pfns)
+    rivals = prog._rivals(info)
+
+    def tick(ctx):
+        s = ctx.s
+        starting = not s[flag]
+        if starting:
+            _halt_running(ctx, conflicts)
+        if pre is not None and not pre(s):
+            if s[flag]:  # a running request ends: withdraw its goal
+                prog.fsm_ticks[fi].withdraw(ctx, name)
+            return finish(FAILURE, ctx)
+        if starting and rivals:
+            _exclusive_check(ctx, rivals)
+        pvals = tuple(_param(fn(s), lo, hi, is_bool, pname, name) for fn, lo, hi, is_bool, pname in pfns)
+        st = prog.fsm_ticks[fi](ctx, g, pvals, name, starting)
+        if st == SUCCESS and post is not None and not post(s):
+            ctx.violations.append(("post", name))
+            if ctx.rec is not None:
+                ctx.rec.append(("violation", name, "post"))
+        return finish(st, ctx)
+    return tick
+
+
+@rule(PipelineSequence)
+def _pipeline_sequence(prog: Program, c: NodeRule) -> Tick:
+    """Rule 'PipelineSequence' (docs/semantics.md 8.3), ported from navigation2's
+    nav2_behavior_tree/plugins/control/pipeline_sequence.cpp."""
+    info, kids, finish = c.info, c.kids, c.finish
+    s_mem, count, every = info.mem, len(kids), c.halts()  # every: BT.CPP's haltChildren()
+
+    def tick(ctx):
+        s = ctx.s
+        last = s[s_mem]
+        for i in range(count):
+            st = kids[i](ctx)
+            if st == FAILURE:
+                _halt_running(ctx, every)
+                s[s_mem] = 0
+                return finish(FAILURE, ctx)
+            if st == RUNNING and i >= last:
+                s[s_mem] = i
+                return finish(RUNNING, ctx)
+            # SUCCESS, or RUNNING of an earlier stage: it keeps running, go on
+        _halt_running(ctx, every)
+        s[s_mem] = 0
+        return finish(SUCCESS, ctx)
+    return tick
+
+
+@rule(RecoveryNode)
+def _recovery_node(prog: Program, c: NodeRule) -> Tick:
+    """Rule 'RecoveryNode' (docs/semantics.md 8.3), ported from navigation2's recovery_node.cpp."""
+    n, info, kids, finish = c.node, c.info, c.kids, c.finish
+    s_mem, every = info.mem, c.halts()  # every: BT.CPP's haltChildren()
+    first, second = kids
+    k0, k1 = info.kids
+    limit = n.retries
+    halt0 = ((k0.flag, k0.halt),) if k0.can_run else ()
+    halt1 = ((k1.flag, k1.halt),) if k1.can_run else ()
+
+    def end(ctx, st):
+        _halt_running(ctx, every)  # halt(): the children, the index and the count
+        ctx.s[s_mem] = 0
+        return finish(st, ctx)
+
+    def tick(ctx):
+        s = ctx.s
+        retry = s[s_mem]
+        recovering = k1.flag is not None and s[k1.flag]  # current_child_idx_ == 1
+        while retry <= limit:
+            if not recovering:
+                st = first(ctx)
+                if st == SUCCESS:
+                    _halt_running(ctx, halt1)
+                    return end(ctx, SUCCESS)
+                if st == RUNNING:
+                    s[s_mem] = retry
+                    return finish(RUNNING, ctx)
+                if retry >= limit:
+                    return end(ctx, FAILURE)
+                _halt_running(ctx, halt0)
+                recovering = True
+            else:
+                st = second(ctx)
+                if st == RUNNING:
+                    s[s_mem] = retry
+                    return finish(RUNNING, ctx)
+                if st == FAILURE:
+                    return end(ctx, FAILURE)
+                _halt_running(ctx, halt1)
+                retry += 1
+                recovering = False
+        return end(ctx, FAILURE)  # pragma: no cover - the count never passes the limit
+    return tick
+
+
+@rule(RoundRobin)
+def _round_robin(prog: Program, c: NodeRule) -> Tick:
+    """Rule 'RoundRobin' (docs/semantics.md 8.3), ported from navigation2's round_robin_node.cpp."""
+    n, info, kids, finish = c.node, c.info, c.kids, c.finish
+    s_mem, count, every = info.mem, len(kids), c.halts()  # every: BT.CPP's haltChildren()
+    fail_mem, wrap = info.mems[0], n.wrap_around
+
+    def tick(ctx):
+        s = ctx.s
+        i, failed = s[s_mem], s[fail_mem]
+        while failed < count:
+            st = kids[i](ctx)
+            if st == RUNNING:
+                s[s_mem], s[fail_mem] = i, failed
+                return finish(RUNNING, ctx)
+            i += 1
+            if i == count:
+                if not wrap:
+                    break  # the end of the children: FAILURE, whatever the last one returned
+                i = 0
+            if st == SUCCESS:
+                _halt_running(ctx, every)
+                s[s_mem], s[fail_mem] = i, 0
+                return finish(SUCCESS, ctx)
+            failed += 1
+        _halt_running(ctx, every)  # halt(): the children, the index and the count
+        s[s_mem] = s[fail_mem] = 0
+        return finish(FAILURE, ctx)
+    return tick

@@ -11,7 +11,8 @@ problem raises one ``ModelError`` naming the file, the element path in the file 
 The package has one module per job, each importing only the ones before it:
 ``text`` (reading text with limits, the one-line errors), ``templates``, ``reading``
 (data to Model), ``loading`` (files, built-in models, Python modules, XML), ``writing``
-(Model to data) and ``validate`` (the command). Every public name is imported here, so
+(Model to data) and ``validate`` (the command); ``schema`` generates the node part of the
+JSON Schema from the node classes (``btfsm.bt``). Every public name is imported here, so
 ``from btfsm.files import load_model`` is the import to use.
 
 >>> m = loads_model('''
