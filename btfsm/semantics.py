@@ -26,7 +26,7 @@ those would become a public interface that only this function uses.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Callable
+from typing import Any, Callable, Optional
 
 from .bt import (Action, Condition, Effects, FailureIsRunning, ForceFailure, ForceSuccess, Guard, IfThenElse,
                  Inverter, KeepRunningUntilFailure, MemoryFallback, MemorySequence, Node, Parallel, ParallelAll,
@@ -50,7 +50,9 @@ class Site:
 
     __slots__ = ("kind", "node", "fsm", "state", "primitive", "args", "outcomes", "index", "ticks", "timer")
 
-    def __init__(self, kind, node, fsm, state, primitive, args, outcomes, index, ticks=None, timer=None):
+    def __init__(self, kind: str, node: Optional[str], fsm: Optional[str], state: Optional[str], primitive: str,
+                 args: Any, outcomes: tuple[Any, ...], index: int, ticks: Any = None,
+                 timer: Optional[int] = None) -> None:
         self.kind, self.node, self.fsm, self.state = kind, node, fsm, state
         self.primitive, self.args, self.outcomes, self.index = primitive, args, outcomes, index
         self.ticks = ticks  # (lo, hi or None): the ticks of running on which a run may end (section 6.1)
@@ -58,7 +60,7 @@ class Site:
 
     @property
     def label(self) -> str:
-        return self.node if self.kind == "action" else f"{self.fsm}/{self.state}"
+        return str(self.node) if self.kind == "action" else f"{self.fsm}/{self.state}"
 
     def __repr__(self) -> str:
         return f"Site({self.label} runs {self.primitive})"
@@ -82,7 +84,7 @@ class Step:
 
     __slots__ = ("state", "status", "events", "violations")
 
-    def __init__(self, state, status, events, violations):
+    def __init__(self, state: Optional[tuple[int, ...]], status: int, events: Any, violations: list[Any]) -> None:
         self.state, self.status, self.events, self.violations = state, status, events, violations
 
     def __repr__(self) -> str:
@@ -93,7 +95,7 @@ class _Late(Exception):
     """An answer the declared timing does not allow (a duration, section 6.1): the tick
     cannot go this way (``Step.state`` None, violation ``("timing", site label, text)``)."""
 
-    def __init__(self, site, text):
+    def __init__(self, site: Site, text: str) -> None:
         super().__init__(text)
         self.site, self.text = site, text
 
@@ -101,8 +103,11 @@ class _Late(Exception):
 class _Ctx:
     __slots__ = ("s", "oracle", "rec", "fsm_done", "violations", "on_request")
 
-    def __init__(self, s, oracle, rec):
-        self.s, self.oracle, self.rec, self.fsm_done, self.violations = s, oracle, rec, {}, []
+    def __init__(self, s: list[int], oracle: Any, rec: Optional[list[Any]]) -> None:
+        self.s, self.oracle = s, oracle
+        self.rec: Any = rec  # the events of the tick, when recorded (list), else None
+        self.fsm_done: dict[int, tuple[int, int, str, Any]] = {}  # FSM -> (goal, reply, requester, params)
+        self.violations: list[Any] = []
         self.on_request = getattr(oracle, "request", None)  # optional: told which goal an FSM drives
 
 
@@ -112,17 +117,24 @@ class _N:
     __slots__ = ("node", "can_run", "flag", "mem", "mems", "keep", "stale", "kids", "parent", "tick", "halt",
                  "on_halt", "root", "node_site")
 
-    def __init__(self, node, parent, root):
+    def __init__(self, node: Node, parent: Optional[_N], root: str) -> None:
         self.node, self.parent, self.root = node, parent, root
-        self.kids: list = []
+        self.kids: list[_N] = []
         self.can_run = False
-        self.flag = self.mem = self.keep = self.stale = None  # keep: memory that a halt keeps
-        self.mems: tuple = ()  # per-child memory (Parallel under parallel_memory, ParallelAll)
-        self.tick = self.halt = self.on_halt = None
+        # slots, None until the layout gives them (Any: the compiled closures index with them)
+        self.flag: Any = None
+        self.mem: Any = None
+        self.keep: Any = None  # memory that a halt keeps
+        self.stale: Any = None
+        self.mems: tuple[int, ...] = ()  # per-child memory (Parallel under parallel_memory, ParallelAll)
+        self.tick: Any = None  # Tick, once compiled
+        self.halt: Any = None  # Halt, once compiled
+        self.on_halt: Optional[Halt] = None
+        self.node_site: Optional[Site] = None  # an Action's site
 
-    def state_slots(self) -> tuple:
+    def state_slots(self) -> tuple[int, ...]:
         """Every state slot this node owns: running flag, memories and an Action's run counter."""
-        site = getattr(self, "node_site", None)
+        site = self.node_site
         timer = site.timer if site is not None else None
         return tuple(x for x in (self.flag, self.mem, self.keep, self.stale, *self.mems, timer) if x is not None)
 
@@ -130,6 +142,12 @@ class _N:
 
 #: a compiled node: ``tick(ctx) -> status`` (RUNNING, SUCCESS or FAILURE as ints)
 Tick = Callable[["_Ctx"], int]
+#: halting a node's subtree
+Halt = Callable[["_Ctx"], None]
+#: (running-flag slot, halt) pairs: the running ones are halted
+Halts = tuple[tuple[int, Halt], ...]
+#: ``finish(status, ctx) -> status``: a node's status recorded and its running flag kept
+Finish = Callable[[int, "_Ctx"], int]
 #: node type -> the function that compiles its tick rule: ``rule(program, NodeRule) -> Tick``
 RULES: "dict[type[Node], Callable[[Program, NodeRule], Tick]]" = {}
 
@@ -155,10 +173,11 @@ class NodeRule:
     __slots__ = ("info", "node", "name", "where", "kids", "flag", "finish")
 
     def __init__(self, info: "_N") -> None:
-        self.info, self.node = info, info.node
+        self.info = info
+        self.node: Any = info.node  # of the type the rule is registered for
         self.name, self.where = info.node.name, f"tree.{info.node.name}"
         self.kids: "tuple[Tick, ...]" = tuple(k.tick for k in info.kids)
-        self.flag: "int | None" = info.flag
+        self.flag: Any = info.flag  # int, or None for a node that never runs
         flag, evs = info.flag, tuple(("status", self.name, st) for st in (RUNNING, SUCCESS, FAILURE))
 
         def finish(st: int, ctx: "_Ctx") -> int:
@@ -169,11 +188,11 @@ class NodeRule:
             return st
         self.finish = finish
 
-    def halts(self) -> "tuple[tuple[int, Tick], ...]":
+    def halts(self) -> Halts:
         """(flag, halt) of every child that can run."""
         return self.later_halts(-1)
 
-    def later_halts(self, i: int) -> "tuple[tuple[int, Tick], ...]":
+    def later_halts(self, i: int) -> Halts:
         """(flag, halt) of the children after child ``i`` that can run."""
         return tuple((k.flag, k.halt) for k in self.info.kids[i + 1:] if k.can_run)
 
@@ -181,10 +200,10 @@ class NodeRule:
 class Program:
     """A model compiled for execution and exploration. Build it with ``model.program``."""
 
-    def __init__(self, model):
+    def __init__(self, model: Any) -> None:
         self.model = model
         self.profile = profile(model.semantics)  # the rule switches (btfsm.profiles)
-        self._initial: list = []
+        self._initial: list[int] = []
         self.slots: list[SlotInfo] = []
         self.sites: list[Site] = []
         self.scope = Scope()
@@ -192,16 +211,17 @@ class Program:
             self._slot(var.name, "var", var.hi - var.lo + 1, var.lo)
             self.scope[var.name] = Scope.of([var], len(self.slots) - 1)[var.name]
         self.prims = model.all_primitives()
-        self._fsm_timers: dict = {}  # FSM name -> the slot counting its state's run (rule 'Durations')
+        self._fsm_timers: dict[str, int] = {}  # FSM name -> the slot counting its state's run (rule 'Durations')
         self._layout_fsms()
         self._layout_nodes()
-        self.wake = self._wake_slot()
+        self.wake: Any = self._wake_slot()
         self.exclusive = self._exclusive_groups()
         self._compile_fsms()
-        self.env_timers: list = []  # (event index, slot, ticks) of events with a minimum interval
+        timers: list[tuple[int, int, int]] = []  # (event index, slot, ticks) of events with a minimum interval
+        self.env_timers: Any = timers
         self.env = [self._compile_env(i, ev) for i, ev in enumerate(model.environment)]
         self.env_timers = {i: (slot, wait) for i, slot, wait in self.env_timers}
-        self.root = self.nodes[model.tree.name].tick if model.tree is not None else None
+        self.root: Any = self.nodes[model.tree.name].tick if model.tree is not None else None
         self.invariants = [(name, compile_fn(e, self.scope, f"invariants.{name}", BOOL)) for name, e in model.invariants]
         self._check_responses()
         self.workable = self._predicate(model.workable, "workable")
@@ -210,14 +230,14 @@ class Program:
         self.width = len(self.slots)
 
     # ------------------------------------------------------------------ layout
-    def _slot(self, name, kind, size, lo=0, init=0) -> int:
+    def _slot(self, name: str, kind: str, size: int, lo: int = 0, init: int = 0) -> int:
         self.slots.append(SlotInfo(name, kind, size, lo))
         if kind == "var":
             init = self.model.var(name).init_code
         self._initial.append(init)
         return len(self.slots) - 1
 
-    def _layout_fsms(self):
+    def _layout_fsms(self) -> None:
         self.fsm_index = {}
         self.fsm_info = []
         for fi, f in enumerate(self.model.fsms):
@@ -234,7 +254,7 @@ class Program:
             self.fsm_index[f.name] = fi
             self.fsm_info.append((f, ids, tok, goal, tuple(pslots)))
 
-    def fsm_scope(self, f) -> Scope:
+    def fsm_scope(self, f: Any) -> Scope:
         """World scope plus the FSM's parameters by their bare names."""
         scope = Scope(self.scope)
         for p in f.params:
@@ -243,7 +263,7 @@ class Program:
             scope[p.name] = self.scope[f"{f.name}.{p.name}"]
         return scope
 
-    def _layout_nodes(self):
+    def _layout_nodes(self) -> None:
         self.nodes: dict[str, _N] = {}
         for path, root in self.model.roots():
             self._collect(root, None, root.name)
@@ -286,7 +306,7 @@ class Program:
                 # the condition leaf's last status while the node keeps it (0: none)
                 info.stale = self._slot(f"{n.name}:condition", "memory", 3)
 
-    def _wake_slot(self):
+    def _wake_slot(self) -> Optional[int]:
         """Rule 'tickOnce' (docs/semantics.md 8.1): under ``loop_wake_up`` with
         ``Model.tick == "once"``, a slot holding BT.CPP's pending wake-up signal, when a
         node of the tree can emit one (Retry/Repeat with a bound above 1, a
@@ -302,7 +322,7 @@ class Program:
                 return self._slot("tick:wake-up", "memory", 2)
         return None
 
-    def _collect(self, node: Node, parent, root):
+    def _collect(self, node: Node, parent: Optional[_N], root: str) -> None:
         info = _N(node, parent, root)
         self.nodes[node.name] = info
         if parent is not None:
@@ -310,7 +330,7 @@ class Program:
         for child in node.children_of():
             self._collect(child, info, root)
 
-    def _can_run(self, info) -> bool:
+    def _can_run(self, info: _N) -> bool:
         n = info.node
         if isinstance(n, Condition):
             return False
@@ -331,13 +351,14 @@ class Program:
         return any(k.can_run for k in info.kids)
 
     # ------------------------------------------------------------------ helpers
-    def _predicate(self, expr, where):
+    def _predicate(self, expr: Any, where: str) -> Callable[[Any], bool]:
         if expr is None:  # default workable: every FSM token on its initial state
             pairs = [(tok, ids.index(f.initial)) for f, ids, tok, _, _ in self.fsm_info]
             return lambda s: all(s[t] == v for t, v in pairs)
-        return compile_fn(expr, self.scope, where, BOOL)
+        fn: Callable[[Any], bool] = compile_fn(expr, self.scope, where, BOOL)
+        return fn
 
-    def _compile_env(self, i, ev, where=None, option=False):
+    def _compile_env(self, i: int, ev: Any, where: Optional[str] = None, option: bool = False) -> tuple[Any, ...]:
         """(name, guard, effects, options): options is None for an event, else a tuple
         of compiled options for a choice."""
         where = where or f"environment.{ev.name}"
@@ -353,7 +374,7 @@ class Program:
             self.env_timers.append((i, self._slot(f"{ev.name}:since", "timer", wait + 1, 0, wait), wait))
         return (ev.name, guard, compile_effects(ev.effects, self.scope, f"{where}.effects"), None)
 
-    def _check_responses(self):
+    def _check_responses(self) -> None:
         """The requirements' expressions compile and their trigger events exist (property
         'response' evaluates them over the explored states)."""
         events = {e.name for e in self.model.environment} | {
@@ -366,7 +387,8 @@ class Program:
                 raise ModelError(f"{where}.trigger", f"no environment event or option '{r.trigger_event}'")
             compile_fn(r.response, self.scope, f"{where}.response", BOOL)
 
-    def _site(self, kind, node, fsm, state, primitive, args, where, duration=None) -> Site:
+    def _site(self, kind: str, node: Optional[str], fsm: Optional[str], state: Optional[str], primitive: str,
+              args: Any, where: str, duration: Any = None) -> Site:
         prim = self.prims.get(primitive)
         if prim is None:
             raise ModelError(where, f"unknown primitive '{primitive}'")
@@ -379,7 +401,7 @@ class Program:
         self.sites.append(site)
         return site
 
-    def _time_site(self, site, duration, where):
+    def _time_site(self, site: Site, duration: Any, where: str) -> None:
         """Rule 'Durations' (docs/semantics.md section 6.1): a run may end (answer a
         non-RUNNING outcome) on its k-th tick of running only when lo <= k <= hi. A counter
         slot holds the RUNNING answers so far, saturated where no bound needs more."""
@@ -401,26 +423,27 @@ class Program:
             site.timer = self._slot(f"{site.label}:ran", "timer", cap + 1)
             return
         # one counter per FSM: only the token's state runs, and leaving a state resets it
-        slot = self._fsm_timers.get(site.fsm)
+        fsm = str(site.fsm)
+        slot = self._fsm_timers.get(fsm)
         if slot is None:
-            slot = self._fsm_timers[site.fsm] = self._slot(f"{site.fsm}:ran", "timer", cap + 1)
+            slot = self._fsm_timers[fsm] = self._slot(f"{fsm}:ran", "timer", cap + 1)
         elif self.slots[slot].size < cap + 1:
             self.slots[slot] = SlotInfo(f"{site.fsm}:ran", "timer", cap + 1)
         site.timer = slot
 
-    def _halt_fn(self, info):
+    def _halt_fn(self, info: _N) -> Halt:
         """halt(ctx): halt every running node of ``info``'s subtree, children first."""
-        items = []
+        found: list[tuple[int, Optional[Halt], str]] = []
 
-        def post(i):
+        def post(i: _N) -> None:
             for k in i.kids:
                 post(k)
             if i.can_run:
-                items.append((i.flag, i.on_halt, i.node.name))
+                found.append((i.flag, i.on_halt, i.node.name))
         post(info)
-        items = tuple(items)
+        items = tuple(found)
 
-        def halt(ctx):
+        def halt(ctx: _Ctx) -> None:
             s = ctx.s
             for flag, on_halt, name in items:
                 if s[flag]:
@@ -432,7 +455,7 @@ class Program:
         return halt
 
     # ------------------------------------------------------------------ FSMs
-    def _compile_fsms(self):
+    def _compile_fsms(self) -> None:
         self.fsm_rows = []  # per FSM: rows[state][goal]
         # node on_halt/tick closures need FSM ticks, and FSM states may run subtrees,
         # so compile subtrees first (their closures only look FSM ticks up at run time)
@@ -449,7 +472,7 @@ class Program:
             self.fsm_rows.append(self._compile_fsm(fi, f, ids))
         self.fsm_ticks = [self._fsm_tick_fn(fi) for fi in range(len(self.fsm_info))]
 
-    def _compile_fsm(self, fi, f, ids):
+    def _compile_fsm(self, fi: int, f: Any, ids: tuple[str, ...]) -> list[Any]:
         scope = self.fsm_scope(f)
         where = f"fsms.{f.name}"
         index = {sid: k for k, sid in enumerate(ids)}
@@ -458,9 +481,10 @@ class Program:
             runner, leave = self._state_runner(f, st, f"{where}.states.{st.id}")
             row_for_goal = []
             for g in f.goals:
-                dedges, dmarkers = [], []
-                edges = ([], [], [])
-                markers = ([], [], [])
+                dedges: list[Any] = []
+                dmarkers: list[Any] = []
+                edges: tuple[list[Any], list[Any], list[Any]] = ([], [], [])
+                markers: tuple[list[Any], list[Any], list[Any]] = ([], [], [])
                 applicable = False
                 for e in f.edges:
                     if e.source != st.id or g not in e.goals:
@@ -475,20 +499,20 @@ class Program:
                         continue
                     applicable = True
                     guard = compile_fn(m.guard, scope, f"{where}.markers.{m.id}.guard", BOOL) if m.guard is not None else None
-                    item = (guard, int(m.outcome), m.id)
-                    (dmarkers if m.direct else markers[int(m.on)]).append(item)
+                    mitem = (guard, int(m.outcome), m.id)
+                    (dmarkers if m.direct else markers[int(m.on)]).append(mitem)
                 row_for_goal.append((tuple(dedges), tuple(dmarkers), applicable,
                                      tuple(map(tuple, edges)), tuple(map(tuple, markers)), runner, leave))
             rows.append(row_for_goal)
         return rows
 
-    def _state_runner(self, f, st, where):
+    def _state_runner(self, f: Any, st: Any, where: str) -> Any:
         """(run(ctx) -> status, leave(ctx)) for one FSM state."""
         if st.subtree is not None:
             info = self.nodes[st.subtree.name]
             tick, halt, flag = info.tick, info.halt, info.flag
 
-            def leave(ctx):
+            def leave(ctx: _Ctx) -> None:
                 if flag is not None and ctx.s[flag]:
                     halt(ctx)
             return tick, leave
@@ -496,14 +520,15 @@ class Program:
         site = self._site("state", None, f.name, st.id, prim, st.args, where, st.duration)
         return self._primitive_runner(site), _site_halt(site)
 
-    def _primitive_runner(self, site):
+    def _primitive_runner(self, site: Site) -> Tick:
         outs = site.outcomes
         evs = tuple(("outcome", site.label, o[2]) for o in outs)
         if site.ticks is not None:
             return self._timed_runner(site, evs)
 
-        def run(ctx):
+        def run(ctx: _Ctx) -> int:
             k = ctx.oracle.outcome(site)
+            status: int
             status, eff, _ = outs[k]
             if eff is not None:
                 eff(ctx.s)
@@ -514,16 +539,17 @@ class Program:
             return status
         return run
 
-    def _timed_runner(self, site, evs):
+    def _timed_runner(self, site: Site, evs: Any) -> Tick:
         """A primitive run under rule 'Durations': the answer must fit the run's tick count."""
         outs, (lo, hi), timer = site.outcomes, site.ticks, site.timer
         cap = (hi if hi is not None else lo) - 1
         rate = self.model.tick_rate
 
-        def run(ctx):
+        def run(ctx: _Ctx) -> int:
             s = ctx.s
             done = s[timer] if timer is not None else 0  # RUNNING answers so far (saturated at cap)
             k = ctx.oracle.outcome(site)
+            status: int
             status, eff, name = outs[k]
             if status == RUNNING:
                 if hi is not None and done >= hi - 1:
@@ -546,7 +572,7 @@ class Program:
             return status
         return run
 
-    def _fsm_tick_fn(self, fi):
+    def _fsm_tick_fn(self, fi: int) -> Any:
         f, ids, tok, goal_slot, pslots = self.fsm_info[fi]
         rows = self.fsm_rows[fi]
         name = f.name
@@ -554,7 +580,7 @@ class Program:
         bound = len(ids)
         restart = self.profile.restart_in_tick
 
-        def move(ctx, row, target, eff, eid):
+        def move(ctx: _Ctx, row: Any, target: int, eff: Any, eid: str) -> None:
             row[6](ctx)  # leave the source state
             s = ctx.s
             s[tok] = target
@@ -565,7 +591,7 @@ class Program:
                 if eff is not None:
                     _record_writes(ctx, eff)
 
-        def drive(ctx, g):
+        def drive(ctx: _Ctx, g: int) -> int:
             """FSM tick rule (docs/semantics.md, 'FSM tick'), steps 1-6."""
             s = ctx.s
             if ctx.on_request is not None:
@@ -581,6 +607,7 @@ class Program:
                     break
             else:
                 raise RuntimeError(f"{name}: direct-edge chain longer than {bound}")
+            outcome: int
             for guard, outcome, mid in row[1]:  # 2. direct markers
                 if guard is None or guard(s):
                     if ctx.rec is not None:
@@ -604,7 +631,7 @@ class Program:
                     break
             return reply
 
-        def tick(ctx, g, pvals, requester, starting=True):
+        def tick(ctx: _Ctx, g: int, pvals: tuple[int, ...], requester: str, starting: bool = True) -> int:
             """Rules 'Requests, goals and parameters' (docs/semantics.md section 5):
             once per request, share, hand-over, conflict."""
             done = ctx.fsm_done.get(fi)
@@ -640,7 +667,7 @@ class Program:
             ctx.fsm_done[fi] = (g, result, requester, pvals)
             return result
 
-        def withdraw_goal(ctx, requester):
+        def withdraw_goal(ctx: _Ctx, requester: str) -> None:
             done = ctx.fsm_done.get(fi)
             if done is not None and done[2] != requester:
                 return  # another request drove the FSM this tick
@@ -651,17 +678,17 @@ class Program:
                 if ctx.rec is not None:
                     ctx.rec.append(("withdraw", name, requester))
 
-        tick.withdraw = withdraw_goal
+        tick.withdraw = withdraw_goal  # type: ignore[attr-defined]
         return tick
 
     # ------------------------------------------------------------------ nodes
-    def _prepare_on_halt(self, info):
+    def _prepare_on_halt(self, info: _N) -> None:
         n = info.node
         if isinstance(n, Action):
             site_holder = info  # the site is made in _compile_node; look it up lazily
 
-            def on_halt(ctx):
-                site = site_holder.node_site
+            def on_halt(ctx: _Ctx) -> None:
+                site: Any = site_holder.node_site
                 if site.timer is not None:
                     ctx.s[site.timer] = 0  # a halted run starts afresh (rule 'Durations')
                 ctx.oracle.halt(site)
@@ -672,7 +699,7 @@ class Program:
         elif info.mem is not None or info.mems or info.stale is not None:
             resets = tuple(x for x in (info.mem, *info.mems, info.stale) if x is not None)
 
-            def on_halt(ctx):
+            def on_halt(ctx: _Ctx) -> None:
                 s = ctx.s
                 for x in resets:
                     s[x] = 0
@@ -681,7 +708,7 @@ class Program:
             eff = compile_effects(n.on_halt, self.scope, f"tree.{n.name}.on_halt")
             info.on_halt = lambda ctx: _apply(ctx, eff)
 
-    def _compile_node(self, info):
+    def _compile_node(self, info: _N) -> Tick:
         """The tick function of one node: its type's rule (``RULES``, one function per row
         of docs/semantics.md sections 2 and 3) compiled with what the layout gave it."""
         n = info.node
@@ -692,25 +719,26 @@ class Program:
             raise ModelError(f"tree.{n.name}", f"unknown node type {type(n).__name__}") from None
         return compile_rule(self, NodeRule(info))
 
-    def _signal(self, info):
+    def _signal(self, info: _N) -> Optional[int]:
         """The wake-up slot a loop node of the main tree sets (rule 'tickOnce'), or None
         (``tick: exactly-once``, or a subtree an FSM state runs: its FSM steps once a tick)."""
         return self.wake if info.root == (self.model.tree.name if self.model.tree is not None else None) else None
 
-    def _parallel_memory(self, info, kids, need, fail_at, halts, finish):
+    def _parallel_memory(self, info: _N, kids: tuple[Tick, ...], need: int, fail_at: int, halts: Halts,
+                         finish: Finish) -> Tick:
         """BehaviorTree.CPP's Parallel (profile switch ``parallel_memory``): finished children
         are not ticked again; after each child, success then failure is checked."""
         count, mems = len(kids), info.mems
         pairs = tuple(zip(kids, mems))
 
-        def done(ctx, st):
+        def done(ctx: _Ctx, st: int) -> int:
             s = ctx.s
             for m in mems:
                 s[m] = 0
             _halt_running(ctx, halts)
             return finish(st, ctx)
 
-        def tick(ctx):
+        def tick(ctx: _Ctx) -> int:
             s = ctx.s
             ok = bad = 0
             for m in mems:
@@ -734,10 +762,11 @@ class Program:
             return finish(RUNNING, ctx)
         return tick
 
-    def _compile_parallel(self, info, kids, finish, where):
+    def _compile_parallel(self, info: _N, kids: tuple[Tick, ...], finish: Finish, where: str) -> Tick:
         """Rules 'Parallel' (docs/semantics.md section 2) and, per profile, 'parallel
         failure first', 'parallel synchronise', 'parallel selected' (section 8)."""
-        n, count = info.node, len(kids)
+        n: Any = info.node
+        count = len(kids)
         names = [k.node.name for k in info.kids]
         if n.selected:
             bad_names = [x for x in n.selected if x not in names]
@@ -758,7 +787,7 @@ class Program:
         done = info.mems or (None,) * count
         items = tuple(zip(kids, eligible, done))
 
-        def tick(ctx):
+        def tick(ctx: _Ctx) -> int:
             s = ctx.s
             ok = bad = lost = 0  # successes that count, failures, failures that count
             for child, counts, d in items:
@@ -787,7 +816,7 @@ class Program:
             return finish(st, ctx)
         return tick
 
-    def _conflicts(self, info):
+    def _conflicts(self, info: _N) -> Halts:
         """Halt-before-start: branches to halt before this leaf starts (rule 'halt order')."""
         if not info.can_run or not self.profile.halt_before_start:
             return ()
@@ -803,7 +832,7 @@ class Program:
             out.append((b.flag, b.halt))
         return tuple(out)
 
-    def _rivals(self, info):
+    def _rivals(self, info: _N) -> tuple[Any, ...]:
         """Rule 'Exclusive resources': for each running leaf that shares a resource with
         ``info``'s leaf, the (flag, violation, event) to report when this leaf starts
         while that one runs."""
@@ -817,20 +846,20 @@ class Program:
                                     ("violation", me, f"exclusive {res}: starts while {m} runs")))
         return tuple(out)
 
-    def _exclusive_start(self, info, run):
+    def _exclusive_start(self, info: _N, run: Tick) -> Tick:
         """``run`` preceded by the rule 'Exclusive resources' check when the leaf starts
         (ticked while idle; a leaf that cannot return RUNNING starts on every tick)."""
         rivals, flag = self._rivals(info), info.flag
         if not rivals:
             return run
 
-        def checked(ctx):
+        def checked(ctx: _Ctx) -> int:
             if flag is None or not ctx.s[flag]:
                 _exclusive_check(ctx, rivals)
             return run(ctx)
         return checked
 
-    def _exclusive_groups(self):
+    def _exclusive_groups(self) -> tuple[Any, ...]:
         """Per resource with two leaves that can run: ((flag, name), ...) checked at the end
         of every tick (rule 'Exclusive resources')."""
         out = []
@@ -840,7 +869,7 @@ class Program:
                 out.append((res, flags))
         return tuple(out)
 
-    def _lint_reactive_sequences(self):
+    def _lint_reactive_sequences(self) -> None:
         self.lints = []
         for info in self.nodes.values():
             if isinstance(info.node, ReactiveSequence):
@@ -852,7 +881,7 @@ class Program:
                     self.lints.append((f"tree.{info.node.name}", f"{what} with several children that can run ({', '.join(running)}): an earlier one restarts each tick and halts the later ones; use {self.profile.node_name('MemorySequence')}"))
 
     # ------------------------------------------------------------------ running
-    def step(self, state, oracle, record: "bool | list" = False) -> Step:
+    def step(self, state: Any, oracle: Any, record: "bool | list[Any]" = False) -> Step:
         """One BT tick: environment events, then the tree. Pure in ``state``. ``record``:
         collect the trace events (``Step.events``); a list given here receives them as they
         happen, so an oracle holding it can see the tick so far."""
@@ -871,14 +900,15 @@ class Program:
             _exclusive_end(ctx, self.exclusive)
         return Step(tuple(s), status, ctx.rec, ctx.violations)
 
-    def _reticks(self, ctx, status):
+    def _reticks(self, ctx: _Ctx, status: int) -> int:
         """Rule 'tickOnce' (docs/semantics.md 8.1): BT.CPP's ``tickOnce()`` ticks the root
         again while it returns RUNNING and a wake-up signal is pending (each tick takes the
         signal). Each re-tick is a BT tick of its own (an FSM may step again). When the
         state before a re-tick repeats, the oracle can answer as it did before, so the
         loop can go on for ever: the violation ``("tick-loop", root)`` ends the tick (the
         state is the repeated one; property ``contracts`` reports it)."""
-        s, wake, seen = ctx.s, self.wake, []
+        s, wake = ctx.s, self.wake
+        seen: list[list[int]] = []
         while status == RUNNING and s[wake]:
             s[wake] = 0
             if s in seen:
@@ -895,13 +925,15 @@ class Program:
             status = self.root(ctx)
         return status
 
-    def environment_phase(self, s, oracle, rec=None, indices=None) -> "str | None":
+    def environment_phase(self, s: list[int], oracle: Any, rec: Optional[list[Any]] = None,
+                          indices: Any = None) -> "str | None":
         """Tick step 1 (docs/semantics.md section 1): the environment entries (those at
         ``indices`` when given) change the state list ``s`` in place, asking ``oracle``;
         ``rec`` collects env and write events. Returns the name of a choice with no enabled
         option (the tick cannot happen), else None."""
         timers = self.env_timers
         env = self.env
+        name: str
         for i in (range(len(env)) if indices is None else indices):
             name, guard, eff, options = env[i]
             if options is not None:  # a choice: exactly one enabled option
@@ -927,7 +959,8 @@ class Program:
                     rec.extend(("write", k, s[k]) for k in eff.targets)
         return None
 
-    def fsm_step(self, state, fsm: "str | int", goal: "str | int", params, oracle, record: bool = False) -> Step:
+    def fsm_step(self, state: Any, fsm: "str | int", goal: "str | int", params: Any, oracle: Any,
+                 record: bool = False) -> Step:
         """One tick of one FSM requested from outside a tree (the FSM-level open system)."""
         fi = self.fsm_index[fsm] if isinstance(fsm, str) else fsm
         f = self.fsm_info[fi][0]
@@ -939,11 +972,11 @@ class Program:
             return Step(None, FAILURE, ctx.rec, [("timing", late.site.label, late.text)])
         return Step(tuple(ctx.s), status, ctx.rec, ctx.violations)
 
-    def decode(self, state) -> dict:
+    def decode(self, state: Any) -> dict[str, Any]:
         """Readable values of a state: variables, FSM states/goals/params, node memory."""
         return {info.name: self.decode_slot(i, val) for i, (info, val) in enumerate(zip(self.slots, state))}
 
-    def decode_slot(self, index: int, value: int):
+    def decode_slot(self, index: int, value: int) -> Any:
         """The readable value of one slot."""
         info = self.slots[index]
         if info.kind == "var":
@@ -953,7 +986,7 @@ class Program:
             return slot.type.values[value]
         return bool(value) if slot is not None and slot.type == BOOL else value
 
-    def encode(self, values: dict) -> tuple:
+    def encode(self, values: dict[str, Any]) -> tuple[int, ...]:
         """The state tuple of readable values (as ``decode`` gives them); slots missing
         from ``values`` keep their initial value."""
         out = list(self.initial)
@@ -971,20 +1004,20 @@ class Program:
                 out[i] = int(val)
         return tuple(out)
 
-    def fsm_state(self, state, fsm: str) -> tuple:
+    def fsm_state(self, state: Any, fsm: str) -> tuple[Any, ...]:
         """(state id, held goal or None) of an FSM."""
         f, ids, tok, goal, _ = self.fsm_info[self.fsm_index[fsm]]
         return ids[state[tok]], (f.goals[state[goal] - 1] if state[goal] else None)
 
 
-def _stateful(info) -> bool:
+def _stateful(info: _N) -> bool:
     """A leaf that keeps a status between ticks in BehaviorTree.CPP (a StatefulActionNode).
     Only a leaf: every decorator, SubTree included, resets its child's status when the
     child finishes (BT.CPP's ``DecoratorNode::executeTick`` and ``SubTreeNode::tick``)."""
     return isinstance(info.node, SkillRequest) or (isinstance(info.node, Action) and info.can_run)
 
 
-def _condition(ctx, tick, stale):
+def _condition(ctx: _Ctx, tick: Tick, stale: Optional[int]) -> int:
     """The status of an IfThenElse/WhileDoElse condition: the one its leaf kept (profile
     switch ``stale_condition``; ``stale`` is then its memory slot), else a fresh tick."""
     if stale is not None and ctx.s[stale]:
@@ -997,7 +1030,7 @@ def _threshold(value: int, count: int) -> int:
     return value if value >= 0 else max(count + value + 1, 0)
 
 
-def _halt_running(ctx, pairs):
+def _halt_running(ctx: _Ctx, pairs: Halts) -> None:
     """Halt each ``(flag, halt)`` whose running flag is set (section 4): the children a node
     leaves running, or halt before start's competing branches."""
     s = ctx.s
@@ -1006,7 +1039,7 @@ def _halt_running(ctx, pairs):
             halt(ctx)
 
 
-def _exclusive_check(ctx, rivals):
+def _exclusive_check(ctx: _Ctx, rivals: tuple[Any, ...]) -> None:
     s = ctx.s
     for flag, violation, event in rivals:
         if s[flag]:
@@ -1015,7 +1048,7 @@ def _exclusive_check(ctx, rivals):
                 ctx.rec.append(event)
 
 
-def _exclusive_end(ctx, groups):
+def _exclusive_end(ctx: _Ctx, groups: tuple[Any, ...]) -> None:
     """Rule 'Exclusive resources' at the end of a tick: two leaves of one resource running."""
     s = ctx.s
     for res, flags in groups:
@@ -1031,48 +1064,49 @@ def _exclusive_end(ctx, groups):
                 break
 
 
-def _site_halt(site):
+def _site_halt(site: Site) -> Halt:
     """leave(ctx) of an FSM state that runs a primitive: the run is abandoned (a timed run's
     counter starts afresh, rule 'Durations') and the oracle is told."""
     timer = site.timer
     if timer is None:
         return lambda ctx: ctx.oracle.halt(site)
 
-    def leave(ctx):
+    def leave(ctx: _Ctx) -> None:
         ctx.s[timer] = 0
         ctx.oracle.halt(site)
     return leave
 
 
-def _apply(ctx, eff):
+def _apply(ctx: _Ctx, eff: Any) -> None:
     eff(ctx.s)
     if ctx.rec is not None:
         _record_writes(ctx, eff)
 
 
-def _record_writes(ctx, eff):
+def _record_writes(ctx: _Ctx, eff: Any) -> None:
     s = ctx.s
     ctx.rec.extend([("write", idx, s[idx]) for idx in eff.targets])
 
 
-def _param(value, lo, hi, is_bool, pname, node):
-    value = int(value)
-    if not lo <= value <= hi:
+def _param(value: Any, lo: int, hi: int, is_bool: bool, pname: str, node: str) -> int:
+    out = int(value)
+    if not lo <= out <= hi:
         from .errors import DomainError
 
-        raise DomainError(pname, value, f"tree.{node}.params")
-    return value
+        raise DomainError(pname, out, f"tree.{node}.params")
+    return out
 
 
-def _lca(a, b):
+def _lca(a: _N, b: _N) -> tuple[_N, Node]:
     """Lowest common ancestor of two node infos and the child of it on b's side."""
     ancestors = []
-    x = a
+    x: Optional[_N] = a
     while x is not None:
         ancestors.append(x)
         x = x.parent
     seen = {id(x) for x in ancestors}
-    prev, y = None, b
+    prev: Optional[_N] = None
+    y: Any = b
     while id(y) not in seen:
         prev, y = y, y.parent
     return y, (prev.node if prev is not None else b.node)
@@ -1092,7 +1126,7 @@ def _reactive(prog: Program, c: NodeRule) -> Tick:
     halts = tuple(c.later_halts(i) for i in range(len(kids)))
     pairs = tuple(zip(kids, halts))
 
-    def tick(ctx):
+    def tick(ctx: _Ctx) -> int:
         for child, hs in pairs:
             st = child(ctx)
             if st != go_on:
@@ -1112,7 +1146,7 @@ def _memory(prog: Program, c: NodeRule) -> Tick:
     go_on = SUCCESS if isinstance(n, MemorySequence) else FAILURE
     mem, count = info.mem, len(kids)
 
-    def tick(ctx):
+    def tick(ctx: _Ctx) -> int:
         s = ctx.s
         i = s[mem]
         while i < count:
@@ -1153,7 +1187,7 @@ def _parallel(prog: Program, c: NodeRule) -> Tick:
     if info.mems:
         return prog._parallel_memory(info, kids, need, fail_at, halts, finish)
 
-    def tick(ctx):
+    def tick(ctx: _Ctx) -> int:
         ok = bad = 0
         for child in kids:
             st = child(ctx)
@@ -1183,7 +1217,7 @@ def _parallel_all(prog: Program, c: NodeRule) -> Tick:
     halts = tuple((k.flag, k.halt) for k in info.kids if k.can_run)
     pairs = tuple(zip(kids, mems))
 
-    def tick(ctx):
+    def tick(ctx: _Ctx) -> int:
         s = ctx.s
         for child, m in pairs:
             if not s[m]:
@@ -1211,7 +1245,7 @@ def _sequence_with_memory(prog: Program, c: NodeRule) -> Tick:
     wake, signal = prog.profile.loop_wake_up, prog._signal(info)
     steps = tuple((child, k.flag) for child, k in zip(kids, info.kids))
 
-    def tick(ctx):
+    def tick(ctx: _Ctx) -> int:
         s = ctx.s
         i = s[keep]
         while i < count:
@@ -1239,7 +1273,7 @@ def _if_then_else(prog: Program, c: NodeRule) -> Tick:
     mem, stale, count = info.mem, info.stale, len(kids)
     halts = tuple((k.flag, k.halt) for k in info.kids if k.can_run)
 
-    def tick(ctx):
+    def tick(ctx: _Ctx) -> int:
         s = ctx.s
         i = s[mem]
         if i == 0:
@@ -1271,13 +1305,13 @@ def _while_do_else(prog: Program, c: NodeRule) -> Tick:
     info, kids, finish = c.info, c.kids, c.finish
     stale, count = info.stale, len(kids)
     halts = tuple((k.flag, k.halt) for k in info.kids if k.can_run)
-    other = tuple((k.flag, k.halt) if k.can_run else None for k in info.kids)
+    other: tuple[Any, ...] = tuple((k.flag, k.halt) if k.can_run else None for k in info.kids)
 
-    def halt_kid(ctx, i):
+    def halt_kid(ctx: _Ctx, i: int) -> None:
         if i < count and other[i] is not None and ctx.s[other[i][0]]:
             other[i][1](ctx)
 
-    def tick(ctx):
+    def tick(ctx: _Ctx) -> int:
         s = ctx.s
         c = _condition(ctx, kids[0], stale)
         if c == RUNNING:
@@ -1327,7 +1361,7 @@ def _retry_repeat(prog: Program, c: NodeRule) -> Tick:
     if prog.profile.loop_wake_up:
         signal = prog._signal(info)
 
-        def tick(ctx):
+        def tick_wake(ctx: _Ctx) -> int:
             s = ctx.s
             k = s[mem]
             for _ in range(2):  # a child that had been running may finish and start again
@@ -1349,9 +1383,9 @@ def _retry_repeat(prog: Program, c: NodeRule) -> Tick:
                         s[signal] = 1
                     return finish(RUNNING, ctx)
             raise AssertionError("unreachable: the second attempt started from idle")
-        return tick
+        return tick_wake
 
-    def tick(ctx):
+    def tick(ctx: _Ctx) -> int:
         st = child(ctx)
         s = ctx.s
         if st == again:
@@ -1384,7 +1418,7 @@ def _running_is(prog: Program, c: NodeRule) -> Tick:
     child, kid = kids[0], info.kids[0]
     instead = FAILURE if isinstance(n, RunningIsFailure) else SUCCESS
 
-    def tick(ctx):
+    def tick(ctx: _Ctx) -> int:
         st = child(ctx)
         if st != RUNNING:
             return finish(st, ctx)
@@ -1402,7 +1436,7 @@ def _run_once(prog: Program, c: NodeRule) -> Tick:
                                                "run, which btfsm does not model; use then_skip: false")
     child, keep = kids[0], info.keep
 
-    def tick(ctx):
+    def tick(ctx: _Ctx) -> int:
         s = ctx.s
         done = s[keep]
         if done:
@@ -1421,7 +1455,7 @@ def _guard(prog: Program, c: NodeRule) -> Tick:
     child, kid = kids[0], info.kids[0]
     cond = compile_fn(n.condition, prog.scope, f"{where}.condition", BOOL)
 
-    def tick(ctx):
+    def tick(ctx: _Ctx) -> int:
         s = ctx.s
         if cond(s):
             return finish(child(ctx), ctx)
@@ -1441,7 +1475,7 @@ def _effects(prog: Program, c: NodeRule) -> Tick:
             compile_effects(n.on_success, prog.scope, f"{where}.on_success"),
             compile_effects(n.on_failure, prog.scope, f"{where}.on_failure"))
 
-    def tick(ctx):
+    def tick(ctx: _Ctx) -> int:
         if start is not None and (flag is None or not ctx.s[flag]):
             _apply(ctx, start)
         st = child(ctx)
@@ -1468,7 +1502,7 @@ def _action(prog: Program, c: NodeRule) -> Tick:
     info.node_site = site
     run = prog._exclusive_start(info, prog._primitive_runner(site))
 
-    def tick(ctx):
+    def tick(ctx: _Ctx) -> int:
         if flag is not None and not ctx.s[flag]:
             _halt_running(ctx, conflicts)
         return finish(run(ctx), ctx)
@@ -1485,16 +1519,16 @@ def _skill_request(prog: Program, c: NodeRule) -> Tick:
     g = f.goals.index(n.goal)
     pre = compile_fn(n.pre, prog.scope, f"{where}.pre", BOOL) if n.pre is not None else None
     post = compile_fn(n.post, prog.scope, f"{where}.post", BOOL) if n.post is not None else None
-    pfns = []
+    found = []
     for p in f.params:
         expr = dict(n.params)[p.name]
         ptype = Type(p.kind, p.values) if p.kind == "enum" else Type(p.kind)
         fn = compile_fn(expr, prog.scope, f"{where}.params.{p.name}", ptype)
-        pfns.append((fn, p.lo, p.hi, p.kind == "bool", p.name))
-    pfns = tuple(pfns)
+        found.append((fn, p.lo, p.hi, p.kind == "bool", p.name))
+    pfns = tuple(found)
     rivals = prog._rivals(info)
 
-    def tick(ctx):
+    def tick(ctx: _Ctx) -> int:
         s = ctx.s
         starting = not s[flag]
         if starting:
@@ -1522,7 +1556,7 @@ def _pipeline_sequence(prog: Program, c: NodeRule) -> Tick:
     info, kids, finish = c.info, c.kids, c.finish
     s_mem, count, every = info.mem, len(kids), c.halts()  # every: BT.CPP's haltChildren()
 
-    def tick(ctx):
+    def tick(ctx: _Ctx) -> int:
         s = ctx.s
         last = s[s_mem]
         for i in range(count):
@@ -1552,12 +1586,12 @@ def _recovery_node(prog: Program, c: NodeRule) -> Tick:
     halt0 = ((k0.flag, k0.halt),) if k0.can_run else ()
     halt1 = ((k1.flag, k1.halt),) if k1.can_run else ()
 
-    def end(ctx, st):
+    def end(ctx: _Ctx, st: int) -> int:
         _halt_running(ctx, every)  # halt(): the children, the index and the count
         ctx.s[s_mem] = 0
         return finish(st, ctx)
 
-    def tick(ctx):
+    def tick(ctx: _Ctx) -> int:
         s = ctx.s
         retry = s[s_mem]
         recovering = k1.flag is not None and s[k1.flag]  # current_child_idx_ == 1
@@ -1595,7 +1629,7 @@ def _round_robin(prog: Program, c: NodeRule) -> Tick:
     s_mem, count, every = info.mem, len(kids), c.halts()  # every: BT.CPP's haltChildren()
     fail_mem, wrap = info.mems[0], n.wrap_around
 
-    def tick(ctx):
+    def tick(ctx: _Ctx) -> int:
         s = ctx.s
         i, failed = s[s_mem], s[fail_mem]
         while failed < count:
