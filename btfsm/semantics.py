@@ -39,7 +39,7 @@ from .profiles import profile
 from .timing import duration_ticks, interval_ticks
 from .status import Status
 
-__all__ = ["Program", "Site", "Step", "SlotInfo", "RULES", "rule", "NodeRule", "Tick"]
+__all__ = ["Program", "Site", "Step", "SlotInfo", "RULES", "SLOTS", "CAN_RUN", "rule", "NodeRule", "Tick"]
 
 RUNNING, SUCCESS, FAILURE = int(Status.RUNNING), int(Status.SUCCESS), int(Status.FAILURE)
 _INVERT = (RUNNING, FAILURE, SUCCESS)
@@ -150,15 +150,28 @@ Halts = tuple[tuple[int, Halt], ...]
 Finish = Callable[[int, "_Ctx"], int]
 #: node type -> the function that compiles its tick rule: ``rule(program, NodeRule) -> Tick``
 RULES: "dict[type[Node], Callable[[Program, NodeRule], Tick]]" = {}
+#: node type -> ``slots(program, info)``: lays out the memory its rule keeps between ticks
+SLOTS: "dict[type[Node], Callable[[Program, _N], None]]" = {}
+#: node type -> ``can_run(program, info)``: whether it can return RUNNING (default: a child can)
+CAN_RUN: "dict[type[Node], Callable[[Program, _N], bool]]" = {}
 
 
-def rule(*types: "type[Node]") -> "Callable[[Callable[[Program, NodeRule], Tick]], Callable[[Program, NodeRule], Tick]]":
+def rule(*types: "type[Node]", slots: "Optional[Callable[[Program, _N], None]]" = None,
+         can_run: "Optional[Callable[[Program, _N], bool]]" = None,
+         ) -> "Callable[[Callable[[Program, NodeRule], Tick]], Callable[[Program, NodeRule], Tick]]":
     """Register the decorated function as the tick rule of the node ``types``: called once
-    per node when a model compiles, it returns the node's tick function. docs/nodes.md
-    shows a whole new node type."""
+    per node when a model compiles, it returns the node's tick function. ``slots`` lays
+    out the node's memory (``program._slot(...)`` into ``info.mem``, ``info.keep``,
+    ``info.mems``, ``info.stale``: a halt resets all but ``keep``); ``can_run`` says
+    whether the node can return RUNNING when that is not just "a child can".
+    docs/nodes.md shows a whole new node type."""
     def register(fn: "Callable[[Program, NodeRule], Tick]") -> "Callable[[Program, NodeRule], Tick]":
         for t in types:
             RULES[t] = fn
+            if slots is not None:
+                SLOTS[t] = slots
+            if can_run is not None:
+                CAN_RUN[t] = can_run
         return fn
     return register
 
@@ -274,37 +287,9 @@ class Program:
             n = info.node
             if info.can_run:
                 info.flag = self._slot(f"{n.name}:running", "flag", 2)
-            if isinstance(n, (MemorySequence, MemoryFallback)):
-                info.mem = self._slot(f"{n.name}:child", "memory", len(n.children))
-            elif isinstance(n, SequenceWithMemory):
-                info.keep = self._slot(f"{n.name}:child", "memory", max(len(n.children), 1))
-            elif isinstance(n, ParallelAll) or (isinstance(n, Parallel) and self.profile.parallel_memory):
-                # which children finished: 0 not yet, else their status (SUCCESS 1, FAILURE 2)
-                info.mems = tuple(self._slot(f"{n.name}:done{i}", "memory", 3) for i in range(len(n.children)))
-            elif isinstance(n, IfThenElse):
-                info.mem = self._slot(f"{n.name}:branch", "memory", 3)
-            elif isinstance(n, RunOnce):
-                info.keep = self._slot(f"{n.name}:result", "memory", 3)
-            elif isinstance(n, Retry):
-                info.mem = self._slot(f"{n.name}:failures", "memory", max(n.attempts, 1))
-            elif isinstance(n, Repeat):
-                info.mem = self._slot(f"{n.name}:done", "memory", max(n.times, 1))
-            elif isinstance(n, PipelineSequence):
-                info.mem = self._slot(f"{n.name}:last", "memory", max(len(n.children), 1))
-            elif isinstance(n, RecoveryNode):
-                info.mem = self._slot(f"{n.name}:retries", "memory", n.retries + 1)
-            elif isinstance(n, RoundRobin):
-                # the child to tick next (kept when the node finishes, reset by a halt) and the
-                # failures in a row of this run
-                info.mem = self._slot(f"{n.name}:child", "memory", max(len(n.children), 1))
-                info.mems = (self._slot(f"{n.name}:failed", "memory", max(len(n.children), 1)),)
-            elif isinstance(n, Parallel) and n.synchronise and info.can_run:
-                # rule 'parallel synchronise': which children succeeded since the parallel started
-                info.mems = tuple(self._slot(f"{n.name}:succeeded:{k.node.name}", "memory", 2) for k in info.kids)
-            if (isinstance(n, (IfThenElse, WhileDoElse)) and self.profile.stale_condition and info.kids
-                    and _stateful(info.kids[0])):
-                # the condition leaf's last status while the node keeps it (0: none)
-                info.stale = self._slot(f"{n.name}:condition", "memory", 3)
+            slots = SLOTS.get(type(n))
+            if slots is not None:  # the memory the type's rule keeps between ticks
+                slots(self, info)
 
     def _wake_slot(self) -> Optional[int]:
         """Rule 'tickOnce' (docs/semantics.md 8.1): under ``loop_wake_up`` with
@@ -331,24 +316,11 @@ class Program:
             self._collect(child, info, root)
 
     def _can_run(self, info: _N) -> bool:
-        n = info.node
-        if isinstance(n, Condition):
-            return False
-        if isinstance(n, Action):
-            return Status.RUNNING in self.prims[n.primitive].statuses()
-        if isinstance(n, SkillRequest):
-            return True
-        if isinstance(n, Retry):
-            return n.attempts > 1 or info.kids[0].can_run
-        if isinstance(n, Repeat):
-            return n.times > 1 or info.kids[0].can_run
-        if isinstance(n, (KeepRunningUntilFailure, FailureIsRunning)):
-            return True
-        if isinstance(n, SequenceWithMemory) and self.profile.loop_wake_up and len(info.kids) > 1:
-            return True  # RUNNING after a child that succeeded at once (the wake-up)
-        # a Parallel of instant children decides every tick (S successes, or too many
-        # failures for S): like every other composite it runs only through a child
-        return any(k.can_run for k in info.kids)
+        """Whether the node can return RUNNING (it then has a running flag): its type's
+        ``can_run`` (``rule``), else whether a child can (a Parallel of instant children
+        decides every tick: like every other composite it runs only through a child)."""
+        can_run = CAN_RUN.get(type(info.node))
+        return can_run(self, info) if can_run is not None else any(k.can_run for k in info.kids)
 
     # ------------------------------------------------------------------ helpers
     def _predicate(self, expr: Any, where: str) -> Callable[[Any], bool]:
@@ -1118,6 +1090,91 @@ def _lca(a: _N, b: _N) -> tuple[_N, Node]:
 # function; the closures are the hot path of every tick.
 
 
+def _never(prog: Program, info: _N) -> bool:
+    return False
+
+
+def _always(prog: Program, info: _N) -> bool:
+    return True
+
+
+def _child_slot(prog: Program, info: _N) -> None:
+    info.mem = prog._slot(f"{info.node.name}:child", "memory", len(info.node.children_of()))
+
+
+def _done_slots(prog: Program, info: _N) -> None:
+    # which children finished: 0 not yet, else their status (SUCCESS 1, FAILURE 2)
+    info.mems = tuple(prog._slot(f"{info.node.name}:done{i}", "memory", 3) for i in range(len(info.kids)))
+
+
+def _parallel_slots(prog: Program, info: _N) -> None:
+    n: Any = info.node
+    if prog.profile.parallel_memory:
+        _done_slots(prog, info)
+    elif n.synchronise and info.can_run:
+        # rule 'parallel synchronise': which children succeeded since the parallel started
+        info.mems = tuple(prog._slot(f"{n.name}:succeeded:{k.node.name}", "memory", 2) for k in info.kids)
+
+
+def _stale_slot(prog: Program, info: _N) -> None:
+    if prog.profile.stale_condition and info.kids and _stateful(info.kids[0]):
+        # the condition leaf's last status while the node keeps it (0: none)
+        info.stale = prog._slot(f"{info.node.name}:condition", "memory", 3)
+
+
+def _if_then_else_slots(prog: Program, info: _N) -> None:
+    info.mem = prog._slot(f"{info.node.name}:branch", "memory", 3)
+    _stale_slot(prog, info)
+
+
+def _sequence_with_memory_slots(prog: Program, info: _N) -> None:
+    info.keep = prog._slot(f"{info.node.name}:child", "memory", max(len(info.kids), 1))
+
+
+def _sequence_with_memory_can_run(prog: Program, info: _N) -> bool:
+    # RUNNING after a child that succeeded at once (the wake-up)
+    return (prog.profile.loop_wake_up and len(info.kids) > 1) or any(k.can_run for k in info.kids)
+
+
+def _loop_slots(prog: Program, info: _N) -> None:
+    n: Any = info.node
+    if isinstance(n, Retry):
+        info.mem = prog._slot(f"{n.name}:failures", "memory", max(n.attempts, 1))
+    else:
+        info.mem = prog._slot(f"{n.name}:done", "memory", max(n.times, 1))
+
+
+def _loop_can_run(prog: Program, info: _N) -> bool:
+    n: Any = info.node
+    return (n.attempts if isinstance(n, Retry) else n.times) > 1 or bool(info.kids[0].can_run)
+
+
+def _run_once_slots(prog: Program, info: _N) -> None:
+    info.keep = prog._slot(f"{info.node.name}:result", "memory", 3)
+
+
+def _action_can_run(prog: Program, info: _N) -> bool:
+    n: Any = info.node
+    return Status.RUNNING in prog.prims[n.primitive].statuses()
+
+
+def _pipeline_slots(prog: Program, info: _N) -> None:
+    info.mem = prog._slot(f"{info.node.name}:last", "memory", max(len(info.kids), 1))
+
+
+def _recovery_slots(prog: Program, info: _N) -> None:
+    n: Any = info.node
+    info.mem = prog._slot(f"{n.name}:retries", "memory", n.retries + 1)
+
+
+def _round_robin_slots(prog: Program, info: _N) -> None:
+    # the child to tick next (kept when the node finishes, reset by a halt) and the
+    # failures in a row of this run
+    count = max(len(info.kids), 1)
+    info.mem = prog._slot(f"{info.node.name}:child", "memory", count)
+    info.mems = (prog._slot(f"{info.node.name}:failed", "memory", count),)
+
+
 @rule(ReactiveSequence, ReactiveFallback)
 def _reactive(prog: Program, c: NodeRule) -> Tick:
     """Rules 'ReactiveSequence' and 'ReactiveFallback' (docs/semantics.md section 2)."""
@@ -1139,7 +1196,7 @@ def _reactive(prog: Program, c: NodeRule) -> Tick:
     return tick
 
 
-@rule(MemorySequence, MemoryFallback)
+@rule(MemorySequence, MemoryFallback, slots=_child_slot)
 def _memory(prog: Program, c: NodeRule) -> Tick:
     """Rules 'MemorySequence' and 'MemoryFallback' (section 2)."""
     n, info, kids, finish = c.node, c.info, c.kids, c.finish
@@ -1160,7 +1217,7 @@ def _memory(prog: Program, c: NodeRule) -> Tick:
     return tick
 
 
-@rule(Parallel)
+@rule(Parallel, slots=_parallel_slots)
 def _parallel(prog: Program, c: NodeRule) -> Tick:
     """Rule 'Parallel' (section 2; BehaviorTree.CPP's and py_trees' variants: section 8)."""
     n, info, kids, finish, where = c.node, c.info, c.kids, c.finish, c.where
@@ -1206,7 +1263,7 @@ def _parallel(prog: Program, c: NodeRule) -> Tick:
     return tick
 
 
-@rule(ParallelAll)
+@rule(ParallelAll, slots=_done_slots)
 def _parallel_all(prog: Program, c: NodeRule) -> Tick:
     """Rule 'ParallelAll' (section 2)."""
     n, info, kids, finish, where = c.node, c.info, c.kids, c.finish, c.where
@@ -1237,7 +1294,7 @@ def _parallel_all(prog: Program, c: NodeRule) -> Tick:
     return tick
 
 
-@rule(SequenceWithMemory)
+@rule(SequenceWithMemory, slots=_sequence_with_memory_slots, can_run=_sequence_with_memory_can_run)
 def _sequence_with_memory(prog: Program, c: NodeRule) -> Tick:
     """Rule 'SequenceWithMemory' (section 2; the wake-up under ``loop_wake_up``: section 8.1)."""
     info, kids, finish = c.info, c.kids, c.finish
@@ -1266,7 +1323,7 @@ def _sequence_with_memory(prog: Program, c: NodeRule) -> Tick:
     return tick
 
 
-@rule(IfThenElse)
+@rule(IfThenElse, slots=_if_then_else_slots)
 def _if_then_else(prog: Program, c: NodeRule) -> Tick:
     """Rule 'IfThenElse' (section 2; a stale condition under ``stale_condition``: section 8.1)."""
     info, kids, finish = c.info, c.kids, c.finish
@@ -1299,7 +1356,7 @@ def _if_then_else(prog: Program, c: NodeRule) -> Tick:
         return finish(st, ctx)
     return tick
 
-@rule(WhileDoElse)
+@rule(WhileDoElse, slots=_stale_slot)
 def _while_do_else(prog: Program, c: NodeRule) -> Tick:
     """Rule 'WhileDoElse' (section 2; a stale condition under ``stale_condition``: section 8.1)."""
     info, kids, finish = c.info, c.kids, c.finish
@@ -1350,7 +1407,10 @@ def _status_map(prog: Program, c: NodeRule) -> Tick:
     return lambda ctx: finish(table[child(ctx)], ctx)
 
 
-@rule(Retry, Repeat)
+rule(KeepRunningUntilFailure, FailureIsRunning, can_run=_always)(_status_map)  # they make RUNNING themselves
+
+
+@rule(Retry, Repeat, slots=_loop_slots, can_run=_loop_can_run)
 def _retry_repeat(prog: Program, c: NodeRule) -> Tick:
     """Rules 'Retry' and 'Repeat' (section 3; under ``loop_wake_up``: section 8.1)."""
     n, info, kids, finish = c.node, c.info, c.kids, c.finish
@@ -1427,7 +1487,7 @@ def _running_is(prog: Program, c: NodeRule) -> Tick:
     return tick
 
 
-@rule(RunOnce)
+@rule(RunOnce, slots=_run_once_slots)
 def _run_once(prog: Program, c: NodeRule) -> Tick:
     """Rule 'RunOnce' (section 3)."""
     n, info, kids, finish, where = c.node, c.info, c.kids, c.finish, c.where
@@ -1485,7 +1545,7 @@ def _effects(prog: Program, c: NodeRule) -> Tick:
     return tick
 
 
-@rule(Condition)
+@rule(Condition, can_run=_never)
 def _condition_leaf(prog: Program, c: NodeRule) -> Tick:
     """Rule 'Condition' (section 3)."""
     n, finish, where = c.node, c.finish, c.where
@@ -1493,7 +1553,7 @@ def _condition_leaf(prog: Program, c: NodeRule) -> Tick:
     return lambda ctx: finish(SUCCESS if cond(ctx.s) else FAILURE, ctx)
 
 
-@rule(Action)
+@rule(Action, can_run=_action_can_run)
 def _action(prog: Program, c: NodeRule) -> Tick:
     """Rule 'Action' (section 3; halt before start: section 4)."""
     n, info, finish, where, flag = c.node, c.info, c.finish, c.where, c.flag
@@ -1509,7 +1569,7 @@ def _action(prog: Program, c: NodeRule) -> Tick:
     return tick
 
 
-@rule(SkillRequest)
+@rule(SkillRequest, can_run=_always)
 def _skill_request(prog: Program, c: NodeRule) -> Tick:
     """Rule 'SkillRequest' (section 3; the FSM tick: section 5)."""
     n, info, finish, where, flag, name = c.node, c.info, c.finish, c.where, c.flag, c.name
@@ -1549,7 +1609,7 @@ def _skill_request(prog: Program, c: NodeRule) -> Tick:
     return tick
 
 
-@rule(PipelineSequence)
+@rule(PipelineSequence, slots=_pipeline_slots)
 def _pipeline_sequence(prog: Program, c: NodeRule) -> Tick:
     """Rule 'PipelineSequence' (docs/semantics.md 8.3), ported from navigation2's
     nav2_behavior_tree/plugins/control/pipeline_sequence.cpp."""
@@ -1575,7 +1635,7 @@ def _pipeline_sequence(prog: Program, c: NodeRule) -> Tick:
     return tick
 
 
-@rule(RecoveryNode)
+@rule(RecoveryNode, slots=_recovery_slots)
 def _recovery_node(prog: Program, c: NodeRule) -> Tick:
     """Rule 'RecoveryNode' (docs/semantics.md 8.3), ported from navigation2's recovery_node.cpp."""
     n, info, kids, finish = c.node, c.info, c.kids, c.finish
@@ -1622,7 +1682,7 @@ def _recovery_node(prog: Program, c: NodeRule) -> Tick:
     return tick
 
 
-@rule(RoundRobin)
+@rule(RoundRobin, slots=_round_robin_slots)
 def _round_robin(prog: Program, c: NodeRule) -> Tick:
     """Rule 'RoundRobin' (docs/semantics.md 8.3), ported from navigation2's round_robin_node.cpp."""
     n, info, kids, finish = c.node, c.info, c.kids, c.finish

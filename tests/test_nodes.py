@@ -20,7 +20,7 @@ from btfsm.errors import ModelError
 from btfsm.files import dumps_model, loads_data, loads_model
 from btfsm.files.schema import SCHEMA_FILE, node_definitions, shipped_node_definitions
 from btfsm.oracles import ScriptOracle
-from btfsm.semantics import RULES
+from btfsm.semantics import CAN_RUN, RULES, SLOTS
 from btfsm.status import Status
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -115,16 +115,16 @@ def _doc_blocks():
 @pytest.fixture
 def worked_example():
     code, yaml_text = _doc_blocks()
-    before = dict(NODE_TYPES), dict(RULES)
+    tables = (NODE_TYPES, RULES, SLOTS, CAN_RUN)
+    before = [dict(x) for x in tables]
     ns: dict = {}
     exec(compile(code, "docs/nodes.md", "exec"), ns)
     try:
         yield ns["StatusOverride"], yaml_text
     finally:
-        NODE_TYPES.clear()
-        NODE_TYPES.update(before[0])
-        RULES.clear()
-        RULES.update(before[1])
+        for table, old in zip(tables, before):
+            table.clear()
+            table.update(old)
 
 
 def test_the_worked_example_of_docs_nodes(worked_example):
