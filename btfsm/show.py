@@ -26,9 +26,7 @@ import sys
 from pathlib import Path
 from typing import Any, cast
 
-from .bt import (Action, Composite, Condition, Decorator, Effects, ForceFailure, ForceSuccess, Guard, Inverter,
-                 MemoryFallback, MemorySequence, Parallel, ReactiveFallback, ReactiveSequence, Repeat,
-                 Retry, SkillRequest)
+from .bt import Action, Composite, Condition, Decorator, Effects, Guard, Parallel, Repeat, Retry, SkillRequest
 from .errors import UsageError
 from .escape import dot_string
 from .expr import Expr, to_text
@@ -38,8 +36,6 @@ __all__ = ["tree_to_dot", "fsm_to_dot", "pictures", "render", "GraphvizError", "
 
 RENDER_TIMEOUT = 60  # seconds for one dot run
 
-_SYMBOL = {ReactiveSequence: "->", MemorySequence: "->*", ReactiveFallback: "?", MemoryFallback: "?*"}
-_DECORATOR = {Inverter: "NOT", ForceSuccess: "ForceSuccess", ForceFailure: "ForceFailure"}
 _TRIGGER_COLOR = {"success": "black", "failure": "firebrick", "running": "royalblue", "direct": "gray30"}
 
 
@@ -72,9 +68,8 @@ def _constant(v) -> str:
 
 def _node_look(n) -> dict:
     """dot attributes (shape, label, style) of one tree node."""
-    cls = type(n)
-    if cls in _SYMBOL:
-        return {"shape": "box", "label": f"{_SYMBOL[cls]}\n{n.name}", "style": "filled", "fillcolor": "gray92"}
+    if isinstance(n, Composite) and n.glyph:  # the classes' symbols (btfsm.bt): -> ? ...
+        return {"shape": "box", "label": f"{n.glyph}\n{n.name}", "style": "filled", "fillcolor": "gray92"}
     if isinstance(n, Parallel):
         s = "all" if n.success_threshold is None else n.success_threshold
         s = f"S={','.join(n.selected)}" if n.selected else f"S>={s}"
@@ -95,7 +90,7 @@ def _node_look(n) -> dict:
                      for t in _effects_text(getattr(n, f))]
             head = "\n".join(["Effects"] + lines)
         else:
-            head = _DECORATOR.get(type(n), type(n).__name__)
+            head = n.glyph or type(n).__name__
         return {"shape": "hexagon", "label": f"{head}\n{n.name}", "style": "filled", "fillcolor": "lavender"}
     if isinstance(n, Condition):
         return {"shape": "ellipse", "label": f"{n.name}\n{to_text(cast(Expr, n.expr))}", "style": "filled", "fillcolor": "lightyellow"}

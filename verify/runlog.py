@@ -28,7 +28,7 @@ import sys
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any, Sequence, cast
 
-from btfsm.bt import Condition, Leaf, SubTree
+from btfsm.bt import Condition, Leaf, SubTree, names_in
 from btfsm.errors import ModelError
 from btfsm.interop.btcpp_import import CONTROLS, DECORATORS
 from btfsm.interop.btlog import MAGIC, STATUS_NAMES, read_btlog
@@ -489,12 +489,18 @@ def read_pytrees_run(text: str, file: str) -> PytreesRun:
     return PytreesRun(nodes, ticks)
 
 
-_PYTREES_KNOWN = {"Sequence": None, "Selector": None, "Parallel": "Parallel", "Inverter": "Inverter",
-                  "FailureIsSuccess": "ForceSuccess", "SuccessIsFailure": "ForceFailure", "Retry": "Retry",
-                  # a Repeat whose count py_trees never reaches is imported as KeepRunningUntilFailure
-                  "Repeat": "Repeat|KeepRunningUntilFailure", "SuccessIsRunning": "KeepRunningUntilFailure",
-                  "FailureIsRunning": "FailureIsRunning", "RunningIsFailure": "RunningIsFailure",
-                  "RunningIsSuccess": "RunningIsSuccess", "EternalGuard": "Guard"}
+def _pytrees_known() -> dict:
+    """py_trees class name -> the btfsm node type it records (the node classes' ``pytrees``
+    names); None for a class that stands for several (Sequence, Selector: memory decides)."""
+    types: dict = {}
+    for key, name in names_in("pytrees").items():
+        types.setdefault(name.split("(")[0], []).append(key)
+    out = {name: keys[0] if len(keys) == 1 else None for name, keys in types.items()}
+    out["Repeat"] = "Repeat|KeepRunningUntilFailure"  # a count py_trees never reaches is imported as the latter
+    return out
+
+
+_PYTREES_KNOWN = _pytrees_known()
 _PY_STATUS = {"RUNNING": 0, "SUCCESS": 1, "FAILURE": 2}
 
 

@@ -53,24 +53,15 @@ from __future__ import annotations
 
 import re
 
-from ..bt import (Action, Condition, Effects, ForceFailure, ForceSuccess, Guard, IfThenElse, Inverter,
-                  KeepRunningUntilFailure, MemoryFallback, MemorySequence, Parallel, ParallelAll,
-                  ReactiveFallback, ReactiveSequence, Repeat, Retry, RunOnce, SequenceWithMemory,
-                  SkillRequest, SubTree, WhileDoElse)
+from ..bt import (NODE_TYPES, Action, Composite, Condition, Decorator, Effects, Guard, Parallel, SkillRequest, SubTree,
+                  btcpp_tags, file_fields)
 from ..errors import ModelError
 from ..expr import to_text
 
 __all__ = ["to_btcpp_xml", "xml_attr", "TAGS"]
 
-TAGS = {
-    MemorySequence: "Sequence", SequenceWithMemory: "SequenceWithMemory", ReactiveSequence: "ReactiveSequence",
-    MemoryFallback: "Fallback", ReactiveFallback: "ReactiveFallback", Parallel: "Parallel",
-    ParallelAll: "ParallelAll", IfThenElse: "IfThenElse", WhileDoElse: "WhileDoElse",
-    Inverter: "Inverter", ForceSuccess: "ForceSuccess", ForceFailure: "ForceFailure",
-    Retry: "RetryUntilSuccessful", Repeat: "Repeat", KeepRunningUntilFailure: "KeepRunningUntilFailure",
-    RunOnce: "RunOnce",
-}
-"""btfsm node type -> BehaviorTree.CPP XML tag (controls and decorators)."""
+TAGS = {NODE_TYPES[key]: tag for kind in (Composite, Decorator) for tag, (key, _) in btcpp_tags(None, kind).items()}
+"""btfsm node type -> BehaviorTree.CPP XML tag (controls and decorators; ``btfsm.bt`` declares them)."""
 
 _XML_NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_.-]*\Z")
 _ESCAPES = {"&": "&amp;", "<": "&lt;", ">": "&gt;", '"': "&quot;", "'": "&apos;",
@@ -101,6 +92,11 @@ def _value(v) -> str:
     if isinstance(v, (tuple, list)):
         return ";".join(_value(x) for x in v)
     return str(v)
+
+
+def _port(v, none) -> str:
+    """A node field's value as its BT.CPP port value (``none``: BT.CPP's value for None)."""
+    return _value(none if v is None else v)
 
 
 def to_btcpp_xml(model) -> str:
@@ -188,21 +184,13 @@ def _node(n, depth, lines, leaves, trees, strip=""):
     tag = TAGS.get(type(n))
     if tag is None:
         raise ModelError(where, f"node type {type(n).__name__} cannot be exported to BehaviorTree.CPP")
-    attrs = ""
     if isinstance(n, Parallel) and n.selected:
         raise ModelError(f"{where}.selected", "selected children (py_trees' SuccessOnSelected) have no "
                                               "BehaviorTree.CPP counterpart; the btcpp export cannot write them")
-    if isinstance(n, Parallel):  # synchronise needs no attribute: BT.CPP never re-ticks finished children
-        s = -1 if n.success_threshold is None else n.success_threshold
-        attrs = f' success_count="{s}" failure_count="{n.failure_threshold}"'
-    elif isinstance(n, ParallelAll):
-        attrs = f' max_failures="{n.max_failures}"'
-    elif isinstance(n, Retry):
-        attrs = f' num_attempts="{n.attempts}"'
-    elif isinstance(n, Repeat):
-        attrs = f' num_cycles="{n.times}"'
-    elif isinstance(n, RunOnce):
-        attrs = f' then_skip="{"true" if n.then_skip else "false"}"'
+    # every field with a BT.CPP port, always (Parallel's synchronise has none: BT.CPP never
+    # re-ticks finished children)
+    attrs = "".join(f' {f.metadata["btcpp"]}="{_port(getattr(n, f.name), f.metadata["btcpp_none"])}"'
+                    for f in file_fields(type(n)) if f.metadata["btcpp"])
     lines.append(f'{pad}<{tag} name="{name}"{attrs}>')
     for child in n.children_of():
         _node(child, depth + 1, lines, leaves, trees, strip)

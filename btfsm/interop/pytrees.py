@@ -70,9 +70,9 @@ except ImportError as exc:  # pragma: no cover - exercised only without py_trees
     raise ImportError("btfsm.interop.pytrees needs py_trees 2.x: pip install 'py_trees>=2.2' "
                       "(or the btfsm 'test' / 'bench' extras)") from exc
 
-from ..bt import (Action, Condition, Effects, FailureIsRunning, ForceFailure, ForceSuccess, Guard, Inverter,
-                  KeepRunningUntilFailure, MemoryFallback, MemorySequence, Node, Parallel, ReactiveFallback,
-                  ReactiveSequence, Repeat, Retry, RunningIsFailure, RunningIsSuccess, SkillRequest)
+from ..bt import (NODE_TYPES, Action, Condition, Decorator, Effects, Guard, KeepRunningUntilFailure, MemoryFallback,
+                  MemorySequence, Node, Parallel, ReactiveFallback, ReactiveSequence, Repeat, Retry, SkillRequest,
+                  file_fields)
 from ..errors import ModelError
 from ..expr import Const, as_expr
 from ..model import EnvChoice, EnvEvent, Model
@@ -87,6 +87,11 @@ Common = py_trees.common
 _TO_PT = {Status.RUNNING: Common.Status.RUNNING, Status.SUCCESS: Common.Status.SUCCESS,
           Status.FAILURE: Common.Status.FAILURE}
 _FROM_PT = {v: k for k, v in _TO_PT.items()}
+#: btfsm decorator -> the py_trees decorator of the same rule that takes only a name and a
+#: child (the node classes' ``pytrees`` names); KeepRunningUntilFailure is written as
+#: ``Repeat(num_success=-1)`` and read from ``SuccessIsRunning`` too
+_PLAIN_DECORATORS: dict[type, str] = {cls: cls.pytrees for cls in NODE_TYPES.values()
+                     if issubclass(cls, Decorator) and cls.pytrees and not file_fields(cls)}
 
 
 class PytreesImportWarning(UserWarning):
@@ -186,22 +191,14 @@ def to_pytrees(model: Model, behaviours: "Callable | dict | None" = None,
             name = n.name
             return py_trees.decorators.EternalGuard(name=name, child=build(cast(Node, n.child)),
                                                     condition=lambda: _guard_open(answer(name), name))
-        simple: dict[type, Any] = {Inverter: py_trees.decorators.Inverter, ForceSuccess: py_trees.decorators.FailureIsSuccess,
-                  ForceFailure: py_trees.decorators.SuccessIsFailure}
-        for node_type, pt in simple.items():
-            if type(n) is node_type:
-                return pt(name=n.name, child=build(cast(Node, getattr(n, "child"))))
         if isinstance(n, Retry):
             return py_trees.decorators.Retry(name=n.name, child=build(cast(Node, n.child)), num_failures=n.attempts)
         if isinstance(n, Repeat):
             return py_trees.decorators.Repeat(name=n.name, child=build(cast(Node, n.child)), num_success=n.times)
         if type(n) is KeepRunningUntilFailure:
             return py_trees.decorators.Repeat(name=n.name, child=build(cast(Node, n.child)), num_success=-1)
-        remaps: dict[type, Any] = {FailureIsRunning: py_trees.decorators.FailureIsRunning,
-                  RunningIsFailure: py_trees.decorators.RunningIsFailure,
-                  RunningIsSuccess: py_trees.decorators.RunningIsSuccess}
-        if type(n) in remaps:
-            return remaps[type(n)](name=n.name, child=build(cast(Node, getattr(n, "child"))))
+        if type(n) in _PLAIN_DECORATORS:
+            return getattr(py_trees.decorators, _PLAIN_DECORATORS[type(n)])(name=n.name, child=build(cast(Node, getattr(n, "child"))))
         if isinstance(n, Effects):
             raise ModelError(where, "Effects has no py_trees counterpart (py_trees behaviours write the blackboard in code)")
         raise ModelError(where, f"{type(n).__name__} has no py_trees counterpart")
@@ -550,18 +547,9 @@ def _import(root, names, leaves, guards, leaf_names, name, semantics, blackboard
                 environment.append(EnvChoice(var, (EnvEvent(f"{var}_true", effects={var: True}),
                                                    EnvEvent(f"{var}_false", effects={var: False}))))
                 return Guard(nm, child, var)
-            if type(b) is D.Inverter:
-                return Inverter(nm, child)
-            if type(b) is D.FailureIsSuccess:
-                return ForceSuccess(nm, child)
-            if type(b) is D.SuccessIsFailure:
-                return ForceFailure(nm, child)
-            if type(b) is D.SuccessIsRunning:  # SUCCESS -> RUNNING, the rest as is
-                return KeepRunningUntilFailure(nm, child)
-            remaps = {D.FailureIsRunning: FailureIsRunning, D.RunningIsFailure: RunningIsFailure,
-                      D.RunningIsSuccess: RunningIsSuccess}
-            if type(b) in remaps:
-                return remaps[type(b)](nm, child)
+            plain = {getattr(D, pt): cls for cls, pt in _PLAIN_DECORATORS.items()}
+            if type(b) in plain:  # Inverter, FailureIsSuccess, SuccessIsRunning...: the btfsm decorator of its rule
+                return plain[type(b)](nm, child)
             if type(b) is D.Retry:
                 # py_trees counts failures and fails when the count reaches num_failures (a
                 # "<" test): any count <= 1 fails at the first failure, as Retry(1) does
