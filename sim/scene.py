@@ -371,6 +371,20 @@ class Profile:
         return self.dist - 0.5 * self.a * r * r
 
 
+def _horizon(m: int, margins, e: float) -> int:
+    """The largest ``j <= m`` (0 if below 2) such that no margin ``a + i * b`` (satisfied
+    when >= 0) changes sign for i <= j when each may be off by ``i * e``."""
+    for a, b in margins:
+        if a >= 0.0:
+            if b - e < 0.0:  # satisfied now; it holds while a + i (b - e) >= 0
+                m = min(m, int(a / (e - b)) - 1)
+        elif b + e > 0.0:  # violated now; it stays so while a + i (b + e) < 0
+            m = min(m, int(-a / (b + e)) - 1)
+        if m < 2:
+            return 0
+    return m
+
+
 # --------------------------------------------------------------------------- world
 _PART, _WALL = 1, 2  # collision types of parts and walls
 INCIDENTS = ("slip", "drop", "collision", "fell_off", "pushed_off", "pushed_out_of_slot", "off_target")
@@ -393,7 +407,7 @@ class _Part:
 class _Robot:
     __slots__ = ("name", "spec", "x", "y", "z", "x0", "y0", "z0", "x1", "y1", "z1", "prof", "k", "moving",
                  "blocked", "holding", "closing", "armed", "faults_in", "tracking", "vel", "arrived", "body", "peak",
-                 "last_v", "anchor")
+                 "last_v", "anchor", "coasting", "cruise_v")
 
     def __init__(self, name, spec):
         self.name, self.spec = name, spec
@@ -412,6 +426,8 @@ class _Robot:
         self.peak = 0.0  # the tool's largest acceleration (m/s^2) while it holds the part
         self.last_v = (0.0, 0.0)  # the tool's velocity in the last step
         self.anchor = (0.0, 0.0)  # where the held part's centre was, relative to the tool, when gripped
+        self.coasting = False  # holding, in a move's constant-velocity phase: Chipmunk moves the tool body
+        self.cruise_v = (0.0, 0.0)  # the tool's velocity in the constant-velocity phase of its move
 
 
 class World:
@@ -452,7 +468,10 @@ class World:
 
         self._cp_step = lib.cpSpaceStep  # our collision callback never changes the space (see ``step``)
         self._cp_pos, self._cp_set_pos, self._cp_set_vel = lib.cpBodyGetPosition, lib.cpBodySetPosition, lib.cpBodySetVelocity
-        self._cp_activate = lib.cpBodyActivate
+        self._cp_activate, self._cp_vel = lib.cpBodyActivate, lib.cpBodyGetVelocity
+        self._contact = False  # a contact callback ran (ends a batch of steps, see ``_coast``)
+        self._wait = 1  # steps to take one at a time before ``_quiet`` looks again
+        self._calm_until = -1  # until this step no belt part can cross a sensor's or sink's edge (``_belt_horizon``)
         sc = self.scene
         space = self.space = pymunk.Space()
         space.iterations = 10
@@ -466,6 +485,7 @@ class World:
         self._belt_body, self._belt_vel = {}, {}
         self._belt_places = [Place("BELT", b) for b in sc.belts]
         self._sensor_regions = [s["region"] for s in sc.sensors.values()]
+        self._watched_regions = self._sensor_regions + list(sc.sinks.values())  # a belt part crossing an edge matters
         self._belt_rows = [(Place("BELT", n), *b["from"], (b["to"][0] - b["from"][0]) / b["length"],
                             (b["to"][1] - b["from"][1]) / b["length"], b["length"], b["width"] / 2, b["end"] == "lost")
                            for n, b in sc.belts.items()]
@@ -505,6 +525,7 @@ class World:
     def _pressed(self, arbiter, space, data) -> None:
         """A part in contact (with a part or a wall) may move: watch it until it rests
         (every step of the contact: a sleeping group of touching parts wakes as a whole)."""
+        self._contact, self._calm_until = True, -1
         for s in arbiter.shapes:
             p = getattr(s.body, "part", None)
             if p is not None and p.place.kind != "BELT":
@@ -512,6 +533,7 @@ class World:
 
     def _touch(self, arbiter, space, data) -> None:
         """Two parts touched: both may now move (they are watched until they rest)."""
+        self._contact, self._calm_until = True, -1
         a, b = (s.body.part for s in arbiter.shapes)
         for p, q in ((a, b), (b, a)):
             p.pushed_by = q.id
@@ -547,6 +569,7 @@ class World:
             self.space.add(pj, gj)
             part.joints = (pj, gj)
             r.peak, r.last_v = 0.0, None  # the tool's acceleration counts from its second step with the part
+            r.coasting = False
             self._disturbed.pop(part.id, None)
             return
         if kind == "BELT":
@@ -636,6 +659,7 @@ class World:
     # ---- place bookkeeping
     def _move(self, part: _Part, place: Place) -> None:
         old = part.place
+        self._calm_until = -1
         if old is not None:
             self.members[old].remove(part.id)
             if old.kind == "BELT":  # the parts queued behind it may move on
@@ -767,7 +791,9 @@ class World:
             if d_z > 0.0:
                 v, a = min(v, zs["speed"] / d_z), min(a, zs["acceleration"] / d_z)
             r.prof = Profile(1.0 if v != math.inf else 0.0, v * speed, a * acc)
-        r.k, r.moving, r.blocked = 0, True, False
+        prof = r.prof
+        r.cruise_v = ((r.x1 - r.x0) * prof.v / prof.dist, (r.y1 - r.y0) * prof.v / prof.dist) if prof.dist > 0.0 else (0.0, 0.0)
+        r.k, r.moving, r.blocked, r.coasting = 0, True, False, False
         return True
 
     def track(self, robot: str, part_id: int, z: "float | None" = None) -> None:
@@ -778,7 +804,7 @@ class World:
         r = self.robots[robot]
         if r.tracking is None:
             r.vel = (0.0, 0.0)
-        r.tracking, r.moving, r.blocked, r.arrived, r.k = part_id, True, False, False, 0
+        r.tracking, r.moving, r.blocked, r.arrived, r.k, r.coasting = part_id, True, False, False, 0, False
         zs = r.spec["z"]
         r.z0, r.z1 = r.z, (r.z if z is None or zs is None else float(z))
         r.prof = Profile(abs(r.z1 - r.z0), zs["speed"], zs["acceleration"]) if zs else Profile(0.0, 1.0, 1.0)
@@ -881,9 +907,30 @@ class World:
 
     # ---- stepping
     def step(self, n: int = 1) -> None:
+        """Advance ``n`` steps of ``dt``. A run of steps in which no Python-side check can
+        fire (``_quiet``) goes to Chipmunk as one batch (``_coast``); its result is the one
+        of stepping one at a time, bit for bit."""
+        wait = 0  # steps to take one at a time before looking for a batch again
+        while n > 0:
+            if wait <= 0 and n > 1:
+                m = self._quiet(n)
+                if m > 1:
+                    k = self._coast(m)
+                    n -= k
+                    if k < m:  # a contact ended the batch: one at a time for the rest of this call
+                        wait = n
+                    continue
+                wait = self._wait
+            j = min(n, max(wait, 1))
+            self._steps(j)
+            n -= j
+            wait -= j
+
+    def _steps(self, n: int) -> None:
+        """``n`` steps one at a time."""
         space, dt, robots = self.space, self.dt, tuple(self.robots.values())
         cp_step, cp_space = self._cp_step, space._space
-        doors, belts, sinks, sensors = bool(self.doors), bool(self.scene.belts), bool(self.scene.sinks), bool(self.scene.sensors)
+        doors, after = bool(self.doors), self._after_step
         for _ in range(n):
             self.steps += 1
             if self.steps * dt + _EPS >= self._next_arrival:
@@ -900,17 +947,188 @@ class World:
                 self._added = False
             else:
                 cp_step(cp_space, dt)  # the same Chipmunk step without pymunk's per-call overhead
-            for r in robots:
-                if r.holding is not None:
-                    self._held(r)
-            if belts:
-                self._belts()
-            if self._disturbed:
-                self._resting()
-            if sinks:
-                self._sinks()
-            if sensors:
-                self._sense()
+            after()
+
+    def _after_step(self) -> None:
+        for r in self.robots.values():
+            if r.holding is not None:
+                self._held(r)
+        if self._belt_rows:
+            self._belts()
+        if self._disturbed:
+            self._resting()
+        if self.scene.sinks:
+            self._sinks()
+        if self._sensor_regions:
+            self._sense()
+
+    def _quiet(self, n: int) -> int:
+        """How many of the next ``n`` steps (0 or 1: none) need no Python-side work
+        between them: no belt arrival is due, no door moves, no resting part is watched,
+        no robot tracks a part, waits for its fingers to close or carries a part other
+        than at constant velocity (at rest or in the cruise phase of a move, the part
+        settled under the tool), and no part on a belt can reach a belt's end or side, a
+        sensor's or a sink's edge, or the reach of an armed gripper: a belt part moves
+        with its belt's body, and while nothing touches it its speed relative to the belt
+        can only fall (its friction joint has no bias), so after ``j`` steps it lies
+        within ``j * dt * (|v - v_belt| + 1 mm/s)`` of where the belt carries it. A
+        contact ends a batch (``_coast``). When it finds no batch, ``self._wait`` says how
+        many steps to take one at a time before looking again (only a matter of speed:
+        stepping one at a time is always right)."""
+        self._wait = 1
+        if self._added or self._disturbed or (self._sensor_regions and len(self.log) != self._sensed_log):
+            return 0
+        dt, steps, m = self.dt, self.steps, n
+        nxt = self._next_arrival
+        if nxt != math.inf:
+            if nxt == -math.inf:
+                return 0
+            m = min(m, int((nxt - _EPS) / dt) - steps + 1)
+            while m > 1 and (steps + m) * dt + _EPS >= nxt:
+                m -= 1
+            if m < 2:
+                return 0
+        if self.doors and any(self.doors[d] != self.door_goal[d] for d in self.doors):
+            self._wait = n
+            return 0
+        robots = self.robots.values()
+        for r in robots:  # the robots' own limits first (cheap)
+            if r.tracking is not None or (r.moving and self.doors):  # a moving tool stops short of a closed door
+                self._wait = n
+                return 0
+            if r.holding is not None:
+                if self.scene.faults:
+                    self._wait = n
+                    return 0
+                prof = r.prof
+                if r.moving:
+                    if not r.coasting:  # wait for the cruise phase, or for the tool to be at rest
+                        cruise = math.ceil(prof.t_acc / dt) + 1
+                        self._wait = (cruise - r.k if r.k < cruise else math.ceil(prof.total / dt) + 1 - r.k)
+                        return 0
+                    while m > 1 and (r.k + m) * dt > prof.total - prof.t_acc:  # the batch ends in the cruise phase
+                        m = min(m - 1, int((prof.total - prof.t_acc) / dt) - r.k + 1)
+                elif r.last_v != (0.0, 0.0):
+                    return 0
+                # the held part stays in the cup: it sits well within it and moves with the tool
+                part = self.parts[r.holding]
+                ax, ay = r.anchor
+                v = self._cp_vel(part.cb)
+                tv = r.cruise_v if r.moving else (0.0, 0.0)
+                if (math.hypot(part.x - r.x - ax, part.y - r.y - ay) > r.spec["radius"] / 2
+                        or math.hypot(v.x - tv[0], v.y - tv[1]) * m * dt > r.spec["radius"] / 4):
+                    return 0
+                m = min(m, int(0.5 * self.space.sleep_time_threshold / dt))  # the part is woken once per batch
+            elif r.closing is not None and r.closing > 0:
+                m = min(m, r.closing - 1)
+            if m < 2:
+                return 0
+        movers = []
+        m = min(m, self._belt_horizon(movers))
+        if m < 2:
+            return 0
+        for r in robots:  # an armed vacuum cup attaches the first part that comes within its radius
+            if r.holding is None and r.closing == 0 and r.armed:
+                m = self._out_of_grip(r, m, movers)
+                if m < 2:
+                    self._wait = 4
+                    return 0
+        return m
+
+    def _belt_horizon(self, movers: list) -> int:
+        """Steps (0 or 1: none) in which no belt part can reach a belt's end or side or a
+        sensor's or sink's edge, while nothing touches it (see ``_quiet``); the checks
+        after a step skip sensors and sinks until then (``_calm_until``; a contact or a
+        change of place ends that). Appends ``(x, y, dx, dy, e)`` for each belt part to
+        ``movers``: after ``j`` steps it lies within ``j * e`` of ``(x + j dx, y + j dy)``."""
+        m, dt, parts, vel = 1 << 30, self.dt, self.parts, self._cp_vel
+        for place, ax, ay, ux, uy, L, half, lost in self._belt_rows:
+            ids = self.members.get(place)
+            if not ids:
+                continue
+            bvx, bvy = self._belt_vel[place.name]
+            for pid in ids:
+                p = parts[pid]
+                v = vel(p.cb)
+                e = (math.hypot(v.x - bvx, v.y - bvy) + 1e-3) * dt
+                dx, dy = bvx * dt, bvy * dt
+                x, y = p.x, p.y
+                movers.append((x, y, dx, dy, e))
+                s, ds = (x - ax) * ux + (y - ay) * uy, dx * ux + dy * uy
+                q, dq = -(x - ax) * uy + (y - ay) * ux, -dx * uy + dy * ux
+                m = _horizon(m, ((s, ds), (half - q, -dq), (half + q, dq)) + (((L - s, -ds),) if lost else ()), e)
+                for rx0, ry0, rx1, ry1 in self._watched_regions:
+                    m = _horizon(m, ((x - rx0, dx), (rx1 - x, -dx), (y - ry0, dy), (ry1 - y, -dy)), e)
+                if m < 2:
+                    self._calm_until = -1
+                    return 0
+        self._calm_until = self.steps + m
+        return m
+
+    def _out_of_grip(self, r: _Robot, m: int, movers) -> int:
+        """``m`` or fewer steps in which no part comes within the radius of ``r``'s cup
+        (the tool moves along a straight line; parts off belts rest)."""
+        dt, radius = self.dt, r.spec["radius"]
+        belt = {Place("BELT", b) for b in self.scene.belts}
+        while m > 1:
+            tx, ty = r.x, r.y
+            if r.moving:
+                prof = r.prof
+                t = min((r.k + m) * dt, prof.total)
+                f = 1.0 if prof.dist <= 0.0 else prof.at(t) / prof.dist
+                tx, ty = r.x0 + (r.x1 - r.x0) * f, r.y0 + (r.y1 - r.y0) * f
+            reach = radius + math.hypot(tx - r.x, ty - r.y) + 1e-6
+            ok = all(math.hypot(x - r.x, y - r.y) > reach + m * (math.hypot(dx, dy) + e) for x, y, dx, dy, e in movers)
+            if ok:
+                ok = all(math.hypot(self.parts[pid].x - r.x, self.parts[pid].y - r.y) > reach
+                         for place, ids in self.members.items() if place.kind not in ("GRIPPER", "LOST")
+                         and place not in belt for pid in ids)
+            if ok:
+                return m
+            m //= 2
+        return 0
+
+    def _coast(self, m: int) -> int:
+        """Up to ``m`` steps (``_quiet`` said they need nothing between them) straight
+        through Chipmunk; a contact callback ends the batch after its step. The robots
+        then take those steps at once (their positions are functions of their step
+        count; a coasting tool body was moved by Chipmunk at its constant velocity) and
+        the checks after a step run once. Returns the steps taken."""
+        cp_step, cp_space, dt = self._cp_step, self.space._space, self.dt
+        for r in self.robots.values():
+            if r.holding is not None:
+                self._cp_activate(self.parts[r.holding].cb)
+        self._contact = False
+        k = 0
+        while k < m:
+            self.steps += 1
+            k += 1
+            cp_step(cp_space, dt)
+            if self._contact:
+                break
+        for r in self.robots.values():
+            if r.moving:
+                prof = r.prof
+                end = r.k + k
+                if r.holding is None:  # the step at which the move ends, if it ends within the batch
+                    last = max(r.k + 1, math.ceil(prof.total / dt) - 1)
+                    while last * dt < prof.total:
+                        last += 1
+                    while last - 1 > r.k and (last - 1) * dt >= prof.total:
+                        last -= 1
+                    end = min(end, last)
+                r.k = end
+                t = end * dt
+                f = 1.0 if prof.dist <= 0.0 or t >= prof.total else prof.at(t) / prof.dist
+                r.x, r.y = r.x0 + (r.x1 - r.x0) * f, r.y0 + (r.y1 - r.y0) * f
+                if r.spec["z"] is not None:
+                    r.z = r.z0 + (r.z1 - r.z0) * f
+                if t >= prof.total:
+                    r.moving, r.arrived = False, True
+            elif r.holding is None and r.closing is not None and r.closing > 0:
+                r.closing -= k
+        self._after_step()
+        return k
 
     def _arrive(self) -> None:
         t = self.time + _EPS
@@ -941,18 +1159,31 @@ class World:
 
     def _robot(self, r: _Robot) -> None:
         ox, oy = r.x, r.y
+        profiled = r.moving and r.tracking is None
         self._drive(r)
         if r.holding is not None:  # the tool (a kinematic body) drags the held part through the grip joint
             dt = self.dt
-            vx, vy = (r.x - ox) / dt, (r.y - oy) / dt
+            prof = r.prof
+            if profiled and not r.blocked and (r.k - 1) * dt >= prof.t_acc and r.k * dt <= prof.total - prof.t_acc:
+                # the constant-velocity phase of the move: the tool body keeps the profile's velocity and
+                # Chipmunk moves it (as a batch of steps does, ``_coast``: the same result either way)
+                vx, vy = r.cruise_v
+                if not r.coasting:
+                    r.coasting = True
+                    cb = r.body._body
+                    self._cp_set_pos(cb, (ox, oy))
+                    self._cp_set_vel(cb, (vx, vy))
+            else:
+                r.coasting = False
+                vx, vy = (r.x - ox) / dt, (r.y - oy) / dt
+                cb = r.body._body
+                self._cp_set_pos(cb, (ox, oy))
+                self._cp_set_vel(cb, (vx, vy))
             if r.last_v is not None:
                 acc = math.hypot(vx - r.last_v[0], vy - r.last_v[1]) / dt
                 if acc > r.peak:
                     r.peak = acc
             r.last_v = (vx, vy)
-            cb = r.body._body
-            self._cp_set_pos(cb, (ox, oy))
-            self._cp_set_vel(cb, (vx, vy))
             self._cp_activate(self.parts[r.holding].cb)
 
     def _held(self, r: _Robot) -> None:
@@ -1094,7 +1325,7 @@ class World:
 
     def _sinks(self) -> None:
         # resting parts were checked when they landed (``landing``): only belt parts move
-        if not self.scene.sinks:
+        if not self.scene.sinks or self.steps <= self._calm_until:
             return
         sinks = tuple(self.scene.sinks.values())
         for name in self.scene.belts:
@@ -1108,6 +1339,10 @@ class World:
         if not self.scene.sensors:
             return
         full = len(self.log) != self._sensed_log  # places changed: look at every part
+        if not full and not self._disturbed:
+            if self.steps <= self._calm_until:
+                return  # no belt part can have crossed a sensor's edge (and no other part moves)
+            self._belt_horizon([])  # for the steps to come; this one is looked at below
         if full:
             self._sensed_log = len(self.log)
             movers = [pid for place, ids in self.members.items() if place.kind not in ("GRIPPER", "LOST") for pid in ids]
