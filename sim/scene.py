@@ -471,6 +471,7 @@ class World:
         self._cp_activate, self._cp_vel = lib.cpBodyActivate, lib.cpBodyGetVelocity
         self._contact = False  # a contact callback ran (ends a batch of steps, see ``_coast``)
         self._wait = 1  # steps to take one at a time before ``_quiet`` looks again
+        self._carriers: list = []  # robots whose tool and part a batch of steps drives every step
         self._calm_until = -1  # until this step no belt part can cross a sensor's or sink's edge (``_belt_horizon``)
         sc = self.scene
         space = self.space = pymunk.Space()
@@ -877,9 +878,9 @@ class World:
                 continue
             for pid in ids:
                 p = self.parts[pid]
-                if zmax is not None and zmax > self.top(pid):
-                    continue  # the cup is above the part
                 d = math.hypot(p.x - r.x, p.y - r.y)
+                if d > bd or (zmax is not None and zmax > self.top(pid)):
+                    continue  # too far, or the cup is above the part
                 if d < bd or (best is None and d <= bd) or (d == bd and best is not None and pid < best):
                     best, bd = pid, d
         return best
@@ -964,18 +965,21 @@ class World:
 
     def _quiet(self, n: int) -> int:
         """How many of the next ``n`` steps (0 or 1: none) need no Python-side work
-        between them: no belt arrival is due, no door moves, no resting part is watched,
-        no robot tracks a part, waits for its fingers to close or carries a part other
-        than at constant velocity (at rest or in the cruise phase of a move, the part
-        settled under the tool), and no part on a belt can reach a belt's end or side, a
+        between them but the robots that carry a part (``self._carriers``: their tool is
+        driven and their part checked every step, as one at a time): no belt arrival is
+        due, no door moves, no resting part is watched, no robot tracks a part or waits
+        for its fingers to close, and no part on a belt can reach a belt's end or side, a
         sensor's or a sink's edge, or the reach of an armed gripper: a belt part moves
         with its belt's body, and while nothing touches it its speed relative to the belt
         can only fall (its friction joint has no bias), so after ``j`` steps it lies
         within ``j * dt * (|v - v_belt| + 1 mm/s)`` of where the belt carries it. A
-        contact ends a batch (``_coast``). When it finds no batch, ``self._wait`` says how
-        many steps to take one at a time before looking again (only a matter of speed:
-        stepping one at a time is always right)."""
+        robot that carries a part at a constant velocity (at rest or in the cruise phase
+        of a move, the part settled under the tool) needs nothing at all (``_steady``).
+        A contact or a change of place (a part slips) ends a batch (``_coast``). When it
+        finds no batch, ``self._wait`` says how many steps to take one at a time before
+        looking again (only a matter of speed: stepping one at a time is always right)."""
         self._wait = 1
+        self._carriers = carriers = []
         if self._added or self._disturbed or (self._sensor_regions and len(self.log) != self._sensed_log):
             return 0
         dt, steps, m = self.dt, self.steps, n
@@ -993,37 +997,26 @@ class World:
             return 0
         robots = self.robots.values()
         for r in robots:  # the robots' own limits first (cheap)
-            if r.tracking is not None or (r.moving and self.doors):  # a moving tool stops short of a closed door
+            if r.moving and self.doors:  # a moving tool stops short of a closed door
                 self._wait = n
                 return 0
-            if r.holding is not None:
-                if self.scene.faults:
-                    self._wait = n
+            if r.tracking is not None:  # the tool follows its part step by step
+                if r.closing == 0 and r.armed:
                     return 0
-                prof = r.prof
-                if r.moving:
-                    if not r.coasting:  # wait for the cruise phase, or for the tool to be at rest
-                        cruise = math.ceil(prof.t_acc / dt) + 1
-                        self._wait = (cruise - r.k if r.k < cruise else math.ceil(prof.total / dt) + 1 - r.k)
-                        return 0
-                    while m > 1 and (r.k + m) * dt > prof.total - prof.t_acc:  # the batch ends in the cruise phase
-                        m = min(m - 1, int((prof.total - prof.t_acc) / dt) - r.k + 1)
-                elif r.last_v != (0.0, 0.0):
-                    return 0
-                # the held part stays in the cup: it sits well within it and moves with the tool
-                part = self.parts[r.holding]
-                ax, ay = r.anchor
-                v = self._cp_vel(part.cb)
-                tv = r.cruise_v if r.moving else (0.0, 0.0)
-                if (math.hypot(part.x - r.x - ax, part.y - r.y - ay) > r.spec["radius"] / 2
-                        or math.hypot(v.x - tv[0], v.y - tv[1]) * m * dt > r.spec["radius"] / 4):
-                    return 0
-                m = min(m, int(0.5 * self.space.sleep_time_threshold / dt))  # the part is woken once per batch
+                carriers.append(r)
+                if r.closing is not None:
+                    m = min(m, r.closing - 1)
+            elif r.holding is not None:
+                steady = self._steady(r, m)
+                if steady > 1:
+                    m = steady
+                else:
+                    carriers.append(r)
             elif r.closing is not None and r.closing > 0:
                 m = min(m, r.closing - 1)
             if m < 2:
                 return 0
-        movers = []
+        movers: dict = {}
         m = min(m, self._belt_horizon(movers))
         if m < 2:
             return 0
@@ -1035,12 +1028,36 @@ class World:
                     return 0
         return m
 
-    def _belt_horizon(self, movers: list) -> int:
+    def _steady(self, r: _Robot, m: int) -> int:
+        """``m`` or fewer steps (0 or 1: none) in which ``r``'s tool carries its part at a
+        constant velocity (at rest, or in the cruise phase of its move) with the part
+        settled under it: the part cannot slip, and Chipmunk moves the tool body alone."""
+        if self.scene.faults:
+            return 0
+        dt, prof = self.dt, r.prof
+        if r.moving:
+            if not r.coasting:
+                return 0
+            while m > 1 and (r.k + m) * dt > prof.total - prof.t_acc:  # the batch ends in the cruise phase
+                m = min(m - 1, int((prof.total - prof.t_acc) / dt) - r.k + 1)
+        elif r.last_v != (0.0, 0.0):
+            return 0
+        part = self.parts[r.holding]  # it sits well within the cup and moves with the tool
+        ax, ay = r.anchor
+        v = self._cp_vel(part.cb)
+        tv = r.cruise_v if r.moving else (0.0, 0.0)
+        if (math.hypot(part.x - r.x - ax, part.y - r.y - ay) > r.spec["radius"] / 2
+                or math.hypot(v.x - tv[0], v.y - tv[1]) * m * dt > r.spec["radius"] / 4):
+            return 0
+        return min(m, int(0.5 * self.space.sleep_time_threshold / dt))  # the part is woken once per batch
+
+    def _belt_horizon(self, movers: dict) -> int:
         """Steps (0 or 1: none) in which no belt part can reach a belt's end or side or a
         sensor's or sink's edge, while nothing touches it (see ``_quiet``); the checks
         after a step skip sensors and sinks until then (``_calm_until``; a contact or a
         change of place ends that). Appends ``(x, y, dx, dy, e)`` for each belt part to
-        ``movers``: after ``j`` steps it lies within ``j * e`` of ``(x + j dx, y + j dy)``."""
+        ``movers`` (part id -> ``(dx, dy, e)``): after ``j`` steps it lies within ``j * e``
+        of where it is plus ``j`` times ``(dx, dy)``."""
         m, dt, parts, vel = 1 << 30, self.dt, self.parts, self._cp_vel
         for place, ax, ay, ux, uy, L, half, lost in self._belt_rows:
             ids = self.members.get(place)
@@ -1053,7 +1070,7 @@ class World:
                 e = (math.hypot(v.x - bvx, v.y - bvy) + 1e-3) * dt
                 dx, dy = bvx * dt, bvy * dt
                 x, y = p.x, p.y
-                movers.append((x, y, dx, dy, e))
+                movers[pid] = (dx, dy, e)
                 s, ds = (x - ax) * ux + (y - ay) * uy, dx * ux + dy * uy
                 q, dq = -(x - ax) * uy + (y - ay) * ux, -dx * uy + dy * ux
                 m = _horizon(m, ((s, ds), (half - q, -dq), (half + q, dq)) + (((L - s, -ds),) if lost else ()), e)
@@ -1065,49 +1082,88 @@ class World:
         self._calm_until = self.steps + m
         return m
 
-    def _out_of_grip(self, r: _Robot, m: int, movers) -> int:
-        """``m`` or fewer steps in which no part comes within the radius of ``r``'s cup
-        (the tool moves along a straight line; parts off belts rest)."""
-        dt, radius = self.dt, r.spec["radius"]
-        belt = {Place("BELT", b) for b in self.scene.belts}
+    def _out_of_grip(self, r: _Robot, m: int, movers: dict) -> int:
+        """``m`` or fewer steps in which no part comes under ``r``'s cup (``part_under``:
+        within its radius, its top within the grasp tolerance of the cup's height). The
+        tool moves along a straight line, its height monotone; belt parts move as
+        ``movers`` says (``_belt_horizon``), other parts rest."""
+        dt, radius, zs = self.dt, r.spec["radius"], r.spec["z"]
         while m > 1:
-            tx, ty = r.x, r.y
+            tx, ty, tz = r.x, r.y, r.z
             if r.moving:
                 prof = r.prof
                 t = min((r.k + m) * dt, prof.total)
                 f = 1.0 if prof.dist <= 0.0 else prof.at(t) / prof.dist
                 tx, ty = r.x0 + (r.x1 - r.x0) * f, r.y0 + (r.y1 - r.y0) * f
+                if zs is not None:
+                    tz = r.z0 + (r.z1 - r.z0) * f
             reach = radius + math.hypot(tx - r.x, ty - r.y) + 1e-6
-            ok = all(math.hypot(x - r.x, y - r.y) > reach + m * (math.hypot(dx, dy) + e) for x, y, dx, dy, e in movers)
-            if ok:
-                ok = all(math.hypot(self.parts[pid].x - r.x, self.parts[pid].y - r.y) > reach
-                         for place, ids in self.members.items() if place.kind not in ("GRIPPER", "LOST")
-                         and place not in belt for pid in ids)
+            zmax = None if zs is None else min(r.z, tz) - r.spec["grasp_tolerance"] - 1e-9
+            ok = True
+            for place, ids in self.members.items():
+                if place.kind in ("GRIPPER", "LOST"):
+                    continue
+                for pid in ids:
+                    if zmax is not None and zmax > self.top(pid):
+                        continue  # the cup stays above it
+                    p, mv = self.parts[pid], movers.get(pid)
+                    far = reach + (0.0 if mv is None else m * (math.hypot(mv[0], mv[1]) + mv[2]))
+                    if math.hypot(p.x - r.x, p.y - r.y) <= far:
+                        ok = False
+                        break
+                if not ok:
+                    break
             if ok:
                 return m
             m //= 2
         return 0
 
     def _coast(self, m: int) -> int:
-        """Up to ``m`` steps (``_quiet`` said they need nothing between them) straight
-        through Chipmunk; a contact callback ends the batch after its step. The robots
-        then take those steps at once (their positions are functions of their step
-        count; a coasting tool body was moved by Chipmunk at its constant velocity) and
-        the checks after a step run once. Returns the steps taken."""
+        """Up to ``m`` steps (``_quiet`` said they need nothing between them but the
+        carriers' tools and parts) straight through Chipmunk; a contact callback or a
+        change of place ends the batch after its step. The other robots then take those
+        steps at once (their positions are functions of their step count; a coasting
+        tool body was moved by Chipmunk at its constant velocity) and the checks after a
+        step run once. Returns the steps taken."""
         cp_step, cp_space, dt = self._cp_step, self.space._space, self.dt
+        carriers = self._carriers
         for r in self.robots.values():
-            if r.holding is not None:
+            if r.holding is not None and r not in carriers:
                 self._cp_activate(self.parts[r.holding].cb)
         self._contact = False
         k = 0
-        while k < m:
-            self.steps += 1
-            k += 1
-            cp_step(cp_space, dt)
-            if self._contact:
-                break
+        if len(carriers) == 1 and carriers[0].tracking is None and not self.doors and not self.scene.faults:
+            k = self._carry(carriers[0], m)
+        elif carriers:
+            log, n_log, parts, get_pos = self.log, len(self.log), self.parts, self._cp_pos
+            while k < m:
+                self.steps += 1
+                k += 1
+                for r in carriers:
+                    if r.tracking is not None:  # the tracked part where the last step left it (``_belts``)
+                        p = parts[r.tracking]
+                        if p.place.kind == "BELT":
+                            pos = get_pos(p.cb)
+                            p.x, p.y = pos.x, pos.y
+                    if r.holding is None:
+                        self._drive(r)
+                    else:
+                        self._robot(r)
+                cp_step(cp_space, dt)
+                for r in carriers:
+                    if r.holding is not None:
+                        self._held(r)
+                if self._contact or len(log) != n_log:
+                    break
+        else:
+            while k < m:
+                self.steps += 1
+                k += 1
+                cp_step(cp_space, dt)
+                if self._contact:
+                    break
         for r in self.robots.values():
-            if r.moving:
+            if r.moving and r not in carriers:
                 prof = r.prof
                 end = r.k + k
                 if r.holding is None:  # the step at which the move ends, if it ends within the batch
@@ -1125,9 +1181,61 @@ class World:
                     r.z = r.z0 + (r.z1 - r.z0) * f
                 if t >= prof.total:
                     r.moving, r.arrived = False, True
-            elif r.holding is None and r.closing is not None and r.closing > 0:
+            elif r.holding is None and r.closing is not None and r.closing > 0 and r not in carriers:
                 r.closing -= k
         self._after_step()
+        return k
+
+    def _carry(self, r: _Robot, m: int) -> int:
+        """The steps of a batch with one carrier and no doors or faults: ``_drive``,
+        ``_robot`` and ``_held`` of the carrier inlined (the same arithmetic in the same
+        order: ``tests/test_physics.py`` compares batches with steps one at a time)."""
+        cp_step, cp_space, dt, hypot = self._cp_step, self.space._space, self.dt, math.hypot
+        set_pos, set_vel, activate, get_pos = self._cp_set_pos, self._cp_set_vel, self._cp_activate, self._cp_pos
+        part = self.parts[r.holding]
+        tb, pb, radius, (ax, ay) = r.body._body, part.cb, r.spec["radius"], r.anchor
+        prof, zs = r.prof, r.spec["z"] is not None
+        k = 0
+        while k < m:
+            self.steps += 1
+            k += 1
+            ox, oy = r.x, r.y
+            moving = r.moving
+            if moving:  # _drive
+                rk = r.k = r.k + 1
+                t = rk * dt
+                f = 1.0 if prof.dist <= 0.0 or t >= prof.total else prof.at(t) / prof.dist
+                r.x, r.y = r.x0 + (r.x1 - r.x0) * f, r.y0 + (r.y1 - r.y0) * f
+                if zs:
+                    r.z = r.z0 + (r.z1 - r.z0) * f
+                if t >= prof.total:
+                    r.moving, r.arrived = False, True
+            if moving and not r.blocked and (rk - 1) * dt >= prof.t_acc and rk * dt <= prof.total - prof.t_acc:
+                vx, vy = r.cruise_v  # _robot
+                if not r.coasting:
+                    r.coasting = True
+                    set_pos(tb, (ox, oy))
+                    set_vel(tb, (vx, vy))
+            else:
+                r.coasting = False
+                vx, vy = (r.x - ox) / dt, (r.y - oy) / dt
+                set_pos(tb, (ox, oy))
+                set_vel(tb, (vx, vy))
+            lv = r.last_v
+            if lv is not None:
+                acc = hypot(vx - lv[0], vy - lv[1]) / dt
+                if acc > r.peak:
+                    r.peak = acc
+            r.last_v = (vx, vy)
+            activate(pb)
+            cp_step(cp_space, dt)
+            pos = get_pos(pb)  # _held
+            part.x, part.y = pos.x, pos.y
+            if hypot(part.x - r.x - ax, part.y - r.y - ay) > radius:
+                self._slip(r, part)
+                break
+            if self._contact:
+                break
         return k
 
     def _arrive(self) -> None:
@@ -1342,7 +1450,7 @@ class World:
         if not full and not self._disturbed:
             if self.steps <= self._calm_until:
                 return  # no belt part can have crossed a sensor's edge (and no other part moves)
-            self._belt_horizon([])  # for the steps to come; this one is looked at below
+            self._belt_horizon({})  # for the steps to come; this one is looked at below
         if full:
             self._sensed_log = len(self.log)
             movers = [pid for place, ids in self.members.items() if place.kind not in ("GRIPPER", "LOST") for pid in ids]
