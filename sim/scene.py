@@ -468,7 +468,7 @@ class World:
 
         self._cp_step = lib.cpSpaceStep  # our collision callback never changes the space (see ``step``)
         self._cp_pos, self._cp_set_pos, self._cp_set_vel = lib.cpBodyGetPosition, lib.cpBodySetPosition, lib.cpBodySetVelocity
-        self._cp_activate, self._cp_vel = lib.cpBodyActivate, lib.cpBodyGetVelocity
+        self._cp_activate, self._cp_vel, self._cp_sleeping = lib.cpBodyActivate, lib.cpBodyGetVelocity, lib.cpBodyIsSleeping
         self._contact = False  # a contact callback ran (ends a batch of steps, see ``_coast``)
         self._wait = 1  # steps to take one at a time before ``_quiet`` looks again
         self._carriers: list = []  # robots whose tool and part a batch of steps drives every step
@@ -980,7 +980,7 @@ class World:
         looking again (only a matter of speed: stepping one at a time is always right)."""
         self._wait = 1
         self._carriers = carriers = []
-        if self._added or self._disturbed or (self._sensor_regions and len(self.log) != self._sensed_log):
+        if self._added or (self._sensor_regions and len(self.log) != self._sensed_log):
             return 0
         dt, steps, m = self.dt, self.steps, n
         nxt = self._next_arrival
@@ -1018,6 +1018,10 @@ class World:
                 return 0
         movers: dict = {}
         m = min(m, self._belt_horizon(movers))
+        if m > 1 and self._disturbed:
+            if carriers:  # a carrier's part may land by them (``landing``) or its tool follow them
+                return 0
+            m = min(m, self._rest_horizon(movers))
         if m < 2:
             return 0
         for r in robots:  # an armed vacuum cup attaches the first part that comes within its radius
@@ -1080,6 +1084,30 @@ class World:
                     self._calm_until = -1
                     return 0
         self._calm_until = self.steps + m
+        return m
+
+    def _rest_horizon(self, movers: dict) -> int:
+        """Steps (0 or 1: none) in which no watched resting part (``_disturbed``) can leave
+        its area or slot or cross a sensor's or sink's edge: held by friction to the ground
+        and untouched, its speed can only fall. Adds them to ``movers``."""
+        m, dt, parts, vel, areas = 1 << 30, self.dt, self.parts, self._cp_vel, self.scene.areas
+        for pid in self._disturbed:
+            p = parts[pid]
+            v = vel(p.cb)
+            e = (math.hypot(v.x, v.y) + 1e-3) * dt
+            movers[pid] = (0.0, 0.0, e)
+            x, y = p.x, p.y
+            margins = []
+            if p.place.kind == "AREA":
+                rx0, ry0, rx1, ry1 = areas[p.place.name]["region"]
+                margins += [(x - rx0, 0.0), (rx1 - x, 0.0), (y - ry0, 0.0), (ry1 - y, 0.0)]
+                if p.slot is not None:
+                    margins.append((areas[p.place.name]["slot_tolerance"] - math.hypot(x - p.slot[0], y - p.slot[1]), 0.0))
+            for rx0, ry0, rx1, ry1 in self._watched_regions:
+                margins += [(x - rx0, 0.0), (rx1 - x, 0.0), (y - ry0, 0.0), (ry1 - y, 0.0)]
+            m = _horizon(m, margins, e)
+            if m < 2:
+                return 0
         return m
 
     def _out_of_grip(self, r: _Robot, m: int, movers: dict) -> int:
@@ -1181,8 +1209,8 @@ class World:
                     r.z = r.z0 + (r.z1 - r.z0) * f
                 if t >= prof.total:
                     r.moving, r.arrived = False, True
-            elif r.holding is None and r.closing is not None and r.closing > 0 and r not in carriers:
-                r.closing -= k
+            if r.holding is None and r.closing is not None and r.closing > 0 and r not in carriers:
+                r.closing -= k  # fingers closing (``_quiet``: they close after the batch)
         self._after_step()
         return k
 
@@ -1431,9 +1459,11 @@ class World:
     def _resting(self) -> None:
         """Resting parts that something touched: pushed out of their area or slot they
         leave it (to where they lie); once asleep they are no longer watched."""
+        get, sleeping = self._cp_pos, self._cp_sleeping
         for pid in list(self._disturbed):
             p = self.parts[pid]
-            p.x, p.y = p.body.position
+            pos = get(p.cb)
+            p.x, p.y = pos.x, pos.y
             kind, name = p.place
             by = f" by part {p.pushed_by}" if p.pushed_by is not None else ""
             if kind == "AREA":
@@ -1446,7 +1476,7 @@ class World:
                                            f"pushed {math.hypot(p.x - p.slot[0], p.y - p.slot[1]):.3f} m out of its "
                                            f"slot in {name}{by} (tolerance {a['slot_tolerance']:g} m)"))
                     self._move(p, FLOOR)
-            if p.place.kind in ("LOST", "GRIPPER", "BELT") or p.body.is_sleeping:
+            if p.place.kind in ("LOST", "GRIPPER", "BELT") or sleeping(p.cb):
                 self._disturbed.pop(pid, None)
             elif any(_inside(r, (p.x, p.y)) for r in self.scene.sinks.values()):
                 self._move(p, LOST)
