@@ -965,19 +965,21 @@ class World:
 
     def _quiet(self, n: int) -> int:
         """How many of the next ``n`` steps (0 or 1: none) need no Python-side work
-        between them but the robots that carry a part (``self._carriers``: their tool is
-        driven and their part checked every step, as one at a time): no belt arrival is
-        due, no door moves, no resting part is watched, no robot tracks a part or waits
-        for its fingers to close, and no part on a belt can reach a belt's end or side, a
-        sensor's or a sink's edge, or the reach of an armed gripper: a belt part moves
-        with its belt's body, and while nothing touches it its speed relative to the belt
-        can only fall (its friction joint has no bias), so after ``j`` steps it lies
-        within ``j * dt * (|v - v_belt| + 1 mm/s)`` of where the belt carries it. A
-        robot that carries a part at a constant velocity (at rest or in the cruise phase
-        of a move, the part settled under the tool) needs nothing at all (``_steady``).
-        A contact or a change of place (a part slips) ends a batch (``_coast``). When it
-        finds no batch, ``self._wait`` says how many steps to take one at a time before
-        looking again (only a matter of speed: stepping one at a time is always right)."""
+        between them but the robots that carry or track a part (``self._carriers``: their
+        tool is driven and their part checked every step, as one at a time): no belt
+        arrival is due, no door moves (nor a robot in a scene with doors), no fingers
+        finish closing, no cup tracking a part is armed, and no part on a belt or watched
+        resting part (``_disturbed``) can reach a belt's end or side, a sensor's, sink's
+        or area's edge, a slot's tolerance or the reach of an armed cup: such a part rides
+        a friction joint without bias, so while nothing touches it its speed relative to
+        its support can only fall, and after ``j`` steps it lies within
+        ``j * dt * (|v - v_support| + 1 mm/s)`` of where its support carries it
+        (``_belt_horizon``, ``_rest_horizon``). A robot that carries a part at a constant
+        velocity (at rest or in the cruise phase of a move, the part settled under the
+        tool) needs nothing at all (``_steady``). A contact or a change of place (a part
+        slips) ends a batch (``_coast``). When it finds no batch, ``self._wait`` says how
+        many steps to take one at a time before looking again (only a matter of speed:
+        stepping one at a time is always right)."""
         self._wait = 1
         self._carriers = carriers = []
         if self._added or (self._sensor_regions and len(self.log) != self._sensed_log):
