@@ -203,6 +203,7 @@ class Runtime:
         self._live = self.state
         self._busy: set = set()
         self._view = _VarView(self)
+        self._var_slots = tuple((v.name, self.program.scope[v.name].index) for v in self.model.variables)
         self.trace = None
         if trace_mode not in ("deferred", "live"):
             raise ValueError("trace_mode must be 'deferred' or 'live'")
@@ -220,8 +221,8 @@ class Runtime:
     @property
     def vars(self) -> dict:
         """World variables of the current state, by name."""
-        d = self.program.decode(self.state)
-        return {v.name: d[v.name] for v in self.model.variables}
+        decode, state = self.program.decode_slot, self.state
+        return {name: decode(i, state[i]) for name, i in self._var_slots}
 
     def fsm_state(self, fsm: str) -> tuple:
         """(state id, held goal or None) of an FSM now."""
