@@ -293,7 +293,7 @@ def derive(model, scene=None) -> Timing:
     of the copy itself restarts on its own path toward the same target, which is no
     farther. The slowest run is the longest move from those poses (``Derivation``);
     every declared minimum is 0 (a restarted run may start next to its target)."""
-    from btfsm.positions import entries_of, split_by_goal
+    from btfsm.positions import entries_of, split_by_entry, split_by_goal
 
     scene, binding = _kitting(model, scene)
     d = binding.d
@@ -350,7 +350,7 @@ def derive(model, scene=None) -> Timing:
         k, x = p[0], (p[1] if len(p) > 1 else None)
         if k == "home":
             return geo.home
-        if k == "hub":
+        if k in ("hub", "none"):
             return geo.hub[x]
         if k == "above":
             return geo.above[x]
@@ -361,7 +361,8 @@ def derive(model, scene=None) -> Timing:
         return ((c[0][0], c[0][1], hz), (c[1][0], c[1][1], hz))
 
     def same(p, q):
-        return len(p) == 3 and len(q) == 3 and p[1] == q[1] and p[2] is not None and p[2] == q[2]
+        return (len(p) == 3 and len(q) == 3 and p[1] == q[1] and p[2] is not None and p[2] == q[2]
+                and "none" not in (p[0], q[0]))
 
     def rest(p, q) -> float:
         a, b = box(p), box(q)
@@ -379,7 +380,7 @@ def derive(model, scene=None) -> Timing:
         """(slowest seconds, end poses) of a run of state sid for goal g starting at pose p."""
         s, x, k = base[sid], area(base[sid]), kind(base[sid])
         if k == "grasp":
-            if p[0] == "hub" or g != pick_goal.get(x):
+            if p[0] == "none" or g != pick_goal.get(x):
                 return 0.0, {p}  # nothing to grasp: it fails at once
             t = ("contact", x, pick_goal[x])
             if x == "conveyor":
@@ -400,6 +401,8 @@ def derive(model, scene=None) -> Timing:
             t = ("contact", x, pick_goal.get(x))
             return rest(p, t), {t}
         if role == "put":
+            if p[0] == "none":
+                return 0.0, {p}  # nowhere to put it: done at once
             t = ("contact", x, place_goal.get(x))
             return rest(p, t), {t, p}
         t = approach_target(x, g)
@@ -410,12 +413,21 @@ def derive(model, scene=None) -> Timing:
             slow = max(geo.track(box(p), box(t)[0][2]), rest(p, ("hub", x)))
             return slow, {t, ("hub", x), p}
         if t[0] == "above":
-            return max(rest(p, t), rest(p, ("hub", x))), {t, ("hub", x)}  # no target left: the hub
+            if p == ("none", x, g):
+                return 0.0, {p}  # still no target: it stays at the hub
+            if same(p, t):
+                return 0.0, {t}  # already above it (the same target while nothing changed)
+            # no target (no part, no free spot): the hub, until the gripper changes something
+            return max(rest(p, t), rest(p, ("hub", x))), {t, ("none", x, g)}
         return rest(p, t), {t}
 
     def forget(ps, kinds=("pick", "place")):
-        return {(p[0], p[1], None) if len(p) == 3 and p[2] is not None and d.goal(p[2])[0] in kinds else p
-                for p in ps}
+        out = set()
+        for p in ps:
+            if len(p) == 3 and p[2] is not None and d.goal(p[2])[0] in kinds:
+                p = ("hub", p[1]) if p[0] == "none" else (p[0], p[1], None)
+            out.add(p)
+        return out
 
     def leave(u, poses, direct, goals) -> set:
         """Where the arm can be when the token leaves copy u whose runs start at ``poses``."""
@@ -435,12 +447,22 @@ def derive(model, scene=None) -> Timing:
             out = forget(out, ("place",))  # a part left the bins: the free spots change
         return out
 
+    # 3. where runs start: the fixed point on the FSM split by every entry (two states of
+    # history: a copy s@u's runs start where u's own runs, from u's entries, left the arm)
     entries = entries_of(f)
-    at = {s.id: set() for s in f.states}
-    at[f.initial] = {("home",)}
+    timed_states = [s for s in entries if kind(base[s]) != "instant"]
+    dummy = {s: {u: (0.0, float(k)) for k, u in enumerate(entries[s])} for s in timed_states}
+    f2 = next(x for x in split_by_entry(split_by_goal(model, d.fsm, classes), d.fsm, dummy).fsms if x.name == d.fsm)
+    for s2 in f2.states:
+        b1 = s2.id.split("@", 1)[0]
+        base[s2.id] = base[b1]
+        goals_of.setdefault(s2.id, goals_of[b1])
+    entries2 = entries_of(f2)
+    at = {s.id: set() for s in f2.states}
+    at[f2.initial] = {("home",)}
     for _ in range(500):
         changed = False
-        for s, ent in entries.items():
+        for s, ent in entries2.items():
             new = set(at[s])
             for u, (direct, goals) in ent.items():
                 if u:
@@ -452,15 +474,18 @@ def derive(model, scene=None) -> Timing:
     else:
         raise RuntimeError("the position fixed point did not converge")
 
-    table = {}
-    for s, ent in entries.items():
-        if kind(base[s]) == "instant":
+    table, where = {}, {}
+    for s2, ent in entries2.items():
+        if kind(base[s2]) == "instant":
             continue
-        rows = {}
+        s1 = s2.split("@", 1)[0]
+        starts = set()
         for u, (direct, goals) in ent.items():
-            starts = {("home",)} if not u else leave(u, at[u], direct, goals)
-            hi = max((run(s, g, p)[0] for g in goals_of[s] for p in starts), default=0.0)
-            rows[u] = (0.0, round(hi + geo.dt + 1e-3, 3))
-        table[s] = rows
-    where = {s: sorted(":".join("*" if v is None else str(v) for v in p) for p in at[s]) for s in table}
+            starts |= {("home",)} if not u else leave(u, at[u], direct, goals)
+        hi = max((run(s1, g, p)[0] for g in goals_of[s1] for p in starts), default=0.0)
+        pred = s2.split("@", 1)[1] if "@" in s2 else next(iter(entries[s1]))
+        pred = "" if pred == "start" else pred
+        table.setdefault(s1, {})[pred] = (0.0, round(hi + geo.dt + 1e-3, 3))
+        where.setdefault(s1, set()).update(starts)
+    where = {s: sorted(":".join("*" if v is None else str(v) for v in p) for p in ps) for s, ps in where.items()}
     return Timing(d.fsm, classes, table, where)
