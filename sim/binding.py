@@ -168,6 +168,7 @@ class KittingBinding(Binding):
         if not scene.areas[tray]["slots"]:
             raise ModelError(f"areas.{tray}", "the kitting binding needs a tray with slots", scene.file)
         self.robot, self.bins, self.tray, self.belt, self.sensor = robot, tuple(bins), tray, belt, sensor
+        self.belt_area = "conveyor"  # the model's name for the belt's area
         self.speed = float(speed_scale)  # the authors' move_to default velocity scaling is 0.5
         self.clearance = float(clearance)
         self.r = world.robots[robot]

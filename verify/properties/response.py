@@ -440,6 +440,12 @@ def check(ctx) -> Result:
             text += f"; bound {req.within:g} s = {bound} ticks"
         notes.append(text)
         if bound is not None and worst > bound:
+            first = rb.first_late(bound)
+            if first is not None:
+                entry.update(first_late_ticks=None if first[0] == INF else first[0],
+                             first_late_seconds=None if first[0] == INF else rb.seconds(first[0]))
+                notes.append(f"{req.name}: the worst first late response (every earlier trigger answered "
+                             f"within the bound) {_fmt(rb, first[0])}")
             witness = rb.violation_witness(bound) if ce is None else None
             if ce is None and witness is None:  # a cut system: look for a run of `bound` ticks inside it
                 witness = rb.bounded_witness(bound)
