@@ -1,0 +1,99 @@
+"""The position abstraction of the timed ARIAC models (btfsm.positions, btfsm.sim.durations;
+docs/verification.md 2.1): the split FSM has the original's behaviour, and the derived
+durations come from the scene's own motions.
+"""
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import pytest
+
+from btfsm import FSM, Edge, Model, ModelError, Primitive, State, running, success
+from btfsm.models import ariac
+from btfsm.positions import base_state, entries_of, split_by_entry, split_by_goal
+from btfsm.verify.explore import explore
+
+
+def _untimed(model):
+    f = model.fsms[0]
+    return dataclasses.replace(model, fsms=(dataclasses.replace(f, states=tuple(
+        dataclasses.replace(s, duration=None) for s in f.states)),), responses=(),
+        environment=tuple(dataclasses.replace(e, min_interval=None) for e in model.environment))
+
+
+def _projected(ts) -> tuple:
+    """(states, transitions) of ``ts`` with every FSM copy named by the state it was split from."""
+    def one(i):
+        return tuple(sorted((k, base_state(v) if k.endswith(".state") else v) for k, v in ts.decode(i).items()))
+    def label(lab):  # an outcome's site is "fsm/state"
+        return tuple(tuple(f"{x.split('/')[0]}/{base_state(x.split('/', 1)[1])}" if isinstance(x, str) and "/" in x
+                           else x for x in item) for item in lab)
+    states = [one(i) for i in range(ts.n_states)]
+    return set(states), {(states[int(s)], states[int(d)], label(ts.labels[int(lab)]))
+                         for s, d, lab in zip(ts.src, ts.dst, ts.label)}
+
+
+@pytest.mark.parametrize("variant", ["preemptive", "baseline"])
+def test_the_split_fsm_behaves_as_the_original(variant):
+    """Without its durations, the split model's reachable states and transitions, each copy
+    named by its state, are exactly the original model's (1 tray part keeps it small)."""
+    m = getattr(ariac, variant)(n_tray=1)
+    split = _untimed(ariac.timed(m))
+    assert len(split.fsms[0].states) > len(m.fsms[0].states)
+    assert _projected(explore(split)) == _projected(explore(m))
+
+
+def test_expressions_name_every_copy():
+    m = ariac.timed(ariac.preemptive(n_tray=2))
+    hubs = [s.id for s in m.fsms[0].states if base_state(s.id) == "approach_agv"]
+    text = str(m.workable)
+    assert len(hubs) > 1 and all(f"'{h}'" in text for h in hubs)
+
+
+def test_split_errors_name_the_state():
+    f = FSM("arm", states=[State("a", "move"), State("b", "move")], initial="a", goals=("g",),
+            edges=[Edge("a", "b", "g"), Edge("b", "a", "g")])
+    m = Model("m", primitives=[Primitive("move", (running(), success()))], fsms=[f])
+    with pytest.raises(ModelError, match="no duration for the entry from b"):
+        split_by_entry(m, "arm", {"a": {"": (0, 1)}})
+    with pytest.raises(ModelError, match="positions.zz"):
+        split_by_goal(m, "arm", {"zz": {"c": ("g",)}})
+    assert entries_of(f) == {"a": {"": (False, ()), "b": (False, ("g",))}, "b": {"a": (False, ("g",))}}
+
+
+def test_the_rest_to_rest_time_is_the_worlds():
+    """``Derivation.rest_time`` is the time the scene's arm takes (``World.move_to`` at the
+    binding's speed scale), to the world step, for moves in x-y, in z and both."""
+    from btfsm.sim.durations import Derivation, _kitting
+
+    scene, binding = _kitting(ariac.preemptive(n_tray=2))
+    geo = Derivation(scene, binding)
+    from btfsm.sim.scene import World
+
+    for (x, y, z) in [(0.3, -1.0, 1.1), (0.3, -2.9, 0.77), (0.9, -0.5, 1.3), (0.6, -0.8, 0.8)]:
+        w = World(scene, 0)
+        r = w.robots[binding.robot]
+        x0, y0, z0 = r.x, r.y, r.z
+        s = binding.speed
+        w.move_to(binding.robot, (x, y), s, z=z, acceleration=s * s)
+        n = 0
+        while not r.arrived:
+            w.step()
+            n += 1
+        want = geo.rest_time(math.hypot(x - x0, y - y0), abs(z - z0))
+        assert want <= n * w.dt < want + w.dt + 1e-9
+
+
+def test_the_stored_table_is_the_derivation(tmp_path):
+    """models/ariac_timing.json is what ``derive`` gives for the moves that need no belt
+    tracking (the pursuit samples make the whole derivation take a minute: BTFSM_LONG=1)."""
+    import os
+
+    from btfsm.sim import durations
+
+    stored = ariac.derived_timing()
+    if os.environ.get("BTFSM_LONG") != "1":
+        pytest.skip("the derivation runs a minute of pursuits (BTFSM_LONG=1)")
+    got = durations.derive(ariac.preemptive()).to_data()
+    assert got["classes"] == stored["classes"] and got["table"] == stored["table"]
