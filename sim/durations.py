@@ -114,8 +114,6 @@ def main(argv=None) -> int:
     return 0
 
 
-if __name__ == "__main__":
-    raise SystemExit(main())
 
 
 # ============================================================== derivation from the scene
@@ -489,3 +487,7 @@ def derive(model, scene=None) -> Timing:
         where.setdefault(s1, set()).update(starts)
     where = {s: sorted(":".join("*" if v is None else str(v) for v in p) for p in ps) for s, ps in where.items()}
     return Timing(d.fsm, classes, table, where)
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
