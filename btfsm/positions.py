@@ -82,27 +82,22 @@ def _groups(table: dict, entries: dict) -> dict:
     return out
 
 
-def _rename_expr(e, field: str, copies: dict):
-    """``e`` with every ``field == 's'`` (either side, ``==`` or ``!=``) widened to the copies of s."""
-    if isinstance(e, Compare) and e.op in ("==", "!="):
-        for a, b in ((e.left, e.right), (e.right, e.left)):
-            if isinstance(a, Name) and a.id == field and isinstance(b, Const) and b.value in copies:
-                names = copies[b.value]
-                if len(names) == 1:
-                    return Compare(e.op, a, Const(names[0]))
-                alts = tuple(Compare("==", a, Const(n)) for n in names)
-                any_of = BoolOp("or", alts)
-                return any_of if e.op == "==" else Unary("not", any_of)
-        return e
-    if isinstance(e, Expr) and dataclasses.is_dataclass(e):
-        return _rename_any(e, field, copies)
+def _rename_compare(e, field: str, copies: dict):
+    """``e`` (a comparison) with ``field == 's'`` (either side, ``==`` or ``!=``) widened to the copies of s."""
+    for a, b in ((e.left, e.right), (e.right, e.left)):
+        if isinstance(a, Name) and a.id == field and isinstance(b, Const) and b.value in copies:
+            names = copies[b.value]
+            if len(names) == 1:
+                return Compare(e.op, a, Const(names[0]))
+            any_of = BoolOp("or", tuple(Compare("==", a, Const(n)) for n in names))
+            return any_of if e.op == "==" else Unary("not", any_of)
     return e
 
 
 def _rename_any(x, field: str, copies: dict):
     if isinstance(x, Expr):
         if isinstance(x, Compare) and x.op in ("==", "!="):
-            return _rename_expr(x, field, copies)
+            return _rename_compare(x, field, copies)
         changes = {f.name: _rename_any(getattr(x, f.name), field, copies) for f in dataclasses.fields(x)}
         return dataclasses.replace(x, **changes) if any(changes[k] is not getattr(x, k) for k in changes) else x
     if isinstance(x, tuple):

@@ -124,11 +124,6 @@ def _box(points) -> tuple:
     return (tuple(min(p[k] for p in pts) for k in range(3)), tuple(max(p[k] for p in pts) for k in range(3)))
 
 
-def _hull(*boxes) -> tuple:
-    boxes = [b for b in boxes if b is not None]
-    return _box([b[0] for b in boxes] + [b[1] for b in boxes])
-
-
 def _gaps(a, b, k) -> tuple:
     """(least, greatest) |p[k] - q[k]| for p in a, q in b."""
     lo = max(0.0, b[0][k] - a[1][k], a[0][k] - b[1][k])
@@ -183,14 +178,6 @@ class Derivation:
         if dz > 0.0:
             v, a = min(v, zs["speed"] / dz), min(a, zs["acceleration"] / dz)
         return Profile(1.0 if v != math.inf else 0.0, v * s, a * s * s).total
-
-    def rest(self, start, target) -> tuple:
-        (d0, d1), (z0, z1) = _distances(start, target)
-        return self.rest_time(d0, z0), self.rest_time(d1, z1)
-
-    def lift(self, start, area) -> tuple:
-        hz = self.hub[area][0][2]
-        return self.rest_time(0.0, max(0.0, hz - start[1][2])), self.rest_time(0.0, max(0.0, hz - start[0][2]))
 
     def track(self, start, z: float) -> float:
         """The slowest sampled pursuit from the corners of box ``start`` to a belt part
