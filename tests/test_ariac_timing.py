@@ -78,6 +78,8 @@ def test_cli_prints_the_proved_worst_case(capsys, tmp_path):
     assert "worst case: 294 ticks = 29.4 s" in text
     assert "worst first late response (every earlier trigger answered within 16 s): 274 ticks = 27.4 s" in text
     assert json.loads(out.read_text())["violation"]["kind"] == "response"
+    assert main(["replay", str(out), "ariac-preemptive-timed"]) == 0  # a run of the model, as it says
+    assert "first holds 274 tick(s)" in capsys.readouterr().out
 
 
 def _trial(args):

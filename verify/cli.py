@@ -161,6 +161,7 @@ def cli_bound(args) -> int:
         ce = counterexample(rb, path, k, None, f"the worst first late response: '{args.response}' {_w} tick(s) "
                             f"({rb.seconds(_w):g} s) after '{args.trigger}', every earlier one within {within:g} s",
                             None)
+        ce.violation["worst_ticks"] = _w  # this run's figure (the worst over all runs is larger)
         from btfsm.outputs import atomic_write_text
 
         atomic_write_text(args.output, json.dumps(ce.to_json(), indent=1, default=_plain) + "\n")
