@@ -97,3 +97,49 @@ def test_the_stored_table_is_the_derivation(tmp_path):
         pytest.skip("the derivation runs a minute of pursuits (BTFSM_LONG=1)")
     got = durations.derive(ariac.preemptive()).to_data()
     assert got["classes"] == stored["classes"] and got["table"] == stored["table"]
+
+
+def _first_late_oracle(ts, rb, bound: int):
+    """The worst first late response by an explicit product: (state, ticks the pending
+    trigger has waited or None), counted along the transitions (not read from the
+    event's interval counter), cut where a pending trigger waited longer than ``bound``."""
+    trig = set(int(t) for t in rb.trigger_edges)
+    seen, todo, worst = {(0, None)}, [(0, None)], None
+    while todo:
+        u, age = todo.pop()
+        for t in range(int(ts.offsets[u]), int(ts.offsets[u + 1])):
+            d = int(ts.dst[t])
+            a = 0 if t in trig else (None if age is None else age + 1)
+            if t in trig:
+                w = int(rb.worst_at[d])
+                worst = w if worst is None else max(worst, w)
+            if rb.stop[d]:
+                a = None
+            if a is not None and a > bound:
+                continue
+            if (d, a) not in seen:
+                seen.add((d, a))
+                todo.append((d, a))
+    return worst
+
+
+@pytest.mark.parametrize("work,bound", [((0.0, 0.3), 2), ((0.1, 0.4), 3), ((0.0, 0.6), 4), ((0.1, 0.75), 5)])
+def test_first_late_is_the_product_search(work, bound):
+    """``ResponseBound.first_late`` against an explicit product search on a small model:
+    parts arrive at least 0.8 s apart into a queue of two, a worker takes ``work`` seconds
+    per part (0.75 s: the queue may never empty, both figures unbounded); the response is
+    an empty queue."""
+    from btfsm import Action, Condition, EnvEvent, Int, ReactiveSequence
+    from btfsm.timing import Response
+    from btfsm.verify.properties.response import ResponseBound
+
+    m = Model("q", variables=[Int("q", 0, 2)],
+              primitives=[Primitive("work", (running(), success(q="q - 1")), duration=work)],
+              tree=ReactiveSequence("root", [Condition("has", "q > 0"), Action("w", primitive="work")]),
+              environment=[EnvEvent("arrive", "q < 2", {"q": "q + 1"}, min_interval=0.8)],
+              tick_rate=10.0)
+    ts = explore(m)
+    rb = ResponseBound(ts, Response("r", "event:arrive", "q == 0"))
+    worst, path, k = rb.first_late(bound)
+    assert worst == _first_late_oracle(ts, rb, bound) <= rb.worst
+    assert rb.first_late(8) is None  # the interval (8 ticks) must exceed the bound
