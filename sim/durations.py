@@ -18,6 +18,11 @@ fails instead of passing silently.
 stays for ``timed(model, durations="measured")``.
 
     python -m btfsm.sim.durations [--trials N] [--write models/ariac_timing.json]
+
+``derive_scene(model, scene)`` (a scene with a ``bind`` table): each FSM state bound to a
+library move gets its slowest rest-to-rest run, context-free; other states no duration.
+
+    python -m btfsm.sim.durations --scene FILE [MODEL] --trigger T --response R --within S
 """
 from __future__ import annotations
 
@@ -26,7 +31,7 @@ from collections import defaultdict
 
 from btfsm.errors import ModelError
 
-__all__ = ["measure", "declared", "derive", "Derivation", "Timing", "main"]
+__all__ = ["measure", "declared", "derive", "Derivation", "Timing", "derive_scene", "timed_in_scene", "main"]
 
 
 def _visits(spec) -> dict:
@@ -80,6 +85,11 @@ def declared(maxima: dict, rate: float = 10.0, margin: float = 0.1) -> dict:
 def main(argv=None) -> int:
     import argparse
     import json
+    import sys
+
+    argv = sys.argv[1:] if argv is None else list(argv)
+    if any(a == "--scene" or a.startswith("--scene=") for a in argv):
+        return scene_main(argv)
 
     from .protocol import VARIANTS, TrialSpec
 
@@ -474,6 +484,102 @@ def derive(model, scene=None) -> Timing:
         where.setdefault(s1, set()).update(starts)
     where = {s: sorted(":".join("*" if v is None else str(v) for v in p) for p in ps) for s, ps in where.items()}
     return Timing(d.fsm, classes, table, where)
+
+
+def derive_scene(model, scene) -> dict:
+    """``{fsm: {state: (0, max) seconds}}`` for the FSM states of a model run in a scene
+    with a ``bind`` table whose call is a library move (``move_to``, ``carry_to``): the
+    slowest rest-to-rest move of the scene's robot to the state's frame from the robot's
+    home or any frame its moves go to (context-free: no position abstraction; the
+    farthest of those points bounds every start on the segments between them). Other
+    states get no duration (a grip that waits for a part, a wait for a sensor, have no
+    bound the geometry gives)."""
+    from .loop import start
+    from .scene import Profile
+
+    _world, binding, _rt = start(scene, model, 0, arrivals=False)
+    calls = getattr(binding, "calls", None)
+    if calls is None:
+        raise ModelError("bind", f"scene {scene.name} binds the model through a Python binding: durations are "
+                         "derived from a bind table's moves (or, for the kitting binding, by derive())", scene.file)
+    prog = model.program
+    moves = {i: c for i, c in calls.items() if c[0] in ("move_to", "carry_to")}
+    points: dict = {}
+    for lib, robot, args in moves.values():
+        points.setdefault(robot, {tuple(scene.robots[robot]["home"])}).add(tuple(args["frame"]))
+    out: dict = {}
+    for site in prog.sites:
+        if site.index not in moves or not site.fsm or not site.state:
+            continue
+        lib, robot, args = moves[site.index]
+        spec, (tx, ty) = scene.robots[robot], args["frame"]
+        far = max(math.hypot(tx - x, ty - y) for x, y in points[robot])
+        s = float(args["speed"])
+        slow = Profile(far, spec["speed"] * s, spec["acceleration"] * s).total
+        row = out.setdefault(site.fsm, {})
+        row[site.state] = (0.0, round(max(row.get(site.state, (0, 0))[1], slow + scene.dt + 1e-3), 3))
+    return out
+
+
+def timed_in_scene(model, scene, responses=()):
+    """``model`` with the durations of ``derive_scene`` on its FSM states and ``responses``."""
+    import dataclasses
+
+    table = derive_scene(model, scene)
+    fsms = tuple(dataclasses.replace(f, states=tuple(
+        dataclasses.replace(st, duration=table[f.name][st.id]) if st.id in table.get(f.name, {}) else st
+        for st in f.states)) for f in model.fsms)
+    return dataclasses.replace(model, fsms=fsms, responses=tuple(model.responses) + tuple(responses))
+
+
+def scene_main(argv) -> int:
+    """``python -m btfsm.sim.durations --scene FILE [MODEL] [--trigger T --response R --within S]``."""
+    import argparse
+    import sys
+
+    from btfsm.files import load_model
+    from btfsm.timing import Response
+    from btfsm.verify.report import check
+
+    from .scene import load_scene
+
+    p = argparse.ArgumentParser(prog="python -m btfsm.sim.durations --scene")
+    p.add_argument("--scene", required=True)
+    p.add_argument("model", nargs="?", help="the model (default: the scene's model)")
+    p.add_argument("--trigger")
+    p.add_argument("--response")
+    p.add_argument("--within", type=float)
+    args = p.parse_args(argv)
+    try:
+        scene = load_scene(args.scene)
+        name = args.model or scene.model
+        if not name:
+            raise ModelError("model", f"scene {scene.name} names no model: give one")
+        model = load_model(name)
+        reqs = ()
+        if args.trigger or args.response:
+            if not (args.trigger and args.response):
+                raise ModelError("requirement", "give both --trigger and --response")
+            reqs = (Response("requirement", args.trigger, args.response, args.within),)
+        timed = timed_in_scene(model, scene, reqs)
+        timed.program  # the requirement's expressions are checked here
+        table = derive_scene(model, scene)
+    except (ModelError, OSError) as exc:
+        print(f"btfsm.sim.durations: {exc}", file=sys.stderr)
+        return 2
+    print(f"{model.name} in scene {scene.name}: durations derived from the bind table's moves (context-free)")
+    for fsm, rows in table.items():
+        for st, (lo, hi) in rows.items():
+            print(f"  {fsm}.{st:24s} [{lo:g}, {hi:g}] s")
+    if not timed.responses:
+        print("no requirement: give --trigger, --response and --within (or declare responses: in the model)")
+        return 0
+    r = check(timed, ["response"])
+    res = r.results[0]
+    for note in res.notes:
+        print("  " + note)
+    print("response: " + ("holds" if res.holds else "violated" if res.holds is False else "not decided"))
+    return r.exit_code
 
 
 if __name__ == "__main__":

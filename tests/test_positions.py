@@ -143,3 +143,23 @@ def test_first_late_is_the_product_search(work, bound):
     worst, path, k = rb.first_late(bound)
     assert worst == _first_late_oracle(ts, rb, bound) <= rb.worst
     assert rb.first_late(8) is None  # the interval (8 ticks) must exceed the bound
+
+
+def test_a_user_scene_gets_derived_durations_and_a_response_verdict(capsys):
+    """``python -m btfsm.sim.durations --scene FILE --trigger T --response R --within S``:
+    the bind table's moves get their slowest rest-to-rest run (context-free), and the
+    requirement a verdict; the grasp (a grip that waits for a part) has no derived bound,
+    so the worst case is unbounded. Bad input: one line, exit 2."""
+    from btfsm.sim.durations import main as durations_main
+
+    from pathlib import Path
+
+    scene = str(Path(__file__).resolve().parents[1] / "models" / "scenes" / "two_area.yaml")
+    assert durations_main(["--scene", scene, "--trigger", "event:arrive", "--response", "arm.state == 'grasp_in'",
+                           "--within", "20"]) == 1
+    out = capsys.readouterr().out
+    assert "arm.at_in                    [0, 1.733] s" in out and "worst case unbounded" in out
+    assert "response: violated" in out
+    assert durations_main(["--scene", scene, "--trigger", "event:arrive", "--response", "arm.goal == 'x'"]) == 2
+    err = capsys.readouterr().err
+    assert "responses.requirement.response: 'x' is not one of" in err and "Traceback" not in err
