@@ -238,6 +238,9 @@ def _args_bound(sp):
     _args_response(sp, required=True)
     sp.add_argument("--output", "-o", type=output_file(".json"), default=None,
                     help="write the worst-case run as a counterexample file (replay it with btfsm replay)")
+    sp.add_argument("--within", type=finite_float(0, None), default=None, metavar="S",
+                    help="also the worst first late response: over runs that answered every earlier trigger within S "
+                         "seconds (an event trigger whose minimum interval exceeds S); -o then writes that run")
     _args_json(sp, "the figures")
     _args_max_states(sp)
     _args_budgets(sp)
