@@ -113,3 +113,26 @@ def test_owner_spreads_codes():
     same = (codes % 10 == 3) & ((codes // 100) % 10 == 5)
     assert len(set(own[same].tolist())) == 1  # one key value, one owner
     assert np.bincount(own, minlength=4).min() > 1_000
+
+
+def test_cli_check_on_a_scheduler(local, capsys):
+    """``btfsm check --scheduler ADDRESS``: the partitioned verdicts and counts of the
+    one-process check (exit 1: both violated on pickplace3-dead); other properties and
+    budgets are refused (exit 2)."""
+    import json
+
+    from btfsm import cli
+
+    assert cli.main(["check", "pickplace3-dead", "--scheduler", local.scheduler_address, "--json"]) == 1
+    out = json.loads(capsys.readouterr().out)
+    want = _one(pickplace(3, dead=True))
+    assert out["results"] == {"workable-reachability": False, "no-dead-states": False}
+    assert (out["states"], out["transitions"], out["traps"], out["dead_states"]) == (
+        want["states"], want["transitions"], want["traps"], want["dead"])
+    assert cli.main(["check", "defect-trap", "--scheduler", local.scheduler_address,
+                     "--property", "workable-reachability"]) == 1
+    assert "VIOLATED: 2 reachable state(s)" in capsys.readouterr().out
+    assert cli.main(["check", "pickplace3", "--scheduler", local.scheduler_address, "--property", "determinism"]) == 2
+    assert "only workable-reachability and no-dead-states run partitioned" in capsys.readouterr().err
+    assert cli.main(["check", "pickplace3", "--scheduler", "local:2", "--max-states", "10"]) == 2
+    assert cli.main(["check", "pickplace3", "--scheduler", "nowhere"]) == 2

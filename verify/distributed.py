@@ -64,6 +64,12 @@ __all__ = ["owner", "Partition", "DistributedCounts", "DistributedCheck", "explo
 MESSAGE_MIN = 1 << 17  # states bound elsewhere after which a partition ends its round
 LOW = 0  # a partition with fewer queued states than this ends its round once something is to be sent
 KEY_SPREAD = 32  # key values per partition (at least) the partition key aims at
+# Dask starts its workers with MALLOC_TRIM_THRESHOLD_=65536, which freezes glibc's mmap
+# threshold at 128 KiB: every batch's arrays are then fresh zero pages, and a partition
+# expands at half speed (measured: 11.0 s instead of 5.6 s for pick/place at 14 in one
+# process). The embedded cluster's workers get the thresholds glibc would grow to.
+WORKER_MALLOC = {"MALLOC_MMAP_THRESHOLD_": 1 << 25, "MALLOC_TRIM_THRESHOLD_": 1 << 26}
+CONNECT_SECONDS = 10  # to reach a running scheduler before giving up
 _GOLDEN = np.uint64(0x9E3779B97F4A7C15)
 
 
@@ -582,9 +588,12 @@ def cluster(scheduler: "str | None" = None, workers: int = 2):
     from dask.distributed import Client, LocalCluster
 
     if scheduler:
-        with Client(scheduler) as client:
+        with Client(scheduler, timeout=CONNECT_SECONDS) as client:
             yield client
         return
-    with LocalCluster(n_workers=workers, threads_per_worker=1, dashboard_address=None) as local, \
+    import dask
+
+    with dask.config.set({f"distributed.nanny.pre-spawn-environ.{k}": v for k, v in WORKER_MALLOC.items()}), \
+            LocalCluster(n_workers=workers, threads_per_worker=1, dashboard_address=None) as local, \
             Client(local) as client:
         yield client
