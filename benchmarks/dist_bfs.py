@@ -92,7 +92,7 @@ def main() -> int:
         print(f"{label:12}: {r.states:,} states, {r.transitions:,} transitions, {r.seconds:.2f} s "
               f"(x{one['seconds'] / r.seconds:.2f} one process; {r.levels} rounds; states per partition "
               f"{r.per_partition}; {r.messages} messages, largest {r.largest_message:,} states, "
-              f"{r.states_sent:,} states sent; peak RSS per worker "
+              f"{r.states_sent:,} states sent; ideal speed-up {r.ideal_speedup:.2f}; peak RSS per worker "
               f"{', '.join(f'{p / 2**20:,.0f}' for p in peaks)} MB); counts {'equal' if same else 'DIFFERENT'}")
         if c is not None:
             mine = {"traps": c.traps, "dead": c.dead, "sinks": sorted(k for k, v in c.sinks.items() if v)}
@@ -109,7 +109,8 @@ def main() -> int:
             ok &= same
             sizes = r.per_partition
             print(f"simulated {p:3} partitions: {r.levels} rounds, {r.messages} messages, {r.states_sent:,} states sent "
-                  f"({r.states_sent / r.states:.1%} of the states), largest {r.largest_message:,}; states per partition "
+                  f"({r.states_sent / r.states:.1%} of the states), largest {r.largest_message:,}; critical path "
+                  f"{r.critical_path:,} states (ideal speed-up {r.ideal_speedup:.2f}); states per partition "
                   f"min {min(sizes):,} max {max(sizes):,} (mean {r.states / p:,.0f}); counts {'equal' if same else 'DIFFERENT'}; "
                   f"{time.perf_counter() - t:.1f} s in one process")
     print("exact counts: " + ("equal" if ok else "DIFFERENT"))

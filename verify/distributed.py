@@ -18,8 +18,9 @@ sent it that it has not seen, (2) expands its queue in batches of up to ``CHUNK`
 through the traced engine's batch expansion (``btfsm.verify.traced.BatchSuccessors``: the
 trie over ``Program.step`` that the one-process search runs), queueing the new targets it
 owns at once and cutting the others' new targets into one bucket per owner (a code is sent
-once: sent codes are marked seen too), (3) stops when the buckets hold ``message_min``
-states or its queue is empty, and (4) sends each bucket (an int64 array) straight to the
+once: sent codes are marked seen too), (3) stops after ``ROUND_STATES`` expanded states
+(so that no partition goes on alone while the others wait for its messages), when the
+buckets hold ``message_min`` states, or when its queue is empty, and (4) sends each bucket (an int64 array) straight to the
 owner's actor, worker to worker, before the round ends. The client calls one method per
 partition per round and gets a few ints back: when no partition sent anything and none has
 a queue left, nothing is in flight and the search is over. Every state is expanded exactly
@@ -59,16 +60,17 @@ import numpy as np
 from .traced import CHUNK, DENSE_LIMIT, BatchSuccessors
 
 __all__ = ["owner", "Partition", "DistributedCounts", "DistributedCheck", "explore_distributed",
-           "check_distributed", "simulate", "cluster", "MESSAGE_MIN", "LOW", "partition_key"]
+           "check_distributed", "simulate", "cluster", "MESSAGE_MIN", "ROUND_STATES", "partition_key"]
 
 MESSAGE_MIN = 1 << 17  # states bound elsewhere after which a partition ends its round
-LOW = 0  # a partition with fewer queued states than this ends its round once something is to be sent
+ROUND_STATES = 1 << 16  # states a partition expands in one round at most (with other partitions)
 KEY_SPREAD = 32  # key values per partition (at least) the partition key aims at
 # Dask starts its workers with MALLOC_TRIM_THRESHOLD_=65536, which freezes glibc's mmap
 # threshold at 128 KiB: every batch's arrays are then fresh zero pages, and a partition
 # expands at half speed (measured: 11.0 s instead of 5.6 s for pick/place at 14 in one
-# process). The embedded cluster's workers get the thresholds glibc would grow to.
-WORKER_MALLOC = {"MALLOC_MMAP_THRESHOLD_": 1 << 25, "MALLOC_TRIM_THRESHOLD_": 1 << 26}
+# process). A worker that takes a partition gets the thresholds glibc would grow to
+# (``_malloc_thresholds``; mallopt's M_TRIM_THRESHOLD = -1, M_MMAP_THRESHOLD = -3).
+WORKER_MALLOC = ((-3, 1 << 25), (-1, 1 << 26))
 CONNECT_SECONDS = 10  # to reach a running scheduler before giving up
 _GOLDEN = np.uint64(0x9E3779B97F4A7C15)
 
@@ -250,11 +252,12 @@ class Partition:
     # ---------------------------------------------------------------- the search
 
     def _explore(self, out) -> dict:
-        nt = sent = 0
+        nt = sent = done = 0
         while self.head < self.n:
-            k = min(self.n - self.head, CHUNK)
-            if k < LOW and sent:
+            if done >= ROUND_STATES and self.parts > 1:
                 break
+            k = min(self.n - self.head, CHUNK)
+            done += k
             batch = self.codes[self.head:self.head + k]
             rows, dst, bad = self.succ.expand(batch)
             if self.keep:  # the transitions by source state
@@ -269,7 +272,7 @@ class Partition:
             if sent >= self.message_min:
                 break
         self.transitions += nt
-        return {"transitions": nt, "pending": self.n - self.head}
+        return {"transitions": nt, "pending": self.n - self.head, "expanded": done}
 
     # ---------------------------------------------------------------- checks (keep=True)
 
@@ -397,7 +400,14 @@ class DistributedCounts:
     per_partition: list = field(default_factory=list)  # states owned by each partition
     messages: int = 0  # non-empty buckets sent
     largest_message: int = 0  # states in the largest bucket
-    states_sent: int = 0  # states in all buckets (after local deduplication)
+    states_sent: int = 0  # states in all buckets (each code sent once by a partition)
+    critical_path: int = 0  # sum over rounds of the most states a partition expanded in it
+
+    @property
+    def ideal_speedup(self) -> float:
+        """States / critical path: the speed-up over one partition that P cores could
+        reach with free rounds and messages (deterministic, unlike a time)."""
+        return self.states / self.critical_path if self.critical_path else 1.0
 
 
 @dataclass
@@ -428,6 +438,7 @@ def _tally(counts, res) -> None:
     counts.messages += sum(1 for k in flat if k)
     counts.states_sent += sum(flat)
     counts.largest_message = max([counts.largest_message, *flat])
+    counts.critical_path += max(s.get("expanded", 0) for s in res)
 
 
 def _done(res) -> bool:
@@ -487,6 +498,20 @@ def _check(counts, local, traps, back, t0) -> DistributedCheck:
 # ------------------------------------------------------------------ on Dask
 
 
+def _malloc_thresholds() -> None:
+    """glibc's malloc thresholds as they grow by default (see ``WORKER_MALLOC``); nothing
+    where the C library is not glibc."""
+    import ctypes
+    import ctypes.util
+
+    try:
+        libc = ctypes.CDLL(ctypes.util.find_library("c") or "libc.so.6")
+        for param, value in WORKER_MALLOC:
+            libc.mallopt(param, value)
+    except (OSError, AttributeError):
+        pass
+
+
 class _Actor:
     """A ``Partition`` on a Dask worker. Its peers' actor handles come with ``connect``.
     ``step`` is a coroutine on the worker's event loop: the round's work runs in a thread
@@ -495,6 +520,7 @@ class _Actor:
     no message is in flight between rounds."""
 
     def __init__(self, spec, me, parts, keep, message_min, key):
+        _malloc_thresholds()
         factory, args, kwargs = spec
         self.p = Partition(factory(*args, **dict(kwargs)), me, parts, keep, message_min, key)
         self.peers = None
@@ -591,9 +617,6 @@ def cluster(scheduler: "str | None" = None, workers: int = 2):
         with Client(scheduler, timeout=CONNECT_SECONDS) as client:
             yield client
         return
-    import dask
-
-    with dask.config.set({f"distributed.nanny.pre-spawn-environ.{k}": v for k, v in WORKER_MALLOC.items()}), \
-            LocalCluster(n_workers=workers, threads_per_worker=1, dashboard_address=None) as local, \
+    with LocalCluster(n_workers=workers, threads_per_worker=1, dashboard_address=None) as local, \
             Client(local) as client:
         yield client
