@@ -8,6 +8,8 @@ includes it).
 """
 from __future__ import annotations
 
+import os
+
 import numpy as np
 import pytest
 
@@ -136,3 +138,24 @@ def test_cli_check_on_a_scheduler(local, capsys):
     assert "only workable-reachability and no-dead-states run partitioned" in capsys.readouterr().err
     assert cli.main(["check", "pickplace3", "--scheduler", "local:2", "--max-states", "10"]) == 2
     assert cli.main(["check", "pickplace3", "--scheduler", "nowhere"]) == 2
+
+
+@pytest.mark.skipif(not os.environ.get("BTFSM_LONG"), reason="long run: BTFSM_LONG=1")
+def test_every_builtin_model_partitioned():
+    """The counts, trap, dead and sink states of every built-in model but the heavy and
+    the timed ones, with 3 simulated partitions, equal the one-process ones."""
+    from btfsm.files import load_model
+    from btfsm.models.registry import BUILTIN, HEAVY
+    from btfsm.verify.properties import not_applicable
+
+    for name in BUILTIN:
+        if name in HEAVY or "timed" in name:
+            continue
+        model = load_model(name)
+        want = _one(model)
+        got = _mine(dist.simulate(model, 3, keep=True))
+        if not_applicable(model, "workable-reachability"):
+            want["traps"] = got["traps"] = None
+        if model.tree is None:
+            want["sinks"] = got["sinks"] = None  # judged in the FSMs' open systems
+        assert got == want, name

@@ -186,8 +186,9 @@ class Partition:
     partition (what to send there; its own entry empty) and a dict of counts."""
 
     def __init__(self, model, me: int, parts: int, keep: bool = False, message_min: int = MESSAGE_MIN,
-                 key: tuple = (), succ=None):
+                 key: tuple = (), succ=None, round_states: int = ROUND_STATES):
         self.model, self.me, self.parts, self.keep, self.message_min = model, me, parts, keep, message_min
+        self.round_states = round_states
         self.key = key
         self.succ = succ or BatchSuccessors(model)  # partitions in one thread may share one
         self.seen = _Seen(self.succ.total)
@@ -254,7 +255,7 @@ class Partition:
     def _explore(self, out) -> dict:
         nt = sent = done = 0
         while self.head < self.n:
-            if done >= ROUND_STATES and self.parts > 1:
+            if done >= self.round_states and self.parts > 1:
                 break
             k = min(self.n - self.head, CHUNK)
             done += k
@@ -402,6 +403,7 @@ class DistributedCounts:
     largest_message: int = 0  # states in the largest bucket
     states_sent: int = 0  # states in all buckets (each code sent once by a partition)
     critical_path: int = 0  # sum over rounds of the most states a partition expanded in it
+    work_seconds: float = 0.0  # on Dask: sum over rounds of the longest partition's work
 
     @property
     def ideal_speedup(self) -> float:
@@ -439,6 +441,7 @@ def _tally(counts, res) -> None:
     counts.states_sent += sum(flat)
     counts.largest_message = max([counts.largest_message, *flat])
     counts.critical_path += max(s.get("expanded", 0) for s in res)
+    counts.work_seconds += max(s.get("work", 0.0) for s in res)
 
 
 def _done(res) -> bool:
@@ -464,7 +467,8 @@ def _rounds(parts, phase, counts=None) -> tuple:
             return rounds, res
 
 
-def simulate(model, parts: int, keep: bool = False, message_min: int = MESSAGE_MIN, key=None):
+def simulate(model, parts: int, keep: bool = False, message_min: int = MESSAGE_MIN, key=None,
+             round_states: int = ROUND_STATES):
     """The partitioned search (and with ``keep`` the checks) with ``parts`` partitions run
     one after the other in this process: the same ``Partition`` code and rounds as on
     Dask, so the same counts, rounds and message volume, without the cluster. Returns
@@ -472,7 +476,7 @@ def simulate(model, parts: int, keep: bool = False, message_min: int = MESSAGE_M
     t0 = time.perf_counter()
     succ = BatchSuccessors(model)  # one trie for all: the partitions run one after the other
     key = partition_key(model, parts, succ=succ) if key is None else key
-    ps = [Partition(model, j, parts, keep, message_min, key, succ) for j in range(parts)]
+    ps = [Partition(model, j, parts, keep, message_min, key, succ, round_states) for j in range(parts)]
     counts = DistributedCounts(0, 0, 0, 0.0)
     counts.levels = _rounds(ps, "explore", counts)[0]
     counts.per_partition = [p.n for p in ps]
@@ -532,9 +536,11 @@ class _Actor:
         self.p.receive(codes)
 
     async def step(self, phase):
+        t0 = time.perf_counter()
         buckets, stats = await asyncio.get_running_loop().run_in_executor(None, self.p.step, phase)
+        work = time.perf_counter() - t0
         await asyncio.gather(*[self.peers[j].receive(b) for j, b in enumerate(buckets) if len(b)])
-        return {**stats, "sent": [len(b) for b in buckets]}
+        return {**stats, "sent": [len(b) for b in buckets], "work": work}
 
     def n(self) -> int:
         return self.p.n
