@@ -40,10 +40,10 @@ _ONE = """
 import json, resource, sys, time
 from btfsm.models.pickplace import pickplace
 from btfsm.verify.explore import explore
-t = time.perf_counter()
+t, cpu = time.perf_counter(), time.process_time()
 ts = explore(pickplace({n}))
 s = time.perf_counter() - t
-out = {{"states": ts.n_states, "transitions": ts.n_transitions, "seconds": s,
+out = {{"states": ts.n_states, "transitions": ts.n_transitions, "seconds": s, "cpu": time.process_time() - cpu,
         "rss": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024}}
 if {check}:
     from btfsm.verify.properties import dead, workable
@@ -97,8 +97,8 @@ def main() -> int:
     code = _ONE.format(n=a.size, check=a.check)
     one = json.loads(subprocess.run([sys.executable, "-c", code], check=True, capture_output=True, text=True,
                                     cwd=root).stdout)
-    print(f"one process : {one['states']:,} states, {one['transitions']:,} transitions, {one['seconds']:.2f} s, "
-          f"peak RSS {one['rss'] / 2**20:,.0f} MB")
+    print(f"one process : {one['states']:,} states, {one['transitions']:,} transitions, {one['seconds']:.2f} s "
+          f"({one['cpu']:.2f} CPU s), peak RSS {one['rss'] / 2**20:,.0f} MB")
     if a.check:
         print(f"{'':12}  with the traps, dead and sink states: {one['check_seconds']:.2f} s, peak RSS "
               f"{one['check_rss'] / 2**20:,.0f} MB")
@@ -119,7 +119,10 @@ def main() -> int:
               f"(x{one['seconds'] / r.seconds:.2f} one process; {r.levels} rounds; states per partition "
               f"{r.per_partition}; {r.messages} messages, largest {r.largest_message:,} states, "
               f"{r.states_sent:,} states sent; ideal speed-up {r.ideal_speedup:.2f}; the partitions' work "
-              f"{r.work_seconds:.2f} s, the rest {1000 * (r.seconds - r.work_seconds) / r.levels:.0f} ms a round; peak RSS per worker "
+              f"{r.work_seconds:.2f} s, the rest {r.seconds - r.work_seconds:.2f} s (start-up and rounds, "
+              f"{1000 * (r.seconds - r.work_seconds) / r.levels:.0f} ms a round); CPU: "
+              f"{r.cpu_seconds:.2f} s in all, {r.cpu_path:.2f} s on the critical path (x{one['cpu'] / r.cpu_path:.2f} "
+              f"one process's CPU s); peak RSS per worker "
               f"{', '.join(f'{p / 2**20:,.0f}' for p in peaks)} MB); counts {'equal' if same else 'DIFFERENT'}")
         if c is not None:
             mine = {"traps": c.traps, "dead": c.dead, "sinks": sorted(k for k, v in c.sinks.items() if v)}

@@ -234,6 +234,12 @@ class Partition:
         return len(codes) - int(ends[self.me] - starts[self.me])
 
     def step(self, phase: str):
+        cpu = time.thread_time()
+        buckets, stats = self._step(phase)
+        stats["cpu"] = time.thread_time() - cpu  # this thread's CPU seconds: the load of others aside
+        return buckets, stats
+
+    def _step(self, phase: str):
         with self._lock:
             got, self.inbox = [b for b in self.inbox if len(b)], []
         out = [[] for _ in range(self.parts)]
@@ -404,6 +410,8 @@ class DistributedCounts:
     states_sent: int = 0  # states in all buckets (each code sent once by a partition)
     critical_path: int = 0  # sum over rounds of the most states a partition expanded in it
     work_seconds: float = 0.0  # on Dask: sum over rounds of the longest partition's work
+    cpu_seconds: float = 0.0  # CPU seconds of the partitions' rounds, all together
+    cpu_path: float = 0.0  # sum over rounds of the most CPU seconds a partition took in it
 
     @property
     def ideal_speedup(self) -> float:
@@ -442,6 +450,8 @@ def _tally(counts, res) -> None:
     counts.largest_message = max([counts.largest_message, *flat])
     counts.critical_path += max(s.get("expanded", 0) for s in res)
     counts.work_seconds += max(s.get("work", 0.0) for s in res)
+    counts.cpu_path += max(s.get("cpu", 0.0) for s in res)
+    counts.cpu_seconds += sum(s.get("cpu", 0.0) for s in res)
 
 
 def _done(res) -> bool:
