@@ -57,7 +57,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .traced import CHUNK, DENSE_LIMIT, BatchSuccessors
+from .traced import CHUNK, DENSE_LIMIT, STEP, BatchSuccessors
 
 __all__ = ["owner", "Partition", "DistributedCounts", "DistributedCheck", "explore_distributed",
            "check_distributed", "simulate", "cluster", "MESSAGE_MIN", "ROUND_STATES", "partition_key"]
@@ -317,9 +317,12 @@ class Partition:
         if self._sorted is not None:
             return self._order[np.searchsorted(self._sorted, codes)]
         bits, prefix = self._rank
-        word = codes >> 6
-        below = np.left_shift(np.uint64(1), (codes & 63).astype(np.uint64)) - np.uint64(1)
-        return self._order[prefix[word] + _popcount(bits[word] & below)]
+        out = np.empty(len(codes), np.int64)
+        for a in range(0, len(codes), STEP):  # in slices: few temporaries
+            c = codes[a:a + STEP]
+            word = c >> 6
+            out[a:a + STEP] = self._order[prefix[word] + _popcount(bits[word] & (_bit(c) - np.uint64(1)))]
+        return out
 
     def local_checks(self) -> dict:
         """No-dead-states at model level on this partition's states: dead states (no
@@ -347,27 +350,35 @@ class Partition:
                 "workable": int(len(self.frontier))}
 
     def _reverse(self, got, out) -> dict:
-        """First call: ship every transition reversed, as (target, source) code pairs, to
-        the target's owner. Second call: build the CSR of predecessors from the pairs."""
+        """First call: ship every transition reversed to its target's owner, one array per
+        owner (the targets' codes, then the sources'). Second call: the CSR of predecessor
+        codes by local state id, from what came in and this partition's own part."""
         if not hasattr(self, "pred"):
             self.pred = None
             degree = np.concatenate(self.degree) if self.degree else np.zeros(0, np.int32)
             dst = np.concatenate(self.targets) if self.targets else np.zeros(0, np.int64)
-            src = np.repeat(self.codes[:len(degree)], degree)
             self.degree = self.targets = None  # the forward transitions go: the reverse ones replace them
-            own = owner(dst, self.parts, self.key) if self.parts > 1 else np.zeros(len(dst), np.int64)
-            for j in range(self.parts):
-                pick = own == j
-                pairs = np.stack([dst[pick], src[pick]], axis=1).ravel()
-                (got.append if j == self.me else out[j].append)(pairs)
+            src = np.repeat(self.codes[:len(degree)], degree)
+            del degree
             if self.parts > 1:
-                self._pairs = got
+                own = owner(dst, self.parts, self.key)
+                for j in range(self.parts):
+                    if j != self.me:
+                        pick = own == j
+                        out[j].append(np.concatenate([dst[pick], src[pick]]))
+                pick = own == self.me
+                del own
+                dst, src = dst[pick], src[pick]
+            self._mine = (dst, src)
+            if self.parts > 1:
                 return {"pending": 0}
-        pairs = np.concatenate([p for p in got + getattr(self, "_pairs", []) if len(p)] or [np.zeros(0, np.int64)])
-        self._pairs = []
-        tgt, src = self._local(pairs[0::2]), pairs[1::2]
+        tgt = np.concatenate([self._mine[0]] + [p[:len(p) // 2] for p in got])
+        src = np.concatenate([self._mine[1]] + [p[len(p) // 2:] for p in got])
+        self._mine = got = None
+        tgt = self._local(tgt)
         order = np.argsort(tgt, kind="stable")
         self.pred = src[order]
+        del src, order
         self.pptr = np.concatenate(([0], np.cumsum(np.bincount(tgt, minlength=self.n))))
         return {"pending": 0}
 
