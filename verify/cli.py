@@ -105,7 +105,7 @@ def _check_partitioned(args, props) -> int:
     local = re.fullmatch(r"local(?::([0-9]+))?", args.scheduler)
     if local is None and not re.fullmatch(r"(tcp|tls|inproc)://[^\s]+", args.scheduler):
         raise UsageError(f"--scheduler: expected tcp://HOST:PORT or local:N, got {args.scheduler!r}")
-    workers = int(local.group(1) or 2) if local else None
+    workers = int(local.group(1) or 2) if local else 0
     if local and not 1 <= workers <= 64:
         raise UsageError(f"--scheduler local:N: N from 1 to 64, got {workers}")
     if importlib.util.find_spec("distributed") is None:

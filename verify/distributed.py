@@ -196,6 +196,13 @@ class Partition:
         self.n = self.head = self.transitions = 0
         self.inbox: list = []
         self._lock = threading.Lock()
+        self._order: "np.ndarray | None" = None  # checks: local ids in code order (``_local``)
+        self._sorted: "np.ndarray | None" = None
+        self._rank: tuple = ()
+        self._mine: tuple = ()  # checks: this partition's own reversed transitions
+        self._reversed = False
+        self.pred = np.zeros(0, np.int64)  # checks: predecessor codes, CSR by local id
+        self.pptr = np.zeros(1, np.int64)
         self.degree: list = []  # keep: out-degree of each expanded state, by batch
         self.targets: list = []  # keep: target codes of each batch's transitions
         self.errors: list = []  # keep: queue positions of states with a domain error
@@ -242,7 +249,7 @@ class Partition:
     def _step(self, phase: str):
         with self._lock:
             got, self.inbox = [b for b in self.inbox if len(b)], []
-        out = [[] for _ in range(self.parts)]
+        out: list = [[] for _ in range(self.parts)]
         if phase == "explore":
             self._take = self._add
             if got:
@@ -298,7 +305,7 @@ class Partition:
         """Local ids (positions in ``codes``) of owned codes: a code's rank among the owned
         codes (a bitmap of them, a prefix count per 64-bit word and a popcount; binary
         search past ``DENSE_LIMIT``) indexes the ids in code order."""
-        if getattr(self, "_order", None) is None or len(self._order) != self.n:
+        if self._order is None or len(self._order) != self.n:
             own = self.codes[:self.n]
             self._order = np.argsort(own, kind="stable")
             self._sorted = None
@@ -314,14 +321,15 @@ class Partition:
                 self._rank = (bits, prefix)
             else:
                 self._sorted = own[self._order]
+        order = self._order
         if self._sorted is not None:
-            return self._order[np.searchsorted(self._sorted, codes)]
+            return order[np.searchsorted(self._sorted, codes)]
         bits, prefix = self._rank
         out = np.empty(len(codes), np.int64)
         for a in range(0, len(codes), STEP):  # in slices: few temporaries
             c = codes[a:a + STEP]
             word = c >> 6
-            out[a:a + STEP] = self._order[prefix[word] + _popcount(bits[word] & (_bit(c) - np.uint64(1)))]
+            out[a:a + STEP] = order[prefix[word] + _popcount(bits[word] & (_bit(c) - np.uint64(1)))]
         return out
 
     def local_checks(self) -> dict:
@@ -353,11 +361,11 @@ class Partition:
         """First call: ship every transition reversed to its target's owner, one array per
         owner (the targets' codes, then the sources'). Second call: the CSR of predecessor
         codes by local state id, from what came in and this partition's own part."""
-        if not hasattr(self, "pred"):
-            self.pred = None
+        if not self._reversed:
+            self._reversed = True
             degree = np.concatenate(self.degree) if self.degree else np.zeros(0, np.int32)
             dst = np.concatenate(self.targets) if self.targets else np.zeros(0, np.int64)
-            self.degree = self.targets = None  # the forward transitions go: the reverse ones replace them
+            self.degree, self.targets = [], []  # the forward transitions go: the reverse ones replace them
             src = np.repeat(self.codes[:len(degree)], degree)
             del degree
             if self.parts > 1:
@@ -374,7 +382,7 @@ class Partition:
                 return {"pending": 0}
         tgt = np.concatenate([self._mine[0]] + [p[:len(p) // 2] for p in got])
         src = np.concatenate([self._mine[1]] + [p[len(p) // 2:] for p in got])
-        self._mine = got = None
+        self._mine, got = (), []
         tgt = self._local(tgt)
         order = np.argsort(tgt, kind="stable")
         self.pred = src[order]
