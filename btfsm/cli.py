@@ -221,6 +221,10 @@ def _args_check(sp):
     sp.add_argument("--engine", choices=("auto", "traced", "scalar"), default="auto",
                     help="model-level exploration engine (default auto: traced, scalar where it cannot trace); "
                          "both give the same system")
+    sp.add_argument("--scheduler", type=input_text, default=None, metavar="ADDRESS",
+                    help="check workable-reachability and no-dead-states (model level) with the states partitioned "
+                         "across Dask workers: tcp://HOST:PORT (a running scheduler; the model file must be at the "
+                         "same path on its workers) or local:N (an embedded cluster of N worker processes)")
     _args_response(sp, required=False)
     sp.add_argument("--within", type=finite_float(0, None), metavar="S", default=None,
                     help="with --trigger/--response: the bound in seconds (property 'response')")

@@ -1082,12 +1082,20 @@ class BatchSuccessors:
         self.engine.max_paths = 1 << 62
         mults, offset = self.engine.mults, self.engine.offset
         self.initial = sum(v * m for v, m in zip(prog.initial, mults)) - offset
+        self.total = self.engine.total  # codes lie in 0..total-1
+        self.mults = tuple(int(m) for m in mults)  # slot k's value is (code // mults[k]) % size + lo
 
     def __call__(self, codes: np.ndarray):
+        return self.expand(codes)[:2]
+
+    def expand(self, codes: np.ndarray):
+        """``(rows, targets, error rows)``: the last, the batch rows (with repeats) of
+        ticks that raised a domain error."""
         codes = np.asarray(codes, np.int64)
         out, ev = self.engine.expand(codes, 1 << 62)
         rows, _lid, dst = _transitions([(leaf, r) for leaf, r in out if leaf.kind == "ok"], codes, ev)
-        return rows, dst
+        bad = [np.asarray(r, np.int64) for leaf, r in out if leaf.kind == "error"]
+        return rows, dst, np.concatenate(bad) if bad else np.zeros(0, np.int64)
 
 
 def _view(buf, dtype) -> np.ndarray:
