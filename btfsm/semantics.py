@@ -90,11 +90,12 @@ class _Late(Exception):
 
 
 class _Ctx:
-    __slots__ = ("s", "oracle", "rec", "fsm_done", "violations", "on_request")
+    __slots__ = ("s", "oracle", "rec", "fsm_done", "violations", "on_request", "on_merge")
 
     def __init__(self, s, oracle, rec):
         self.s, self.oracle, self.rec, self.fsm_done, self.violations = s, oracle, rec, {}, []
         self.on_request = getattr(oracle, "request", None)  # optional: told which goal an FSM drives
+        self.on_merge = getattr(oracle, "merge", None)  # optional: told where the tick's context is its state
 
 
 class _N:
@@ -136,6 +137,7 @@ class Program:
         self._layout_fsms()
         self._layout_nodes()
         self.wake = self._wake_slot()
+        self.merge_points = self._merge_points()
         self.exclusive = self._exclusive_groups()
         self._compile_fsms()
         self.env_timers: list = []  # (event index, slot, ticks) of events with a minimum interval
@@ -648,6 +650,8 @@ class Program:
             go_on = SUCCESS if isinstance(n, ReactiveSequence) else FAILURE
             halts = tuple(later_halts(i) for i in range(len(kids)))
             pairs = tuple(zip(kids, halts))
+            if name in self.merge_points:
+                return self._merging_reactive(name, pairs, go_on, finish)
 
             def tick(ctx):
                 for child, hs in pairs:
@@ -664,11 +668,14 @@ class Program:
         if isinstance(n, (MemorySequence, MemoryFallback)):
             go_on = SUCCESS if isinstance(n, MemorySequence) else FAILURE
             mem, count = info.mem, len(kids)
+            merge = name in self.merge_points
 
             def tick(ctx):
                 s = ctx.s
                 i = s[mem]
                 while i < count:
+                    if merge and i and ctx.on_merge is not None:
+                        ctx.on_merge((name, i), s, ctx.violations, ctx.fsm_done)
                     st = kids[i](ctx)
                     if st != go_on:
                         s[mem] = i if st == RUNNING else 0
@@ -961,16 +968,36 @@ class Program:
             return tick
         raise ModelError(where, f"unknown node type {type(n).__name__}")
 
+    @staticmethod
+    def _merging_reactive(name, pairs, go_on, finish):
+        """A ReactiveSequence/ReactiveFallback that is a merge point (``_merge_points``):
+        the same tick, telling the oracle before each child after the first."""
+        def tick(ctx):
+            s = ctx.s
+            for i, (child, hs) in enumerate(pairs):
+                if i and ctx.on_merge is not None:
+                    ctx.on_merge((name, i), s, ctx.violations, ctx.fsm_done)
+                st = child(ctx)
+                if st != go_on:
+                    _halt_running(ctx, hs)
+                    return finish(st, ctx)
+            return finish(go_on, ctx)
+        return tick
+
     def _nav2_control(self, info, kids, finish, where):
         """Rules 'PipelineSequence', 'RecoveryNode', 'RoundRobin' (docs/semantics.md 8.3),
         ported from navigation2's nav2_behavior_tree/plugins/control/*.cpp."""
         n, s_mem, count = info.node, info.mem, len(kids)
         every = tuple((k.flag, k.halt) for k in info.kids if k.can_run)  # BT.CPP's haltChildren()
         if isinstance(n, PipelineSequence):
+            merge = n.name in self.merge_points
+
             def tick(ctx):
                 s = ctx.s
                 last = s[s_mem]
                 for i in range(count):
+                    if merge and i and ctx.on_merge is not None:
+                        ctx.on_merge((n.name, i), s, ctx.violations, ctx.fsm_done)
                     st = kids[i](ctx)
                     if st == FAILURE:
                         _halt_running(ctx, every)
@@ -993,6 +1020,7 @@ class Program:
             limit = n.retries
             halt0 = ((k0.flag, k0.halt),) if k0.can_run else ()
             halt1 = ((k1.flag, k1.halt),) if k1.can_run else ()
+            merge = n.name in self.merge_points
 
             def end(ctx, st):
                 _halt_running(ctx, every)  # halt(): the children, the index and the count
@@ -1026,6 +1054,9 @@ class Program:
                         _halt_running(ctx, halt1)
                         retry += 1
                         recovering = False
+                        s[s_mem] = retry  # the count in the state, where an oracle can see it
+                        if merge and ctx.on_merge is not None:
+                            ctx.on_merge(n.name, s, ctx.violations, ctx.fsm_done)
                 return end(ctx, FAILURE)  # pragma: no cover - the count never passes the limit
             return tick
 
@@ -1053,6 +1084,28 @@ class Program:
             s[s_mem] = s[fail_mem] = 0
             return finish(FAILURE, ctx)
         return tick
+
+    def _merge_points(self) -> frozenset:
+        """The nodes that tell the oracle (``oracle.merge``, rule 'in-tick retries',
+        docs/semantics.md 8.3) where the rest of the tick depends on nothing but the tick's
+        state list, its violations and FSM records so far: a RecoveryNode where a retry
+        starts within the tick, and the sequences and fallbacks before each child after
+        the first. Only when the main tree has a RecoveryNode that can retry, without
+        tickOnce re-ticks, and only nodes of the main tree whose ancestors, once a child
+        returns, read nothing but the state, the child's status and its position (no count
+        of earlier children's results, as a Parallel keeps). Empty for every other model."""
+        if self.wake is not None or self.model.tree is None:
+            return frozenset()
+        main = self.model.tree.name
+        clean = {}
+        for info in self.nodes.values():  # parents before children
+            p = info.parent
+            clean[info.node.name] = info.root == main and (p is None or (
+                clean[p.node.name] and isinstance(p.node, _MERGE_SAFE)))
+        if not any(isinstance(i.node, RecoveryNode) and i.node.retries > 0 and clean[i.node.name]
+                   for i in self.nodes.values()):
+            return frozenset()
+        return frozenset(name for name, ok in clean.items() if ok and isinstance(self.nodes[name].node, _MERGING))
 
     def _signal(self, info):
         """The wake-up slot a loop node of the main tree sets (rule 'tickOnce'), or None
@@ -1399,6 +1452,14 @@ class Program:
         """(state id, held goal or None) of an FSM."""
         f, ids, tok, goal, _ = self.fsm_info[self.fsm_index[fsm]]
         return ids[state[tok]], (f.goals[state[goal] - 1] if state[goal] else None)
+
+
+#: node types whose tick, after a child returns, reads only the state, that child's status and
+#: its position (``Program._merge_points``), and those of them that tell the oracle
+_MERGING = (RecoveryNode, ReactiveSequence, ReactiveFallback, MemorySequence, MemoryFallback, PipelineSequence)
+_MERGE_SAFE = (ReactiveSequence, ReactiveFallback, MemorySequence, MemoryFallback, PipelineSequence, RecoveryNode,
+              RoundRobin, Inverter, ForceSuccess, ForceFailure, SubTree, KeepRunningUntilFailure, FailureIsRunning,
+              RunningIsFailure, RunningIsSuccess, RunOnce, Guard, Effects)
 
 
 def _stateful(info) -> bool:
