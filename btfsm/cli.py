@@ -40,7 +40,7 @@ import json
 import os
 import sys
 
-from .errors import ConformanceError, DomainError, ModelError, Terminated, UsageError
+from .errors import ConformanceError, DomainError, ModelError, ModelErrors, Terminated, UsageError
 from . import reserve, signals
 from .profiles import SEMANTICS, TICKS
 from .validators import (finite_float, input_file, input_text, int_range, output_dir, output_file, probability,
@@ -410,6 +410,9 @@ def _describe(exc: BaseException, command: str) -> dict:
     elif isinstance(exc, ModelError):
         info.update(kind="model", file=exc.file, element=exc.element or None, problem=str(exc.problem),
                     exit_code=EXIT_INPUT)
+        if isinstance(exc, ModelErrors):  # every problem found in one pass: one line each, and the list
+            info["errors"] = [{"file": e.file, "element": e.element or None, "problem": str(e.problem)}
+                              for e in exc.errors]
     elif isinstance(exc, UsageError):
         info.update(kind="usage", exit_code=EXIT_INPUT)
     elif isinstance(exc, (DomainError, ConformanceError)):
@@ -435,8 +438,12 @@ def _message(info: dict) -> str:
     if info["kind"] == "internal":
         return _one_line(head + f"internal error (a bug in btfsm): {info['type']}: {info['problem']}; {REPORT_HINT} "
                        f"(run with --debug for the traceback)")
-    where = "".join(f"{part}: " for part in (info["file"], info["element"]) if part)
     label = {"violation": "violation: ", "budget": "incomplete: "}.get(info["kind"], "error: ")
+    if info.get("errors"):
+        lines = [_one_line(head + label + "".join(f"{part}: " for part in (e["file"], e["element"]) if part)
+                           + e["problem"]) for e in info["errors"]]
+        return "\n".join(lines + [f"{head}{len(lines)} errors"])
+    where = "".join(f"{part}: " for part in (info["file"], info["element"]) if part)
     return _one_line(head + label + where + info["problem"])
 
 

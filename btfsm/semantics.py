@@ -90,10 +90,11 @@ class _Late(Exception):
 
 
 class _Ctx:
-    __slots__ = ("s", "oracle", "rec", "fsm_done", "violations", "on_request", "on_merge")
+    __slots__ = ("s", "oracle", "rec", "fsm_done", "violations", "on_request", "on_merge", "reticks")
 
     def __init__(self, s, oracle, rec):
         self.s, self.oracle, self.rec, self.fsm_done, self.violations = s, oracle, rec, {}, []
+        self.reticks = ()  # the states the tickOnce re-ticks of this tick started from (rule 'tickOnce')
         self.on_request = getattr(oracle, "request", None)  # optional: told which goal an FSM drives
         self.on_merge = getattr(oracle, "merge", None)  # optional: told where the tick's context is its state
 
@@ -675,7 +676,7 @@ class Program:
                 i = s[mem]
                 while i < count:
                     if merge and i and ctx.on_merge is not None:
-                        ctx.on_merge((name, i), s, ctx.violations, ctx.fsm_done)
+                        ctx.on_merge((name, i), s, ctx.violations, ctx.fsm_done, ctx.reticks)
                     st = kids[i](ctx)
                     if st != go_on:
                         s[mem] = i if st == RUNNING else 0
@@ -976,7 +977,7 @@ class Program:
             s = ctx.s
             for i, (child, hs) in enumerate(pairs):
                 if i and ctx.on_merge is not None:
-                    ctx.on_merge((name, i), s, ctx.violations, ctx.fsm_done)
+                    ctx.on_merge((name, i), s, ctx.violations, ctx.fsm_done, ctx.reticks)
                 st = child(ctx)
                 if st != go_on:
                     _halt_running(ctx, hs)
@@ -997,7 +998,7 @@ class Program:
                 last = s[s_mem]
                 for i in range(count):
                     if merge and i and ctx.on_merge is not None:
-                        ctx.on_merge((n.name, i), s, ctx.violations, ctx.fsm_done)
+                        ctx.on_merge((n.name, i), s, ctx.violations, ctx.fsm_done, ctx.reticks)
                     st = kids[i](ctx)
                     if st == FAILURE:
                         _halt_running(ctx, every)
@@ -1056,7 +1057,7 @@ class Program:
                         recovering = False
                         s[s_mem] = retry  # the count in the state, where an oracle can see it
                         if merge and ctx.on_merge is not None:
-                            ctx.on_merge(n.name, s, ctx.violations, ctx.fsm_done)
+                            ctx.on_merge(n.name, s, ctx.violations, ctx.fsm_done, ctx.reticks)
                 return end(ctx, FAILURE)  # pragma: no cover - the count never passes the limit
             return tick
 
@@ -1088,13 +1089,13 @@ class Program:
     def _merge_points(self) -> frozenset:
         """The nodes that tell the oracle (``oracle.merge``, rule 'in-tick retries',
         docs/semantics.md 8.3) where the rest of the tick depends on nothing but the tick's
-        state list, its violations and FSM records so far: a RecoveryNode where a retry
-        starts within the tick, and the sequences and fallbacks before each child after
-        the first. Only when the main tree has a RecoveryNode that can retry, without
-        tickOnce re-ticks, and only nodes of the main tree whose ancestors, once a child
-        returns, read nothing but the state, the child's status and its position (no count
-        of earlier children's results, as a Parallel keeps). Empty for every other model."""
-        if self.wake is not None or self.model.tree is None:
+        state list, its violations, FSM records and tickOnce re-ticks so far: a
+        RecoveryNode where a retry starts within the tick, and the sequences and fallbacks
+        before each child after the first. Only when the main tree has a RecoveryNode that
+        can retry, and only nodes of the main tree whose ancestors, once a child returns,
+        read nothing but the state, the child's status and its position (no count of
+        earlier children's results, as a Parallel keeps). Empty for every other model."""
+        if self.model.tree is None:
             return frozenset()
         main = self.model.tree.name
         clean = {}
@@ -1366,6 +1367,7 @@ class Program:
                                                        "starts from the state of an earlier one"))
                 return RUNNING
             seen.append(list(s))
+            ctx.reticks += (tuple(s),)
             ctx.fsm_done = {}
             if ctx.rec is not None:
                 ctx.rec.append(("wake-up", self.model.tree.name))

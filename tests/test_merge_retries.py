@@ -13,7 +13,7 @@ from hypothesis import strategies as st
 
 from btfsm import Bool, Int, Model
 from btfsm.bt import (Action, Condition, Inverter, MemoryFallback, MemorySequence, Parallel, PipelineSequence,
-                      ReactiveFallback, ReactiveSequence, RecoveryNode, RoundRobin)
+                      ReactiveFallback, ReactiveSequence, RecoveryNode, Retry, RoundRobin, SequenceWithMemory)
 from btfsm.errors import DomainError
 from btfsm.oracles import all_choices
 from btfsm.primitives import failure, running, success
@@ -32,7 +32,7 @@ def trees(draw, depth=0, names=None):
     names = names if names is not None else iter(range(10_000))
     kinds = ["action", "condition"] if depth >= 3 else [
         "action", "action", "condition", "recovery", "recovery", "seq", "fb", "rseq", "rfb", "pipe", "robin", "inv",
-        "par"]
+        "par", "retry", "swm"]
     kind = draw(st.sampled_from(kinds))
     name = f"n{next(names)}"
     if kind == "action":
@@ -42,6 +42,8 @@ def trees(draw, depth=0, names=None):
         return Condition(name, draw(st.sampled_from(["b", "not b", "n > 0", "n < 2"])))
     if kind == "inv":
         return Inverter(name, draw(trees(depth + 1, names)))
+    if kind == "retry":  # under btcpp: a tickOnce wake-up, the root re-ticked within the step
+        return Retry(name, draw(trees(depth + 1, names)), attempts=2)
     count = 2 if kind == "recovery" else draw(st.integers(1, 3))
     kids = tuple(draw(trees(depth + 1, names)) for _ in range(count))
     if kind == "recovery":
@@ -51,7 +53,7 @@ def trees(draw, depth=0, names=None):
     if kind == "par":
         return Parallel(name, kids, success_threshold=draw(st.integers(1, count)))
     return {"seq": MemorySequence, "fb": MemoryFallback, "rseq": ReactiveSequence, "rfb": ReactiveFallback,
-            "pipe": PipelineSequence}[kind](name, kids)
+            "pipe": PipelineSequence, "swm": SequenceWithMemory}[kind](name, kids)
 
 
 @st.composite

@@ -31,12 +31,12 @@ class EnumOracle(ScriptOracle):
         self.arities, self.labels, self.taken, self.picks = [], [], [], []
         self.seen, self.cut, self.ran = seen, None, None
 
-    def merge(self, node, s, violations, fsm_done):
+    def merge(self, node, s, violations, fsm_done, reticks=()):
         """Merging in-tick retries (``seen``: a dict shared by every run of one enumeration of
         a state's successors; None: off). ``Program.step`` calls this where a loop node
         (a RecoveryNode, ``Program.merge_points``) starts a retry within the tick; from there
-        the rest of the tick depends only on ``s``, the violations and FSM records so far
-        (the state list is the tick's whole context there). The first run to reach that
+        the rest of the tick depends only on ``s``, the violations, FSM records and tickOnce
+        re-ticks so far (the tick's whole context there). The first run to reach that
         context (with the answers before it: the same environment, and whether a leaf
         answered RUNNING) keeps it; a run reaching it after other answers sets ``cut``:
         it finishes with its default answers, but its choice points from here on are not
@@ -56,8 +56,8 @@ class EnumOracle(ScriptOracle):
                     self.ran = True
                     break
             self.seen_picks = len(picks)
-        key = (node, tuple(s), tuple(violations), frozenset(fsm_done.items()) if fsm_done else None, self.outer,
-               self.ran)
+        key = (node, tuple(s), tuple(violations), frozenset(fsm_done.items()) if fsm_done else None, reticks,
+               self.outer, self.ran)
         prefix = tuple(self.taken)
         if self.seen.setdefault(key, prefix) != prefix:
             self.cut = self.pos
