@@ -23,7 +23,7 @@ class ModelError(ValueError):
 class ModelErrors(ModelError):
     """Several problems of one model found in one pass (``errors``: each a ``ModelError``,
     in the order found). It reads as the first one (``element``, ``problem``, ``file``);
-    its text has one line per problem."""
+    its text is one line listing them all (the command line prints one line each)."""
 
     def __init__(self, errors):
         self.errors = list(errors)
@@ -31,7 +31,7 @@ class ModelErrors(ModelError):
         super().__init__(first.element, first.problem, first.file)
 
     def _text(self) -> str:
-        return "\n".join(e._text() for e in self.errors)
+        return f"{len(self.errors)} problems: " + "; ".join(e._text() for e in self.errors)
 
     def at(self, prefix: str = "", file: "str | None" = None) -> "ModelErrors":
         return ModelErrors([e.at(prefix, file) for e in self.errors])
