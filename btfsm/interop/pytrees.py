@@ -292,7 +292,7 @@ def btfsm_names(names) -> list:
     Count left out), by ``node_names``' rule; ``btfsm conform --log`` uses it to name the
     nodes of a py_trees recording.
 
-    >>> btfsm_names(["a", "a_2", "a", "", "x\ny"])
+    >>> btfsm_names(["a", "a_2", "a", "", "x\\ny"])
     ['a', 'a_2', 'a_3', 'unnamed', 'x_y']
     """
     labels = [_label(n) for n in names]
