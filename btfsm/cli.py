@@ -14,7 +14,10 @@ Exit codes
 
 Errors
     Every error is one line on stderr, ``btfsm COMMAND: error: FILE: ELEMENT: PROBLEM``
-    (the parts that apply; ``violation:`` for a violation met while running, exit 1, and
+    (the parts that apply; a model with several problems found in one pass, such as the
+    untyped blackboard entries of an XML tree, gets one such line each and a last line
+    ``btfsm COMMAND: N errors``, ``--json``: an ``errors`` list of ``file``, ``element``,
+    ``problem``; ``violation:`` for a violation met while running, exit 1, and
     ``incomplete:`` when memory ran out, exit 3), never a Python traceback. An internal error says that it is
     a bug, names the exception and where to report it; the global ``--debug`` flag (before
     or after the command) adds the traceback. Under ``--json`` the error is instead one JSON
