@@ -14,7 +14,10 @@ Exit codes
 
 Errors
     Every error is one line on stderr, ``btfsm COMMAND: error: FILE: ELEMENT: PROBLEM``
-    (the parts that apply; ``violation:`` for a violation met while running, exit 1, and
+    (the parts that apply; a model with several problems found in one pass, such as the
+    untyped blackboard entries of an XML tree, gets one such line each and a last line
+    ``btfsm COMMAND: N errors``, ``--json``: an ``errors`` list of ``file``, ``element``,
+    ``problem``; ``violation:`` for a violation met while running, exit 1, and
     ``incomplete:`` when memory ran out, exit 3), never a Python traceback. An internal error says that it is
     a bug, names the exception and where to report it; the global ``--debug`` flag (before
     or after the command) adds the traceback. Under ``--json`` the error is instead one JSON
@@ -39,9 +42,9 @@ import importlib
 import json
 import os
 import sys
-from typing import cast
+from typing import Any, cast
 
-from .errors import ConformanceError, DomainError, ModelError, Terminated, UsageError
+from .errors import ConformanceError, DomainError, ModelError, ModelErrors, Terminated, UsageError
 from . import reserve, signals
 from .profiles import SEMANTICS, TICKS
 from .validators import (finite_float, input_file, input_text, int_range, output_dir, output_file, probability,
@@ -409,7 +412,7 @@ def _one_line(text) -> str:
 
 def _describe(exc: BaseException, command: str) -> dict:
     """kind, exit code and the parts of the one-line message for an exception."""
-    info = {"kind": "internal", "type": type(exc).__name__, "command": command, "file": None, "element": None,
+    info: dict[str, Any] = {"kind": "internal", "type": type(exc).__name__, "command": command, "file": None, "element": None,
             "problem": str(exc), "exit_code": EXIT_INTERNAL}
     if isinstance(exc, Terminated):
         info.update(kind="terminated", problem="terminated", exit_code=EXIT_TERMINATED)
@@ -418,6 +421,9 @@ def _describe(exc: BaseException, command: str) -> dict:
     elif isinstance(exc, ModelError):
         info.update(kind="model", file=exc.file, element=exc.element or None, problem=str(exc.problem),
                     exit_code=EXIT_INPUT)
+        if isinstance(exc, ModelErrors):  # every problem found in one pass: one line each, and the list
+            info["errors"] = [{"file": e.file, "element": e.element or None, "problem": str(e.problem)}
+                              for e in exc.errors]
     elif isinstance(exc, UsageError):
         info.update(kind="usage", exit_code=EXIT_INPUT)
     elif isinstance(exc, (DomainError, ConformanceError)):
@@ -443,8 +449,12 @@ def _message(info: dict) -> str:
     if info["kind"] == "internal":
         return _one_line(head + f"internal error (a bug in btfsm): {info['type']}: {info['problem']}; {REPORT_HINT} "
                        f"(run with --debug for the traceback)")
-    where = "".join(f"{part}: " for part in (info["file"], info["element"]) if part)
     label = {"violation": "violation: ", "budget": "incomplete: "}.get(info["kind"], "error: ")
+    if info.get("errors"):
+        lines = [_one_line(head + label + "".join(f"{part}: " for part in (e["file"], e["element"]) if part)
+                           + e["problem"]) for e in info["errors"]]
+        return "\n".join(lines + [f"{head}{len(lines)} errors"])
+    where = "".join(f"{part}: " for part in (info["file"], info["element"]) if part)
     return _one_line(head + label + where + info["problem"])
 
 

@@ -101,14 +101,16 @@ class _Late(Exception):
 
 
 class _Ctx:
-    __slots__ = ("s", "oracle", "rec", "fsm_done", "violations", "on_request")
+    __slots__ = ("s", "oracle", "rec", "fsm_done", "violations", "on_request", "on_merge", "reticks")
 
     def __init__(self, s: list[int], oracle: Any, rec: Optional[list[Any]]) -> None:
         self.s, self.oracle = s, oracle
         self.rec: Any = rec  # the events of the tick, when recorded (list), else None
         self.fsm_done: dict[int, tuple[int, int, str, Any]] = {}  # FSM -> (goal, reply, requester, params)
         self.violations: list[Any] = []
+        self.reticks: tuple[tuple[int, ...], ...] = ()  # the states the tickOnce re-ticks of this tick started from (rule 'tickOnce')
         self.on_request = getattr(oracle, "request", None)  # optional: told which goal an FSM drives
+        self.on_merge = getattr(oracle, "merge", None)  # optional: told where the tick's context is its state
 
 
 class _N:
@@ -228,6 +230,7 @@ class Program:
         self._layout_fsms()
         self._layout_nodes()
         self.wake: Any = self._wake_slot()
+        self.merge_points = self._merge_points()
         self.exclusive = self._exclusive_groups()
         self._compile_fsms()
         timers: list[tuple[int, int, int]] = []  # (event index, slot, ticks) of events with a minimum interval
@@ -691,6 +694,28 @@ class Program:
             raise ModelError(f"tree.{n.name}", f"unknown node type {type(n).__name__}") from None
         return compile_rule(self, NodeRule(info))
 
+    def _merge_points(self) -> frozenset[str]:
+        """The nodes that tell the oracle (``oracle.merge``, rule 'in-tick retries',
+        docs/semantics.md 8.3) where the rest of the tick depends on nothing but the tick's
+        state list, its violations, FSM records and tickOnce re-ticks so far: a
+        RecoveryNode where a retry starts within the tick, and the sequences and fallbacks
+        before each child after the first. Only when the main tree has a RecoveryNode that
+        can retry, and only nodes of the main tree whose ancestors, once a child returns,
+        read nothing but the state, the child's status and its position (no count of
+        earlier children's results, as a Parallel keeps). Empty for every other model."""
+        if self.model.tree is None:
+            return frozenset()
+        main = self.model.tree.name
+        clean: dict[str, bool] = {}
+        for info in self.nodes.values():  # parents before children
+            p = info.parent
+            clean[info.node.name] = info.root == main and (p is None or (
+                clean[p.node.name] and isinstance(p.node, _MERGE_SAFE)))
+        if not any(isinstance(i.node, RecoveryNode) and i.node.retries > 0 and clean[i.node.name]
+                   for i in self.nodes.values()):
+            return frozenset()
+        return frozenset(name for name, ok in clean.items() if ok and isinstance(self.nodes[name].node, _MERGING))
+
     def _signal(self, info: _N) -> Optional[int]:
         """The wake-up slot a loop node of the main tree sets (rule 'tickOnce'), or None
         (``tick: exactly-once``, or a subtree an FSM state runs: its FSM steps once a tick)."""
@@ -891,6 +916,7 @@ class Program:
                                                        "starts from the state of an earlier one"))
                 return RUNNING
             seen.append(list(s))
+            ctx.reticks += (tuple(s),)
             ctx.fsm_done = {}
             if ctx.rec is not None:
                 ctx.rec.append(("wake-up", self.model.tree.name))
@@ -980,6 +1006,14 @@ class Program:
         """(state id, held goal or None) of an FSM."""
         f, ids, tok, goal, _ = self.fsm_info[self.fsm_index[fsm]]
         return ids[state[tok]], (f.goals[state[goal] - 1] if state[goal] else None)
+
+
+#: node types whose tick, after a child returns, reads only the state, that child's status and
+#: its position (``Program._merge_points``), and those of them that tell the oracle
+_MERGING = (RecoveryNode, ReactiveSequence, ReactiveFallback, MemorySequence, MemoryFallback, PipelineSequence)
+_MERGE_SAFE = (ReactiveSequence, ReactiveFallback, MemorySequence, MemoryFallback, PipelineSequence, RecoveryNode,
+               RoundRobin, Inverter, ForceSuccess, ForceFailure, SubTree, KeepRunningUntilFailure, FailureIsRunning,
+               RunningIsFailure, RunningIsSuccess, RunOnce, Guard, Effects)
 
 
 def _stateful(info: _N) -> bool:
@@ -1182,6 +1216,8 @@ def _reactive(prog: Program, c: NodeRule) -> Tick:
     go_on = SUCCESS if isinstance(n, ReactiveSequence) else FAILURE
     halts = tuple(c.later_halts(i) for i in range(len(kids)))
     pairs = tuple(zip(kids, halts))
+    if c.name in prog.merge_points:
+        return _merging_reactive(c.name, pairs, go_on, finish)
 
     def tick(ctx: _Ctx) -> int:
         for child, hs in pairs:
@@ -1196,17 +1232,36 @@ def _reactive(prog: Program, c: NodeRule) -> Tick:
     return tick
 
 
+def _merging_reactive(name: str, pairs: "tuple[tuple[Tick, Halts], ...]", go_on: int, finish: Finish) -> Tick:
+    """A ReactiveSequence/ReactiveFallback that is a merge point (``Program._merge_points``):
+    the same tick, telling the oracle before each child after the first."""
+    def tick(ctx: _Ctx) -> int:
+        s = ctx.s
+        for i, (child, hs) in enumerate(pairs):
+            if i and ctx.on_merge is not None:
+                ctx.on_merge((name, i), s, ctx.violations, ctx.fsm_done, ctx.reticks)
+            st = child(ctx)
+            if st != go_on:
+                _halt_running(ctx, hs)
+                return finish(st, ctx)
+        return finish(go_on, ctx)
+    return tick
+
+
 @rule(MemorySequence, MemoryFallback, slots=_child_slot)
 def _memory(prog: Program, c: NodeRule) -> Tick:
     """Rules 'MemorySequence' and 'MemoryFallback' (section 2)."""
     n, info, kids, finish = c.node, c.info, c.kids, c.finish
     go_on = SUCCESS if isinstance(n, MemorySequence) else FAILURE
     mem, count = info.mem, len(kids)
+    name, merge = c.name, c.name in prog.merge_points
 
     def tick(ctx: _Ctx) -> int:
         s = ctx.s
         i = s[mem]
         while i < count:
+            if merge and i and ctx.on_merge is not None:
+                ctx.on_merge((name, i), s, ctx.violations, ctx.fsm_done, ctx.reticks)
             st = kids[i](ctx)
             if st != go_on:
                 s[mem] = i if st == RUNNING else 0
@@ -1615,11 +1670,14 @@ def _pipeline_sequence(prog: Program, c: NodeRule) -> Tick:
     nav2_behavior_tree/plugins/control/pipeline_sequence.cpp."""
     info, kids, finish = c.info, c.kids, c.finish
     s_mem, count, every = info.mem, len(kids), c.halts()  # every: BT.CPP's haltChildren()
+    name, merge = c.name, c.name in prog.merge_points
 
     def tick(ctx: _Ctx) -> int:
         s = ctx.s
         last = s[s_mem]
         for i in range(count):
+            if merge and i and ctx.on_merge is not None:
+                ctx.on_merge((name, i), s, ctx.violations, ctx.fsm_done, ctx.reticks)
             st = kids[i](ctx)
             if st == FAILURE:
                 _halt_running(ctx, every)
@@ -1645,6 +1703,7 @@ def _recovery_node(prog: Program, c: NodeRule) -> Tick:
     limit = n.retries
     halt0 = ((k0.flag, k0.halt),) if k0.can_run else ()
     halt1 = ((k1.flag, k1.halt),) if k1.can_run else ()
+    name, merge = c.name, c.name in prog.merge_points
 
     def end(ctx: _Ctx, st: int) -> int:
         _halt_running(ctx, every)  # halt(): the children, the index and the count
@@ -1678,6 +1737,9 @@ def _recovery_node(prog: Program, c: NodeRule) -> Tick:
                 _halt_running(ctx, halt1)
                 retry += 1
                 recovering = False
+                s[s_mem] = retry  # the count in the state, where an oracle can see it
+                if merge and ctx.on_merge is not None:
+                    ctx.on_merge(name, s, ctx.violations, ctx.fsm_done, ctx.reticks)
         return end(ctx, FAILURE)  # pragma: no cover - the count never passes the limit
     return tick
 

@@ -413,13 +413,35 @@ def successor_scripts(ts, state) -> list:
     Blocked ticks are left out; DomainErrors appear with ``step`` None."""
     run = _runner(ts)
     out = []
-    for taken, st, o in all_choices(lambda s, o: run(s, o, True), tuple(state), EnumOracle, (DomainError,)):
+    if ts.kind == "model" and ts.model.program.merge_points:
+        choices = _merged_choices(lambda s, o: run(s, o, True), tuple(state))
+    else:
+        choices = all_choices(lambda s, o: run(s, o, True), tuple(state), EnumOracle, (DomainError,))
+    for taken, st, o in choices:
         if isinstance(st, DomainError):
             st = None
         elif st is not None and st.state is None:
             continue  # a blocked tick
         out.append((taken, st, o))
     return out
+
+
+def _merged_choices(run, state):
+    """``all_choices`` with in-tick retries merged (``EnumOracle.merge``), in the scalar
+    engine's order, so that it gives the transitions that engine keeps."""
+    stack, seen = [()], {}
+    while stack:
+        script = stack.pop()
+        o = EnumOracle(script, seen)
+        try:
+            result = run(state, o)
+        except DomainError as exc:
+            result = exc
+        taken = tuple(o.taken)
+        for k in range(len(script), len(o.arities) if o.cut is None else max(o.cut, len(script))):
+            for c in range(1, o.arities[k]):
+                stack.append(taken[:k] + (c,))
+        yield taken, result, o
 
 
 def script_of(ts, t: int) -> tuple:

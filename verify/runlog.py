@@ -505,8 +505,13 @@ _PY_STATUS = {"RUNNING": 0, "SUCCESS": 1, "FAILURE": 2}
 
 
 def _map_pytrees(run, model, file) -> _Map:
+    from btfsm.interop.pytrees import btfsm_names
+
+    # the names from_pytrees gives the recorded behaviours (a second 'a' is 'a_2'...)
+    named = [nd for nd in run.nodes if nd["type"] not in ("PassThrough", "Count")]
+    names = {nd["index"]: nm for nd, nm in zip(named, btfsm_names([nd["name"] for nd in named]))}
     return _map_tree(run.nodes[0], model, file, children=lambda nd: nd["children"], tag=lambda nd: nd["type"],
-                     name=lambda nd: nd["name"],
+                     name=lambda nd: names.get(nd["index"], nd["name"]),
                      label=lambda nd: f"'{nd['name']}' ({nd['type']}, node {nd['index']})", key=lambda nd: nd["index"],
                      wrapper=lambda nd: nd["type"] in ("PassThrough", "Count"),
                      known=lambda nd: _PYTREES_KNOWN.get(nd["type"]))

@@ -81,11 +81,12 @@ class TreeCache:
         stack = [()]
         step = self.tree.step
         timed = budget is not None and budget.max_seconds is not None
+        seen = {} if self.tree.merge_points else None  # in-tick retries merged (EnumOracle.merge)
         while stack:
             if timed and len(res) % _CLOCK_EVERY == _CLOCK_EVERY - 1 and budget.out_of_time():
                 raise OutOfTime()
             script = stack.pop()
-            o = EnumOracle(script)
+            o = EnumOracle(script, seen)
             err = st = None
             try:
                 st = step(post, o)
@@ -95,7 +96,7 @@ class TreeCache:
             k0 = len(script)
             if len(ar) > k0:
                 taken = o.taken
-                for k in range(k0, len(ar)):
+                for k in range(k0, len(ar) if o.cut is None else max(o.cut, k0)):
                     base = tuple(taken[:k])
                     for c in range(1, ar[k]):
                         stack.append(base + (c,))
@@ -158,6 +159,7 @@ def search(model, kind, fsm, kept, run, initial, budget, progress, op, split=Non
     queue = deque([s0])
     n, i, complete, nt = 1, -1, True, 0
     Oracle = EnumOracle
+    loops = kind == "model" and bool(prog.merge_points)
     last = 0
 
     def label_of(key):
@@ -182,6 +184,7 @@ def search(model, kind, fsm, kept, run, initial, budget, progress, op, split=Non
             last = i
             progress(n, nt, time.perf_counter() - t0)
         stack = [()]
+        seen: "dict | None" = {} if loops else None  # in-tick retries merged per state (EnumOracle.merge)
         if split is not None:  # environment answers here, tree results from the cache
             env = split.env
             while stack:
@@ -262,7 +265,7 @@ def search(model, kind, fsm, kept, run, initial, budget, progress, op, split=Non
                             complete, budget.hit = False, "seconds"
                             break
                 script = stack.pop()
-                o = Oracle(script)
+                o = Oracle(script, seen)
                 try:
                     st = run(s, o)
                 except DomainError as exc:
@@ -273,7 +276,7 @@ def search(model, kind, fsm, kept, run, initial, budget, progress, op, split=Non
                 k0 = len(script)
                 if len(ar) > k0:
                     taken = o.taken
-                    for k in range(k0, len(ar)):
+                    for k in range(k0, len(ar) if o.cut is None else max(o.cut, k0)):
                         base = tuple(taken[:k])
                         for c in range(1, ar[k]):
                             stack.append(base + (c,))

@@ -35,11 +35,43 @@ class EnumOracle(ScriptOracle):
     this is the innermost loop of exploration. Scripts are assumed valid (they are made
     from the arities recorded on the same prefix)."""
 
-    __slots__ = ("picks",)
+    __slots__ = ("picks", "seen", "cut", "outer", "ran", "seen_picks")
 
-    def __init__(self, script=()):
+    def __init__(self, script=(), seen=None):
         self.script, self.pos = script, 0
         self.arities, self.labels, self.taken, self.picks = [], [], [], []
+        self.seen, self.cut, self.ran = seen, None, None
+
+    def merge(self, node, s, violations, fsm_done, reticks=()):
+        """Merging in-tick retries (``seen``: a dict shared by every run of one enumeration of
+        a state's successors; None: off). ``Program.step`` calls this where a loop node
+        (a RecoveryNode, ``Program.merge_points``) starts a retry within the tick; from there
+        the rest of the tick depends only on ``s``, the violations, FSM records and tickOnce
+        re-ticks so far (the tick's whole context there). The first run to reach that
+        context (with the answers before it: the same environment, and whether a leaf
+        answered RUNNING) keeps it; a run reaching it after other answers sets ``cut``:
+        it finishes with its default answers, but its choice points from here on are not
+        branched (the first run's branches give every ending from here). So every
+        (target, status, violations) and every answer and event of a tick is still
+        found, each ending once per context (docs/semantics.md 8.3)."""
+        if self.seen is None or self.cut is not None:
+            return
+        picks = self.picks
+        if self.ran is None:  # the answers before the tree (environment, request), asked once
+            self.outer = tuple(p for p in picks if p[0] == "env" or p[0] == "choice")
+            self.ran, self.seen_picks = False, 0
+        if not self.ran:  # has a leaf answered RUNNING so far?
+            for k in range(self.seen_picks, len(picks)):
+                p = picks[k]
+                if len(p) == 2 and p[0].outcomes[p[1]][0] == 0:
+                    self.ran = True
+                    break
+            self.seen_picks = len(picks)
+        key = (node, tuple(s), tuple(violations), frozenset(fsm_done.items()) if fsm_done else None, reticks,
+               self.outer, self.ran)
+        prefix = tuple(self.taken)
+        if self.seen.setdefault(key, prefix) != prefix:
+            self.cut = self.pos
 
     def env(self, i: int) -> bool:
         k = self.pos

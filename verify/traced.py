@@ -892,6 +892,8 @@ def search(model, kind, fsm, kept, run, s0, budget, progress, op, fallback: bool
     path traced and after every batch."""
     t0 = time.perf_counter()
     prog = model.program
+    if kind == "model" and prog.merge_points:
+        raise Untraceable("in-tick retries (RecoveryNode) are merged by the scalar engine only")
     eng = _Engine(model, run, kept, s0, op)
     mults, offset, total = eng.mults, eng.offset, eng.total
     if budget is None:

@@ -32,7 +32,7 @@ from typing import cast
 from xml.parsers import expat
 
 from ..bt import NODE_TYPES, Composite, Decorator, arity_allows, arity_text, btcpp_tags, file_fields
-from ..errors import ModelError
+from ..errors import ModelError, collected
 from ..expr import as_expr, names_in
 from ..world import check_label
 from .groot import read_models as read_node_models
@@ -216,7 +216,13 @@ def xml_to_data(xml: bytes, xml_name: str, side: "dict | None" = None, side_name
     ``<include path=...>`` (None: includes are refused)."""
     imp = _Importer(xml_name, side or {}, side_name)
     imp.library, imp.extra_models, imp.main_override, imp.include = library, models or {}, main_tree, include
-    return imp.run(parse_xml(xml, xml_name))
+    try:
+        out = imp.run(parse_xml(xml, xml_name))
+    except ModelError as exc:  # a problem that stops the import, after the entries found so far
+        raise cast(ModelError, collected(imp.errors + [exc])) from None
+    if imp.errors:  # every blackboard entry that cannot be a variable, at once
+        raise cast(ModelError, collected(imp.errors))
+    return out
 
 
 class _Importer:
@@ -254,6 +260,8 @@ class _Importer:
         self.lines: dict = {}
         self.used_nodes: set = set()
         self.pending: list = []
+        self.errors: list = []  # problems that do not stop the import (blackboard entries), reported together
+        self.bad_vars: set = set()
         self.library, self.extra_models, self.main_override, self.include = None, {}, None, None
 
     def fail(self, el, problem):
@@ -659,17 +667,23 @@ class _Importer:
         when the node library says its type is not finite (False)."""
         if var in self.variables:
             return True
+        if var in self.bad_vars:  # reported at its first use
+            return False
         if not _IDENT.match(var):
-            raise self.fail(el, f"port {port}: blackboard entry '{var}' is not an identifier, so it cannot be "
-                                "a btfsm world variable")
+            self.bad_vars.add(var)
+            self.errors.append(self.fail(el, f"port {port}: blackboard entry '{var}' is not an identifier, so it "
+                                             "cannot be a btfsm world variable"))
+            return False
         if ptype in _BOOL_TYPES:
             self.variables[var] = "bool"
             return True
         if self.library is not None and ptype and self.library.opaque(ptype):
             return False
         why = f"has type {ptype}, which is not finite" if ptype else "has no declared type (no TreeNodesModel port type)"
-        raise self.fail(el, f"port {port}: blackboard entry {{{var}}} {why}: declare '{var}' under variables: in the "
-                            "side file (bool, enum or int range) to model it")
+        self.bad_vars.add(var)
+        self.errors.append(self.fail(el, f"port {port}: blackboard entry {{{var}}} {why}: declare '{var}' under "
+                                         "variables: in the side file (bool, enum or int range) to model it"))
+        return False
 
     def declared(self, el, name, ident, key, decl, args):
         if not isinstance(decl, dict):

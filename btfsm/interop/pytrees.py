@@ -282,17 +282,28 @@ def node_names(root) -> list:
     root = _root_of(root)
     order: list = []
     _walk_behaviours(root, order)
-    labels = [_label(b.name) for b in order]
+    return list(zip(order, btfsm_names([b.name for b in order])))
+
+
+def btfsm_names(names) -> list:
+    """The btfsm node names of behaviours named ``names`` (in pre-order, PassThrough and
+    Count left out), by ``node_names``' rule; ``btfsm conform --log`` uses it to name the
+    nodes of a py_trees recording.
+
+    >>> btfsm_names(["a", "a_2", "a", "", "x\\ny"])
+    ['a', 'a_2', 'a_3', 'unnamed', 'x_y']
+    """
+    labels = [_label(n) for n in names]
     taken = set(labels)
     given: set = set()
     out = []
-    for b, lab in zip(order, labels):
+    for lab in labels:
         nm, k = lab, 1
         while nm in given or (k > 1 and nm in taken):
             k += 1
             nm = f"{lab[:240]}_{k}"
         given.add(nm)
-        out.append((b, nm))
+        out.append(nm)
     return out
 
 
