@@ -100,7 +100,12 @@ def _rename_any(x, field: str, copies: dict):
         if isinstance(x, Compare) and x.op in ("==", "!="):
             return _rename_compare(x, field, copies)
         changes = {f.name: _rename_any(getattr(x, f.name), field, copies) for f in dataclasses.fields(cast(Any, x))}
-        return dataclasses.replace(cast(Any, x), **changes) if any(changes[k] is not getattr(x, k) for k in changes) else x
+        if not any(changes[k] is not getattr(x, k) for k in changes):
+            return x
+        if isinstance(x, BoolOp):  # an 'or' of copies inside an 'or' is one 'or', as the parser reads its text
+            changes["args"] = tuple(y for a in changes["args"]
+                                    for y in (a.args if isinstance(a, BoolOp) and a.op == x.op else (a,)))
+        return dataclasses.replace(cast(Any, x), **changes)
     if isinstance(x, tuple):
         new = tuple(_rename_any(v, field, copies) for v in x)
         return x if all(a is b for a, b in zip(new, x)) else new

@@ -238,7 +238,8 @@ def test_export_btcpp_escapes_and_refuses():
     args = to_btcpp_xml(Model("a", primitives=[Primitive("move")],
                               tree=Action("m", "move", args={"speed": 3, "fast": True, "via": [1, 2]})))
     assert '<move name="m" fast="true" speed="3" via="1;2"/>' in args
-    assert '<input_port name="fast" type="std::string"/>' in args  # a port per arg (register it with ports)
+    assert '<input_port name="fast" type="bool"/>' in args  # a port per arg, typed by its value (register it with ports)
+    assert '<input_port name="speed" type="int"/>' in args and '<input_port name="via" type="std::string"/>' in args
     with pytest.raises(ModelError, match="Guard has no BehaviorTree.CPP counterpart"):
         to_btcpp_xml(Model("g", variables=[Bool("x")], primitives=[Primitive("work")],
                            tree=Guard("g", Action("w", "work"), "x")))
