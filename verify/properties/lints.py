@@ -24,7 +24,7 @@ from .base import Result
 
 RUNNING, SUCCESS, FAILURE = int(Status.RUNNING), int(Status.SUCCESS), int(Status.FAILURE)
 
-__all__ = ["check", "FIRE_LIMIT"]
+__all__ = ["check", "uses_model", "FIRE_LIMIT"]
 
 FIRE_LIMIT = 100_000
 
@@ -102,11 +102,20 @@ def dead_branches(ts, ticks: dict) -> list:
     return out
 
 
+def uses_model(ctx) -> bool:
+    """Whether the lints read the explored model (it has a tree, is complete and has at most
+    ``FIRE_LIMIT`` transitions) rather than each FSM's open system."""
+    if ctx.model.tree is None:
+        return False
+    transitions, complete = ctx.model_size()
+    return complete and transitions <= FIRE_LIMIT
+
+
 def check(ctx) -> Result:
     model, prog = ctx.model, ctx.model.program
     warnings = [(el, text) for el, text in model.warnings] + [(el, text) for el, text in prog.lints]
     seen = {el for el, _ in warnings}
-    use_model = model.tree is not None and ctx.model_ts().n_transitions <= FIRE_LIMIT and ctx.model_ts().complete
+    use_model = uses_model(ctx)
     fired, visited, coverage = set(), {}, []
     wanted = {(f.name, x.id) for f in model.fsms for x in (*f.edges, *f.markers)}
     if use_model:
