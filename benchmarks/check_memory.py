@@ -82,13 +82,17 @@ def main(argv=None) -> int:
                    "explore_s": round(ew, 2), "explore_mb": round(em), "check_s": round(cw, 2), "check_mb": round(cm),
                    "time_ratio": round(cw / ew, 2), "memory_ratio": round(cm / em, 2), "exit": crc,
                    "undecided": sorted(k for k, v in verdicts.items() if v == "undecided"),
-                   "explored": eout.strip(), "explore_exit": erc}
+                   "explored": eout.strip(), "explore_exit": erc,
+                   "explore_in_check_s": [round(s["seconds"], 2) for s in report["systems"]],
+                   "property_s": {p["name"]: round(p["seconds"], 2) for p in report["properties"] if p["seconds"] >= 0.05}}
             rows.append(row)
             if not args.json:
                 print(f"n={n}: {', '.join(f'{k} {s:,} states {t:,} transitions' for k, s, t in row['systems'])}")
                 print(f"  explore only: {ew:7.2f} s {em:8.0f} MB peak RSS")
                 print(f"  full check:   {cw:7.2f} s {cm:8.0f} MB peak RSS (exit {crc}; undecided: "
                       f"{', '.join(row['undecided']) or 'none'})")
+                print(f"  in the check: explorations {' + '.join(map(str, row['explore_in_check_s']))} s; properties "
+                      f"(their explorations included) {', '.join(f'{k} {v}' for k, v in row['property_s'].items())} s")
                 print(f"  check / explore: time {cw / ew:.2f}x, memory {cm / em:.2f}x", flush=True)
     if args.json:
         print(json.dumps(rows, indent=1))
