@@ -399,8 +399,19 @@ def components(ts: TransitionSystem, mask: "np.ndarray | None" = None) -> tuple:
     (int32 label per state; no copy of the transitions)."""
     from scipy.sparse.csgraph import connected_components
 
+    from scipy.sparse import csr_matrix
+
+    n = ts.n_states
     offs, targets = forward_csr(ts, mask)
-    return connected_components(_matrix(ts.n_states, offs, targets), directed=True, connection="strong")
+    # scipy's strong components never return on a matrix with a repeated entry (two
+    # transitions between the same states, e.g. differing by label): sort each row and
+    # merge repeats first, in C, on a copy of the targets (4 bytes and 1 byte per transition)
+    it = np.int32 if max(n, targets.size) < 1 << 31 else np.int64
+    g = csr_matrix((np.ones(targets.size, bool), targets.astype(it, copy=mask is None),
+                    offs.astype(it, copy=mask is None)), shape=(n, n), copy=False)
+    del offs, targets
+    g.sum_duplicates()
+    return connected_components(_matrix(n, g.indptr, g.indices), directed=True, connection="strong")
 
 
 def bottom_components(ts: TransitionSystem, count: int, label: np.ndarray) -> np.ndarray:
