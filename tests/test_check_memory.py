@@ -106,3 +106,11 @@ def test_components_with_repeated_transitions():
     count, label = components(ts)
     ref = strong_components(ts.n_states, ts.src, ts.dst)
     assert count == ref.max() + 1 and len(set(zip(label.tolist(), ref.tolist()))) == count
+
+
+def test_repeats_found_and_not_invented(systems):
+    from btfsm.verify.system import _repeats
+
+    for ts in (*systems, explore(load_builtin("original"))):
+        pairs = ts.src.astype(np.int64) * ts.n_states + ts.dst
+        assert _repeats(ts) == (np.unique(pairs).size < pairs.size)

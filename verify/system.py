@@ -404,14 +404,43 @@ def components(ts: TransitionSystem, mask: "np.ndarray | None" = None) -> tuple:
     n = ts.n_states
     offs, targets = forward_csr(ts, mask)
     # scipy's strong components never return on a matrix with a repeated entry (two
-    # transitions between the same states, e.g. differing by label): sort each row and
-    # merge repeats first, in C, on a copy of the targets (4 bytes and 1 byte per transition)
+    # transitions between the same states, e.g. differing by label): when there is one,
+    # sort each row and merge repeats first, in C, on a copy of the targets (4 bytes and 1
+    # byte per transition)
     it = np.int32 if max(n, targets.size) < 1 << 31 else np.int64
+    if mask is None and not _repeats(ts):  # the stored CSR as it is: no copy
+        return connected_components(_matrix(n, offs, targets), directed=True, connection="strong")
     g = csr_matrix((np.ones(targets.size, bool), targets.astype(it, copy=mask is None),
                     offs.astype(it, copy=mask is None)), shape=(n, n), copy=False)
     del offs, targets
     g.sum_duplicates()
     return connected_components(_matrix(n, g.indptr, g.indices), directed=True, connection="strong")
+
+
+_MAX_LAGS = 16
+
+
+def _repeats(ts: TransitionSystem) -> bool:
+    """Whether some state has two transitions to one state (True, without looking, when a
+    state has more than ``_MAX_LAGS`` transitions). A pass over the transitions a slice
+    at a time, comparing each with the few before it in its row."""
+    offs = ts.offsets
+    widest = max((int(np.diff(offs[a:a + _SLICE + 1]).max(initial=0)) for a in range(0, ts.n_states, _SLICE)),
+                 default=0)
+    if widest > _MAX_LAGS:
+        return True
+    if widest < 2:
+        return False
+    prev_s = prev_d = None
+    for a, b, src in ts.slices():
+        s, d = src, ts.dst[a:b]
+        if prev_s is not None:
+            s, d = np.concatenate([prev_s, s]), np.concatenate([prev_d, d])
+        for lag in range(1, widest):
+            if ((s[lag:] == s[:-lag]) & (d[lag:] == d[:-lag])).any():
+                return True
+        prev_s, prev_d = s[-widest:], d[-widest:]
+    return False
 
 
 def bottom_components(ts: TransitionSystem, count: int, label: np.ndarray) -> np.ndarray:
