@@ -1,53 +1,151 @@
-"""The hash-partitioned BFS on a local two-worker Dask cluster against the one-process
-search (issue 13, point 5; docs/verification.md, "Past one machine").
+"""The partitioned search on Dask against the one-process search, 1 and 2 workers in the
+same run (issue 13, point 5; issue 24, point 2; docs/verification.md, section 6).
 
-Usage: ``python3 benchmarks/dist_bfs.py [--size N] [--workers W] [--message-min M] [--threads]``
+Usage: ``python3 benchmarks/dist_bfs.py [--size N] [--workers 1 2] [--scheduler ADDRESS]
+[--check] [--simulate 2 16 64] [--capacity]``
 
-Explores ``btfsm.models.pickplace.pickplace(N)`` (default 12: 1,305,694 states) once with
-``btfsm.verify.explore.explore`` (one process, the traced engine) and once with
-``btfsm.verify.distributed.explore_distributed`` on a ``LocalCluster`` of W worker
-processes (``--threads``: worker threads in this process), prints both counts, whether
-they are equal, and the wall time of each (the cluster's start-up not included).
-Needs the ``dist`` extra (``dask[distributed]``).
+Explores ``btfsm.models.pickplace.pickplace(N)`` (default 12: 1,305,694 states):
+
+* once with ``btfsm.verify.explore.explore`` (one process, the traced engine, the whole
+  system stored) in a child process, for its wall time and peak memory;
+* then with ``btfsm.verify.distributed.explore_distributed`` on a fresh ``LocalCluster``
+  of W worker processes (one thread each) for each W of ``--workers`` (default 1 and 2),
+  or on the running cluster at ``--scheduler``: the counts, whether they equal the
+  one-process ones, the wall time (from the client's call to the counts; the cluster's
+  start-up not included, the partition key's pilot and the workers' model building
+  included), the speed-up over one process, and each worker's peak RSS;
+* ``--check``: also ``check_distributed`` (transitions kept, no-dead-states at model
+  level and workable-reachability over the partitions) next to the one-process verdicts;
+* ``--capacity`` (first): one single-partition search alone, then two at once, in child
+  processes: on a shared machine, how much work a second core does now (x2.00 when it
+  is free), the ceiling of any 2-worker speed-up in the same run;
+* ``--simulate P...``: the same partitions run one after the other in this process
+  (``btfsm.verify.distributed.simulate``, no Dask) for P partitions: rounds, messages,
+  states sent and states per partition (the message volume for 16 and 64 workers).
+
+Needs the ``dist`` extra (``dask[distributed]``). Exit 1 when a count differs.
 """
 from __future__ import annotations
 
 import argparse
+import json
 import os
+import subprocess
 import sys
 import time
 
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), ".."))
 
+_ONE = """
+import json, resource, sys, time
+from btfsm.models.pickplace import pickplace
+from btfsm.verify.explore import explore
+t, cpu = time.perf_counter(), time.process_time()
+ts = explore(pickplace({n}))
+s = time.perf_counter() - t
+out = {{"states": ts.n_states, "transitions": ts.n_transitions, "seconds": s, "cpu": time.process_time() - cpu,
+        "rss": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024}}
+if {check}:
+    from btfsm.verify.properties import dead, workable
+    m = ts.model
+    out["traps"] = int(workable.traps(ts).size)
+    out["dead"] = int(dead.dead_states(ts).size)
+    out["sinks"] = sorted(f.name for f in m.fsms if dead.reachable_sinks(ts, f) is not None)
+    out["check_seconds"] = time.perf_counter() - t
+    out["check_rss"] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024
+print(json.dumps(out))
+"""
+
+
+def _peak() -> int:
+    import resource
+
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024
+
 
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--size", type=int, default=12)
-    ap.add_argument("--workers", type=int, default=2)
-    ap.add_argument("--message-min", type=int, default=10_000, help="states per message (0: level-synchronous)")
-    ap.add_argument("--threads", action="store_true", help="workers as threads of this process")
+    ap.add_argument("--workers", type=int, nargs="*", default=[1, 2], help="local clusters to run (none: only --simulate)")
+    ap.add_argument("--round-states", type=int, default=None, metavar="N",
+                    help="with --simulate: states a partition expands per round at most (default ROUND_STATES)")
+    ap.add_argument("--scheduler", default=None, metavar="ADDRESS",
+                    help="a running Dask scheduler (tcp://HOST:PORT) instead of local clusters")
+    ap.add_argument("--message-min", type=int, default=None, help="states bound elsewhere that end a round")
+    ap.add_argument("--check", action="store_true", help="also the partitioned checks")
+    ap.add_argument("--simulate", type=int, nargs="*", default=[], metavar="P",
+                    help="simulate P partitions in this process (message volume)")
+    ap.add_argument("--capacity", action="store_true",
+                    help="first measure what a second core gives now: one single-partition search alone, then two at once")
     a = ap.parse_args()
-    from dask.distributed import Client, LocalCluster
-
     from btfsm.models.pickplace import pickplace
-    from btfsm.verify.distributed import explore_distributed
-    from btfsm.verify.explore import explore
+    from btfsm.verify import distributed as dist
 
-    t = time.perf_counter()
-    ts = explore(pickplace(a.size))
-    one = time.perf_counter() - t
-    print(f"one process : {ts.n_states:,} states, {ts.n_transitions:,} transitions, {one:.1f} s")
-    want = (ts.n_states, ts.n_transitions)
-    del ts
-    with LocalCluster(n_workers=a.workers, threads_per_worker=1, processes=not a.threads,
-                      dashboard_address=None) as cluster, Client(cluster) as client:
-        r = explore_distributed(client, pickplace, (a.size,), message_min=a.message_min)
-    print(f"{a.workers} workers   : {r.states:,} states, {r.transitions:,} transitions, {r.seconds:.1f} s "
-          f"({r.levels} rounds; states per partition {r.per_partition}; {r.messages} messages, "
-          f"largest {r.largest_message:,} states, {r.states_sent:,} states sent)")
-    same = (r.states, r.transitions) == want
-    print("exact counts: " + ("equal" if same else "DIFFERENT"))
-    return 0 if same else 1
+    root = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..")
+    if a.capacity:  # a shared machine: how much a second process gets done beside a first
+        solo = f"from btfsm.models.pickplace import pickplace; from btfsm.verify.distributed import simulate; simulate(pickplace({a.size}), 1)"
+        t = time.perf_counter()
+        subprocess.run([sys.executable, "-c", solo], check=True, cwd=root)
+        alone = time.perf_counter() - t
+        t = time.perf_counter()
+        pair = [subprocess.Popen([sys.executable, "-c", solo], cwd=root) for _ in range(2)]
+        for p in pair:
+            p.wait()
+        both = time.perf_counter() - t
+        print(f"capacity    : one single-partition search alone {alone:.2f} s, two at once {both:.2f} s: "
+              f"the machine gives x{2 * alone / both:.2f} the work of one process now")
+    code = _ONE.format(n=a.size, check=a.check)
+    one = json.loads(subprocess.run([sys.executable, "-c", code], check=True, capture_output=True, text=True,
+                                    cwd=root).stdout)
+    print(f"one process : {one['states']:,} states, {one['transitions']:,} transitions, {one['seconds']:.2f} s "
+          f"({one['cpu']:.2f} CPU s), peak RSS {one['rss'] / 2**20:,.0f} MB")
+    if a.check:
+        print(f"{'':12}  with the traps, dead and sink states: {one['check_seconds']:.2f} s, peak RSS "
+              f"{one['check_rss'] / 2**20:,.0f} MB")
+    want = (one["states"], one["transitions"])
+    ok = True
+    kw = {} if a.message_min is None else {"message_min": a.message_min}
+    runs = [None] if a.scheduler else a.workers
+    for w in runs:
+        with dist.cluster(a.scheduler, w or 2) as client:
+            r = dist.explore_distributed(client, pickplace, (a.size,), **kw)
+            peaks = sorted(client.run(_peak).values())
+            c = dist.check_distributed(client, pickplace, (a.size,), **kw) if a.check else None
+            check_peaks = sorted(client.run(_peak).values()) if a.check else None
+        label = f"{len(r.per_partition)} worker{'s' if len(r.per_partition) > 1 else ' '}"
+        same = (r.states, r.transitions) == want
+        ok &= same
+        print(f"{label:12}: {r.states:,} states, {r.transitions:,} transitions, {r.seconds:.2f} s "
+              f"(x{one['seconds'] / r.seconds:.2f} one process; {r.levels} rounds; states per partition "
+              f"{r.per_partition}; {r.messages} messages, largest {r.largest_message:,} states, "
+              f"{r.states_sent:,} states sent; ideal speed-up {r.ideal_speedup:.2f}; the partitions' work "
+              f"{r.work_seconds:.2f} s, the rest {r.seconds - r.work_seconds:.2f} s (start-up and rounds, "
+              f"{1000 * (r.seconds - r.work_seconds) / r.levels:.0f} ms a round); CPU: "
+              f"{r.cpu_seconds:.2f} s in all, {r.cpu_path:.2f} s on the critical path (x{one['cpu'] / r.cpu_path:.2f} "
+              f"one process's CPU s); peak RSS per worker "
+              f"{', '.join(f'{p / 2**20:,.0f}' for p in peaks)} MB); counts {'equal' if same else 'DIFFERENT'}")
+        if c is not None:
+            mine = {"traps": c.traps, "dead": c.dead, "sinks": sorted(k for k, v in c.sinks.items() if v)}
+            theirs = {k: one[k] for k in mine}
+            ok &= mine == theirs
+            print(f"{'':12}  checks in {c.seconds:.2f} s: {mine} (one process {theirs}); verdicts {c.verdicts}; "
+                  f"{c.back_rounds} rounds backwards; peak RSS per worker "
+                  f"{', '.join(f'{p / 2**20:,.0f}' for p in check_peaks)} MB")
+    if a.simulate:
+        model = pickplace(a.size)
+        for p in a.simulate:
+            t = time.perf_counter()
+            r = dist.simulate(model, p, **kw, **({} if a.round_states is None else {"round_states": a.round_states}))
+            same = (r.states, r.transitions) == want
+            ok &= same
+            sizes = r.per_partition
+            print(f"simulated {p:3} partitions: {r.levels} rounds, {r.messages} messages, {r.states_sent:,} states sent "
+                  f"({r.states_sent / r.states:.1%} of the states), largest {r.largest_message:,}; critical path "
+                  f"{r.critical_path:,} states (ideal speed-up {r.ideal_speedup:.2f}); states per partition "
+                  f"min {min(sizes):,} max {max(sizes):,} (mean {r.states / p:,.0f}); counts {'equal' if same else 'DIFFERENT'}; "
+                  f"{time.perf_counter() - t:.1f} s in one process")
+    print("exact counts: " + ("equal" if ok else "DIFFERENT"))
+    return 0 if ok else 1
 
 
 if __name__ == "__main__":

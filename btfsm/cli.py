@@ -14,7 +14,10 @@ Exit codes
 
 Errors
     Every error is one line on stderr, ``btfsm COMMAND: error: FILE: ELEMENT: PROBLEM``
-    (the parts that apply; ``violation:`` for a violation met while running, exit 1, and
+    (the parts that apply; a model with several problems found in one pass, such as the
+    untyped blackboard entries of an XML tree, gets one such line each and a last line
+    ``btfsm COMMAND: N errors``, ``--json``: an ``errors`` list of ``file``, ``element``,
+    ``problem``; ``violation:`` for a violation met while running, exit 1, and
     ``incomplete:`` when memory ran out, exit 3), never a Python traceback. An internal error says that it is
     a bug, names the exception and where to report it; the global ``--debug`` flag (before
     or after the command) adds the traceback. Under ``--json`` the error is instead one JSON
@@ -39,8 +42,9 @@ import importlib
 import json
 import os
 import sys
+from typing import Any, cast
 
-from .errors import ConformanceError, DomainError, ModelError, Terminated, UsageError
+from .errors import ConformanceError, DomainError, ModelError, ModelErrors, Terminated, UsageError
 from . import reserve, signals
 from .profiles import SEMANTICS, TICKS
 from .validators import (finite_float, input_file, input_text, int_range, output_dir, output_file, probability,
@@ -220,6 +224,10 @@ def _args_check(sp):
     sp.add_argument("--engine", choices=("auto", "traced", "scalar"), default="auto",
                     help="model-level exploration engine (default auto: traced, scalar where it cannot trace); "
                          "both give the same system")
+    sp.add_argument("--scheduler", type=input_text, default=None, metavar="ADDRESS",
+                    help="check workable-reachability and no-dead-states (model level) with the states partitioned "
+                         "across Dask workers: tcp://HOST:PORT (a running scheduler; the model file must be at the "
+                         "same path on its workers) or local:N (an embedded cluster of N worker processes)")
     _args_response(sp, required=False)
     sp.add_argument("--within", type=finite_float(0, None), metavar="S", default=None,
                     help="with --trigger/--response: the bound in seconds (property 'response')")
@@ -237,6 +245,9 @@ def _args_bound(sp):
     _args_response(sp, required=True)
     sp.add_argument("--output", "-o", type=output_file(".json"), default=None,
                     help="write the worst-case run as a counterexample file (replay it with btfsm replay)")
+    sp.add_argument("--within", type=finite_float(0, None), default=None, metavar="S",
+                    help="also the worst first late response: over runs that answered every earlier trigger within S "
+                         "seconds (an event trigger whose minimum interval exceeds S); -o then writes that run")
     _args_json(sp, "the figures")
     _args_max_states(sp)
     _args_budgets(sp)
@@ -375,7 +386,7 @@ def _refuse_input_as_output(args) -> None:
             continue
         for inp in inputs:
             try:
-                same = os.path.samefile(out, inp)
+                same = os.path.samefile(out, cast(str, inp))
             except OSError:
                 same = False
             if same:
@@ -401,7 +412,7 @@ def _one_line(text) -> str:
 
 def _describe(exc: BaseException, command: str) -> dict:
     """kind, exit code and the parts of the one-line message for an exception."""
-    info = {"kind": "internal", "type": type(exc).__name__, "command": command, "file": None, "element": None,
+    info: dict[str, Any] = {"kind": "internal", "type": type(exc).__name__, "command": command, "file": None, "element": None,
             "problem": str(exc), "exit_code": EXIT_INTERNAL}
     if isinstance(exc, Terminated):
         info.update(kind="terminated", problem="terminated", exit_code=EXIT_TERMINATED)
@@ -410,6 +421,9 @@ def _describe(exc: BaseException, command: str) -> dict:
     elif isinstance(exc, ModelError):
         info.update(kind="model", file=exc.file, element=exc.element or None, problem=str(exc.problem),
                     exit_code=EXIT_INPUT)
+        if isinstance(exc, ModelErrors):  # every problem found in one pass: one line each, and the list
+            info["errors"] = [{"file": e.file, "element": e.element or None, "problem": str(e.problem)}
+                              for e in exc.errors]
     elif isinstance(exc, UsageError):
         info.update(kind="usage", exit_code=EXIT_INPUT)
     elif isinstance(exc, (DomainError, ConformanceError)):
@@ -419,7 +433,7 @@ def _describe(exc: BaseException, command: str) -> dict:
                     exit_code=EXIT_BUDGET)
     elif isinstance(exc, ImportError) and (getattr(exc, "name", None) or "").split(".")[0] in OPTIONAL_MODULES:
         info.update(kind="usage", exit_code=EXIT_INPUT,
-                    problem=f"this command needs the Python package '{exc.name.split('.')[0]}' "
+                    problem=f"this command needs the Python package '{(exc.name or '').split('.')[0]}' "
                             f"(install it with: pip install 'btfsm[sim]')")
     elif isinstance(exc, OSError) and not isinstance(exc, (BlockingIOError, ChildProcessError)) and (
             getattr(exc, "filename", None) is not None):
@@ -435,8 +449,12 @@ def _message(info: dict) -> str:
     if info["kind"] == "internal":
         return _one_line(head + f"internal error (a bug in btfsm): {info['type']}: {info['problem']}; {REPORT_HINT} "
                        f"(run with --debug for the traceback)")
-    where = "".join(f"{part}: " for part in (info["file"], info["element"]) if part)
     label = {"violation": "violation: ", "budget": "incomplete: "}.get(info["kind"], "error: ")
+    if info.get("errors"):
+        lines = [_one_line(head + label + "".join(f"{part}: " for part in (e["file"], e["element"]) if part)
+                           + e["problem"]) for e in info["errors"]]
+        return "\n".join(lines + [f"{head}{len(lines)} errors"])
+    where = "".join(f"{part}: " for part in (info["file"], info["element"]) if part)
     return _one_line(head + label + where + info["problem"])
 
 
@@ -464,7 +482,7 @@ def _safe_streams() -> None:
     """Names from a model may hold characters the terminal cannot encode: escape them."""
     for stream in (sys.stdout, sys.stderr):
         try:
-            stream.reconfigure(errors="backslashreplace")
+            stream.reconfigure(errors="backslashreplace")  # type: ignore[union-attr]  # (AttributeError: not a text file)
         except (AttributeError, ValueError, OSError):
             pass
 

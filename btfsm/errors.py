@@ -1,6 +1,6 @@
 """Errors raised for bad models and bad input. Each names where the problem is."""
 
-__all__ = ["ModelError", "DomainError", "ConformanceError", "UsageError", "Terminated"]
+__all__ = ["ModelError", "ModelErrors", "DomainError", "ConformanceError", "UsageError", "Terminated"]
 
 
 class ModelError(ValueError):
@@ -18,6 +18,30 @@ class ModelError(ValueError):
         """The same error with ``prefix`` put before its element path and ``file`` set."""
         element = f"{prefix}.{self.element}" if prefix and self.element else (prefix or self.element)
         return ModelError(element, self.problem, file or self.file)
+
+
+class ModelErrors(ModelError):
+    """Several problems of one model found in one pass (``errors``: each a ``ModelError``,
+    in the order found). It reads as the first one (``element``, ``problem``, ``file``);
+    its text is one line listing them all (the command line prints one line each)."""
+
+    def __init__(self, errors: "list[ModelError]") -> None:
+        self.errors = list(errors)
+        first = self.errors[0]
+        super().__init__(first.element, first.problem, first.file)
+
+    def _text(self) -> str:
+        return f"{len(self.errors)} problems: " + "; ".join(e._text() for e in self.errors)
+
+    def at(self, prefix: str = "", file: "str | None" = None) -> "ModelErrors":
+        return ModelErrors([e.at(prefix, file) for e in self.errors])
+
+
+def collected(errors: "list[ModelError]") -> "ModelError | None":
+    """One error for a list of them: None, the error itself, or a ``ModelErrors``."""
+    if not errors:
+        return None
+    return errors[0] if len(errors) == 1 else ModelErrors(errors)
 
 
 class DomainError(RuntimeError):

@@ -23,7 +23,7 @@ from __future__ import annotations
 import ast
 import warnings
 from dataclasses import dataclass
-from typing import Mapping, Union
+from typing import Any, Mapping, Union, cast
 
 from .errors import DomainError, ModelError
 
@@ -187,6 +187,9 @@ class _Vars:
 
 v = _Vars()
 
+#: what ``as_expr`` accepts (the fields of the model's classes take any of these)
+ExprLike = Union["Expr", E, str, int]
+
 
 def as_expr(x: object) -> Expr:
     """Any accepted form (AST, builder, string syntax, bool, int) as an AST node."""
@@ -304,6 +307,7 @@ def _from_py(n: ast.AST) -> Expr:
     if isinstance(n, ast.BinOp) and type(n.op) in _ARITH:
         return BinOp(_ARITH[type(n.op)], _from_py(n.left), _from_py(n.right))
     if isinstance(n, ast.Compare):
+        left: "Expr | None"
         parts, left = [], _from_py(n.left)
         for op, right_node in zip(n.ops, n.comparators):
             if isinstance(op, (ast.In, ast.NotIn)):
@@ -461,7 +465,7 @@ _OPS = {Unary: ("not", "-"), BoolOp: ("and", "or"), Compare: tuple(_CMP.values()
 def _malformed(e: Expr) -> "str | None":
     """What is wrong with a tree built by hand (an unknown operator, a wrong arity, a
     constant that is not bool/int/str...), or None. Parser-made trees are well formed."""
-    stack = [e]
+    stack: list = [e]
     while stack:
         x = stack.pop()
         if type(x) in _OPS and x.op not in _OPS[type(x)]:
@@ -674,7 +678,7 @@ def _src(e: Expr, scope, col: str, expected: "Type | None") -> str:
             return "True" if e.value else "False"
         if isinstance(e.value, int):
             return str(int(e.value))
-        return str(expected.values.index(e.value))  # enum literal, checked
+        return str(cast(Type, expected).values.index(e.value))  # enum literal, checked
     if isinstance(e, Name):
         slot = scope[e.id]
         return f"{col}[{int(slot.index)}]"
@@ -739,7 +743,7 @@ def compile_effects(effects, scope: Mapping[str, Slot], element: str, names: "Ma
 
     ns = dict(_SAFE_BUILTINS, _err=_err)
     exec("\n".join(lines), ns)  # noqa: S102 - generated from a checked AST, no user text
-    fn = ns["_apply"]
+    fn: Any = ns["_apply"]
     fn.targets = tuple(scope[n].index for n in targets)
     return fn
 
@@ -775,7 +779,7 @@ def _np(e: Expr, scope, col: str, expected) -> str:
     raise TypeError(e)
 
 
-def to_z3(e: Expr, scope: Mapping[str, Slot], z3vars: Mapping[str, object]):
+def to_z3(e: Expr, scope: Mapping[str, Slot], z3vars: Mapping[str, Any]):
     """A z3 term for ``e``; ``z3vars`` maps each name to a z3 Int (bools are ints 0/1).
     Constants are made in the z3 context of the variables (the main one without any)."""
     import z3

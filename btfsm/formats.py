@@ -42,7 +42,7 @@ _CONTROLS = {c: f"\\x{c:02x}" if c < 0x100 else f"\\u{c:04x}"
              for c in [*range(0x20), *range(0x7f, 0xa0), 0x2028, 0x2029]}
 
 
-def printable(text: str, limit: int = 0) -> str:
+def printable(text: object, limit: int = 0) -> str:
     """``text`` with lone surrogates, control characters and line separators escaped, so
     that printing it never raises and stays on one line; cut to ``limit`` characters when
     ``limit`` > 0.

@@ -18,11 +18,12 @@ from __future__ import annotations
 
 from collections import defaultdict
 from dataclasses import dataclass
+from typing import Any, Mapping, Sequence, cast
 
 from .bt import Node
 from .errors import ModelError
-from .expr import Expr, as_expr, is_true, to_text
-from .primitives import Outcome, effects_of
+from .expr import ExprLike, as_expr, is_true, to_text
+from .primitives import EffectsLike, Outcome, effects_of
 from .status import Status
 from .world import Var, check_label, check_name
 from .timing import duration_of
@@ -41,9 +42,9 @@ class State:
 
     id: str
     primitive: str = ""
-    args: tuple = ()
+    args: "Mapping[str, Any] | Sequence[Any]" = ()  # a tuple of (name, value) once built
     subtree: "Node | None" = None
-    outcomes: "tuple | None" = None
+    outcomes: "Sequence[Any] | None" = None
     duration: "tuple | None" = None  # (min, max) seconds in this state; default: the primitive's
 
     def __post_init__(self):
@@ -67,11 +68,11 @@ class Edge:
 
     source: str
     target: str
-    goals: tuple = (ALL_GOALS,)
-    on: "Status | None" = Status.SUCCESS
-    guard: "Expr | None" = None
+    goals: "Sequence[str] | str" = (ALL_GOALS,)  # a tuple once built
+    on: "Status | str | None" = Status.SUCCESS  # a Status (None if direct) once built
+    guard: "ExprLike | None" = None  # an Expr once built
     direct: bool = False
-    effects: tuple = ()
+    effects: EffectsLike = ()
     id: str = ""
 
     def __post_init__(self):
@@ -87,10 +88,10 @@ class Marker:
     if ``direct``, as soon as the token rests on ``state``) and ``guard`` holds."""
 
     state: str
-    goals: tuple = (ALL_GOALS,)
-    on: "Status | None" = Status.SUCCESS
-    outcome: Status = Status.SUCCESS
-    guard: "Expr | None" = None
+    goals: "Sequence[str] | str" = (ALL_GOALS,)  # a tuple once built
+    on: "Status | str | None" = Status.SUCCESS  # a Status (None if direct) once built
+    outcome: "Status | str" = Status.SUCCESS  # a Status once built
+    guard: "ExprLike | None" = None  # an Expr once built
     direct: bool = False
     id: str = ""
 
@@ -113,15 +114,15 @@ class FSM:
     """
 
     name: str
-    states: tuple = ()
+    states: Sequence[State] = ()  # each sequence a tuple once built
     initial: str = ""
-    goals: tuple = ()
-    edges: tuple = ()
-    markers: tuple = ()
-    params: tuple = ()
+    goals: "Sequence[str] | str" = ()
+    edges: Sequence[Edge] = ()
+    markers: Sequence[Marker] = ()
+    params: Sequence[Any] = ()
     retarget: str = "immediate"
     withdraw_goal: str = ""
-    terminal: tuple = ()
+    terminal: "Sequence[str] | str" = ()
 
     def __post_init__(self):
         goals = _goals(self.goals)
@@ -187,6 +188,7 @@ class FSM:
         for t in self.terminal:
             if t not in ids:
                 raise ModelError(f"{where}.terminal", f"unknown state '{t}'")
+        el: Any
         for kind, items in (("edge", self.edges), ("marker", self.markers)):
             for i, el in enumerate(items):
                 check_label(el.id, f"{where}.{kind}s[{i}]", f"{kind} id", limit=None)
@@ -276,6 +278,7 @@ class FSM:
 
 
 def _with_ids(elements, goals, default_id) -> tuple:
+    used: dict
     out, used = [], {}
     for el in elements:
         if ALL_GOALS in el.goals:
@@ -330,7 +333,7 @@ def describe(el) -> str:
     """One line for an edge or marker, for messages and pictures."""
     guard = f" [{to_text(el.guard)}]" if el.guard is not None else ""
     if isinstance(el, Edge):
-        trig = "direct" if el.direct else el.on.name.lower()
+        trig = "direct" if el.direct else cast(Status, el.on).name.lower()
         return f"{el.id}: {el.source} -> {el.target} on {trig}{guard}"
     trig = "direct" if el.direct else el.on.name.lower()
     return f"{el.id}: {el.state} on {trig}{guard} => {el.outcome.name.lower()}"

@@ -242,6 +242,7 @@ def trace_run(model, header: dict, records: list, title: str) -> dict:
         state = None
         run["marks"].append([0, f"the trace's initial state does not fit {model.name}: {exc}"])
         ticks = [_recorded_tick(0, {}, None)]
+    last: dict
     clock, last = Clock(model.tick_rate), {}
     for rec in records:
         mine = None
@@ -250,6 +251,7 @@ def trace_run(model, header: dict, records: list, title: str) -> dict:
             try:
                 step = prog.step(tuple(state), oracle, True)
             except DomainError as exc:
+                why: "str | None"
                 step, why = None, f"the model fails here: {exc}"
             else:
                 why = oracle.error or (None if step.state is not None else "the model cannot take this tick")
@@ -462,6 +464,7 @@ def check_page(model, report) -> dict:
     """``page`` keywords for a ``btfsm check`` report: the verdicts and one run per counterexample."""
     from btfsm.verify.report import lint_summary
 
+    runs: list
     verdicts, runs = [], []
     for r in report.results:
         verdict = "holds" if r.holds else ("VIOLATED" if r.holds is False else "undecided")

@@ -18,15 +18,21 @@ unusable (unreachable states, edges that never fire) are kept in ``model.warning
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any, Iterable, Mapping, Sequence, TypeVar, cast
 
 from .bt import Action, Node, SkillRequest, walk
 from .errors import ModelError
-from .expr import Expr, as_expr
+from .expr import Expr, ExprLike, as_expr
 from .fsm import FSM
 from .profiles import PROFILES, TICKS
-from .primitives import PASS, Primitive, effects_of
+from .primitives import PASS, EffectsLike, Outcome, Primitive, effects_of
 from .timing import responses_of
 from .world import Var, check_label, check_name, check_text
+
+if TYPE_CHECKING:
+    from .semantics import Program
+
+_T = TypeVar("_T")
 
 __all__ = ["EnvEvent", "EnvChoice", "Model"]
 
@@ -37,11 +43,11 @@ class EnvEvent:
     arrives, a sensor flips). Each enabled event independently happens or not."""
 
     name: str
-    guard: "Expr | None" = None
-    effects: tuple = ()
+    guard: "ExprLike | None" = None  # an Expr once built
+    effects: EffectsLike = ()  # a tuple of (var, Expr) once built
     min_interval: "float | None" = None  # seconds after it happened before it is enabled again
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         object.__setattr__(self, "guard", None if self.guard is None else as_expr(self.guard))
         object.__setattr__(self, "effects", effects_of(self.effects))
         m = self.min_interval
@@ -55,9 +61,9 @@ class EnvChoice:
     like a Promela ``if``. With no option enabled the tick cannot happen (a dead state)."""
 
     name: str
-    options: tuple = ()
+    options: Sequence[EnvEvent] = ()  # a tuple once built
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         object.__setattr__(self, "options", tuple(self.options))
 
 
@@ -80,23 +86,25 @@ class Model:
     """
 
     name: str
-    variables: tuple = ()
-    primitives: tuple = ()
-    fsms: tuple = ()
+    # each sequence is a tuple once built; invariants ((name, Expr), ...), workable and
+    # terminal Exprs, resources ((name, (node, ...)), ...), responses (Response, ...)
+    variables: Sequence[Var] = ()
+    primitives: Sequence[Primitive] = ()
+    fsms: Sequence[FSM] = ()
     tree: "Node | None" = None
-    environment: tuple = ()
-    invariants: tuple = ()
-    workable: "Expr | None" = None
-    terminal: "Expr | None" = None
+    environment: "Sequence[EnvEvent | EnvChoice]" = ()
+    invariants: "Mapping[str, ExprLike] | Sequence[tuple[str, ExprLike]]" = ()
+    workable: "ExprLike | None" = None
+    terminal: "ExprLike | None" = None
     tick_rate: float = 10.0
     description: str = ""
     semantics: str = "btfsm"
-    resources: tuple = ()
-    responses: tuple = ()
+    resources: "Mapping[str, Any] | Sequence[Any]" = ()
+    responses: "Mapping[str, Any] | Sequence[Any]" = ()
     tick: str = "once"
-    warnings: tuple = field(default=(), compare=False, repr=False)
+    warnings: "tuple[tuple[str, str], ...]" = field(default=(), compare=False, repr=False)
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         for f in ("variables", "primitives", "fsms", "environment"):
             object.__setattr__(self, f, tuple(getattr(self, f)))
         object.__setattr__(self, "invariants", tuple((str(k), as_expr(x)) for k, x in
@@ -115,18 +123,18 @@ class Model:
     def var(self, name: str) -> Var:
         return self._index("_var_index", self.variables)[name]
 
-    def _index(self, attr: str, items) -> dict:
+    def _index(self, attr: str, items: Iterable[_T]) -> dict[str, _T]:
         """name -> item (the first with that name), built once: lookups stay O(1), so
         building a model with many variables is linear, not quadratic."""
-        idx = self.__dict__.get(attr)
+        idx: "dict[str, _T] | None" = self.__dict__.get(attr)
         if idx is None:
             idx = {}
             for x in items:
-                idx.setdefault(x.name, x)
+                idx.setdefault(getattr(x, "name"), x)
             object.__setattr__(self, attr, idx)
         return idx
 
-    def all_primitives(self) -> dict:
+    def all_primitives(self) -> dict[str, Primitive]:
         """Every primitive by name: declared ones plus those declared inline."""
         prims = {p.name: p for p in self.primitives}
         for node in self.nodes():
@@ -139,7 +147,7 @@ class Model:
         prims.setdefault(PASS.name, PASS)
         return prims
 
-    def roots(self) -> list:
+    def roots(self) -> list[tuple[str, Node]]:
         """``(element path, subtree)`` for the tree and every FSM state's subtree."""
         out = [("tree", self.tree)] if self.tree is not None else []
         for f in self.fsms:
@@ -148,13 +156,13 @@ class Model:
                     out.append((f"fsms.{f.name}.states.{st.id}.subtree", st.subtree))
         return out
 
-    def nodes(self) -> list:
+    def nodes(self) -> list[Node]:
         return [n for _, root in self.roots() for n in walk(root)]
 
     @property
-    def program(self):
+    def program(self) -> Program:
         """The compiled program (``btfsm.semantics.Program``), built once."""
-        prog = self.__dict__.get("_program")
+        prog: "Program | None" = self.__dict__.get("_program")
         if prog is None:
             from .semantics import Program
 
@@ -163,7 +171,7 @@ class Model:
         return prog
 
     # ------------------------------------------------------------------ validation
-    def _validate(self) -> list:
+    def _validate(self) -> list[tuple[str, str]]:
         if not isinstance(self.name, str) or not self.name:
             raise ModelError("name", "a model needs a non-empty name")
         check_label(self.name, "name", "model name")
@@ -172,7 +180,7 @@ class Model:
             raise ModelError("semantics", f"unknown semantics {self.semantics!r} (one of: {', '.join(PROFILES)})")
         if self.tick not in TICKS:
             raise ModelError("tick", f"unknown tick {self.tick!r} (one of: {', '.join(TICKS)})")
-        names = set()
+        names: set[str] = set()
         for i, var in enumerate(self.variables):
             if not isinstance(var, Var):
                 raise ModelError(f"variables[{i}]", "not a variable declaration")
@@ -180,12 +188,12 @@ class Model:
             if var.name in names:
                 raise ModelError(f"variables.{var.name}", f"duplicate variable '{var.name}'")
             names.add(var.name)
-        fsm_names = set()
+        fsm_names: set[str] = set()
         for f in self.fsms:
             if f.name in fsm_names or f.name in names:
                 raise ModelError(f"fsms.{f.name}", f"name '{f.name}' is used twice")
             fsm_names.add(f.name)
-        declared = set()
+        declared: set[str] = set()
         for p in self.primitives:
             if not isinstance(p.name, str) or not p.name:
                 raise ModelError("primitives", "a primitive needs a non-empty name")
@@ -224,13 +232,14 @@ class Model:
                     check_name(opt.name, f"environment.{ev.name}.options[{k}]", "option name")
                     env_names.append(opt.name)
         _no_dup_names(env_names, "environment")
-        for k, _ in self.invariants:
-            check_label(k, "invariants", "invariant name")
-        _no_dup_names([k for k, _ in self.invariants], "invariants")
+        invariants = cast("tuple[tuple[str, Expr], ...]", self.invariants)
+        for inv, _ in invariants:
+            check_label(inv, "invariants", "invariant name")
+        _no_dup_names([k for k, _ in invariants], "invariants")
         if not isinstance(self.tick_rate, (int, float)) or not 0 < self.tick_rate < float("inf"):
             raise ModelError("tick_rate", "must be a positive number of ticks per second")
         prims = self.all_primitives()
-        warnings = []
+        warnings: list[tuple[str, str]] = []
         for f in self.fsms:
             for st in f.states:
                 if st.primitive and st.outcomes is None and st.primitive not in prims:
@@ -241,11 +250,12 @@ class Model:
         self.program  # compiles and type-checks every expression
         return warnings + resource_warnings
 
-    def _check_resources(self) -> list:
+    def _check_resources(self) -> list[tuple[str, str]]:
         """Each resource names distinct Action or SkillRequest nodes of the model."""
         nodes = {n.name: n for n in self.nodes()}
-        seen, warnings = set(), []
-        for name, members in self.resources:
+        seen: set[str] = set()
+        warnings: list[tuple[str, str]] = []
+        for name, members in cast("tuple[tuple[str, tuple[Any, ...]], ...]", self.resources):
             check_label(name, "resources", "resource name")
             where = f"resources.{name}"
             if name in seen:
@@ -267,12 +277,12 @@ class Model:
                 warnings.append((where, f"only '{members[0]}' uses it: nothing can run beside it"))
         return warnings
 
-    def _check_reentrant_requests(self):
+    def _check_reentrant_requests(self) -> None:
         """An FSM state's subtree may request other FSMs, but never (through others) its own."""
         calls = {f.name: {(n.fsm, st.id) for st in f.states if st.subtree is not None
                           for n in walk(st.subtree) if isinstance(n, SkillRequest)} for f in self.fsms}
         for start in calls:
-            todo, seen = [start], set()
+            todo, seen = [start], set[str]()
             while todo:
                 f = todo.pop()
                 for g, via in calls.get(f, ()):
@@ -283,8 +293,9 @@ class Model:
                         seen.add(g)
                         todo.append(g)
 
-    def _check_nodes(self, declared):
-        seen, inline = {}, {}
+    def _check_nodes(self, declared: set[str]) -> dict[str, Sequence[Outcome]]:
+        seen: dict[str, str] = {}
+        inline: dict[str, Sequence[Outcome]] = {}
         for path, root in self.roots():
             for node in walk(root):
                 if not isinstance(node, Node):
@@ -317,15 +328,15 @@ class Model:
                     if node.goal not in f.goals:
                         raise ModelError(f"{where}.goal", f"'{node.goal}' is not a goal of {f.name} ({', '.join(f.goals)})")
                     pnames = {p.name for p in f.params}
-                    given = {k for k, _ in node.params}
+                    given = {k for k, _ in cast("tuple[tuple[str, Expr], ...]", node.params)}
                     if given != pnames:
                         raise ModelError(f"{where}.params", f"{f.name} takes parameters {sorted(pnames)}, got {sorted(given)}")
         return inline
 
 
-def _resources(x) -> tuple:
+def _resources(x: "Mapping[str, Any] | Sequence[Any]") -> tuple[tuple[str, tuple[Any, ...]], ...]:
     """``((name, (node, ...)), ...)`` from a mapping or pairs; a lone node name is a list of one."""
-    items = x.items() if hasattr(x, "items") else x
+    items: Iterable[Any] = cast(Any, x).items() if hasattr(x, "items") else x
     try:
         out = []
         for pair in items:
@@ -336,14 +347,14 @@ def _resources(x) -> tuple:
         raise ModelError("resources", "expected a mapping of resource names to lists of node names") from None
 
 
-def _unique_outcomes(outcomes, where):
+def _unique_outcomes(outcomes: Iterable[Outcome], where: str) -> None:
     for o in outcomes:
         check_label(o.name, f"{where}.outcomes", "outcome name")
     _no_dup_names([o.name for o in outcomes], f"{where}.outcomes")
 
 
-def _no_dup_names(names, where):
-    seen = set()
+def _no_dup_names(names: Iterable[str], where: str) -> None:
+    seen: set[str] = set()
     for n in names:
         if n in seen:
             raise ModelError(where, f"duplicate name '{n}'")

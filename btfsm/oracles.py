@@ -1,5 +1,9 @@
 """Oracles answer the step function's questions (environment events, primitive outcomes).
 
+``Oracle`` is the interface (a ``typing.Protocol``: what ``Program.step`` asks); every
+oracle of the library and of the tests is declared against it (tests/test_oracles_shared.py
+runs one suite over them all).
+
 * ``FirstOracle``: no event happens, every primitive has its first declared outcome.
 * ``ScriptOracle``: answers from a list of choices and records every choice point; the
   model checker enumerates choice lists with it, replay feeds it a trace.
@@ -14,22 +18,56 @@ Only real choices (two or more options) consume a script entry.
 from __future__ import annotations
 
 import random
+from typing import TYPE_CHECKING, Any, Protocol, Sequence
 
-__all__ = ["FirstOracle", "SucceedOracle", "ScriptOracle", "RandomOracle", "all_choices"]
+if TYPE_CHECKING:
+    from .semantics import Site
+
+__all__ = ["Oracle", "FirstOracle", "SucceedOracle", "ScriptOracle", "RandomOracle", "all_choices"]
 
 
-class FirstOracle:
+class Oracle(Protocol):
+    """What the step function asks (``Program.step``, docs/semantics.md). Answers must be
+    deterministic functions of the oracle's own state: the checker re-runs a tick with the
+    same oracle to rebuild a transition.
+
+    An oracle may also have ``request(fsm_index, goal_index)``: the step function then tells
+    it the goal an FSM is driven toward, before the FSM's state runs (``btfsm.runtime``
+    uses it; it is looked up with ``getattr``, so it is not part of this Protocol)."""
+
+    __slots__ = ()
+
+    def env(self, i: int) -> bool:
+        """Does enabled environment event ``i`` (an index into ``Program.env``) happen this tick?"""
+        ...
+
+    def choose(self, i: int | tuple[Any, ...], enabled: Sequence[Any]) -> int:
+        """An index into ``enabled`` (the enabled options of choice point ``i``: the index of
+        an environment choice in ``Program.env``, or at FSM level, ``OpenFSM.run`` in
+        ``btfsm.verify.explore``, ``("goal",)``, ``("param", slot)`` or ``("input", slot)``)."""
+        ...
+
+    def outcome(self, site: Site) -> int:
+        """Which of ``site.outcomes`` the primitive running at ``site`` had this tick."""
+        ...
+
+    def halt(self, site: Site) -> None:
+        """The running primitive at ``site`` was abandoned (preempted, halted by its parent)."""
+        ...
+
+
+class FirstOracle(Oracle):
     def env(self, i: int) -> bool:
         return False
 
-    def choose(self, i: int, enabled: list) -> int:
+    def choose(self, i: int | tuple[Any, ...], enabled: Sequence[Any]) -> int:
         """Index into ``enabled`` (the enabled options of choice ``i``)."""
         return 0
 
-    def outcome(self, site) -> int:
+    def outcome(self, site: Site) -> int:
         return 0
 
-    def halt(self, site) -> None:
+    def halt(self, site: Site) -> None:
         pass
 
 
@@ -37,14 +75,14 @@ class SucceedOracle(FirstOracle):
     """No event happens and every primitive has its first SUCCESS outcome (the first
     outcome when it declares none): the authors' stub primitives, which succeed at once."""
 
-    def outcome(self, site) -> int:
+    def outcome(self, site: Site) -> int:
         for k, o in enumerate(site.outcomes):
             if o[0] == 1:  # Status.SUCCESS
                 return k
         return 0
 
 
-class ScriptOracle:
+class ScriptOracle(Oracle):
     """Answers choice point k with ``script[k]`` (0 past its end) and records arities.
 
     ``labels[k]`` says what point k was: ``("env", i)`` or the primitive's Site."""
@@ -71,14 +109,14 @@ class ScriptOracle:
     def env(self, i: int) -> bool:
         return self._choose(2, ("env", i)) == 1
 
-    def choose(self, i: int, enabled: list) -> int:
+    def choose(self, i: int | tuple[Any, ...], enabled: Sequence[Any]) -> int:
         return 0 if len(enabled) == 1 else self._choose(len(enabled), ("choice", i))
 
-    def outcome(self, site) -> int:
+    def outcome(self, site: Site) -> int:
         n = len(site.outcomes)
         return 0 if n == 1 else self._choose(n, site)
 
-    def halt(self, site) -> None:
+    def halt(self, site: Site) -> None:
         pass
 
 
@@ -91,10 +129,10 @@ class RandomOracle(FirstOracle):
     def env(self, i: int) -> bool:
         return self.rng.random() < self.p_env
 
-    def choose(self, i: int, enabled: list) -> int:
+    def choose(self, i: int | tuple[Any, ...], enabled: Sequence[Any]) -> int:
         return self.rng.randrange(len(enabled)) if len(enabled) > 1 else 0
 
-    def outcome(self, site) -> int:
+    def outcome(self, site: Site) -> int:
         return self.rng.randrange(len(site.outcomes))
 
 

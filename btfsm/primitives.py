@@ -11,6 +11,7 @@ and the runtime asks an implementation (bound by name) which one happened.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any, Mapping, Sequence, Union
 
 from .expr import as_expr
 from .status import Status
@@ -19,7 +20,11 @@ from .timing import duration_of
 __all__ = ["Outcome", "Primitive", "success", "failure", "running", "effects_of", "PASS"]
 
 
-def effects_of(effects) -> tuple:
+#: what ``effects_of`` accepts: a mapping ``var -> expression`` or ``(var, expression)`` pairs
+EffectsLike = Union[Mapping[str, Any], Sequence[Any]]
+
+
+def effects_of(effects: EffectsLike) -> tuple:
     """Normalise effects given as a mapping or pairs into ``((var, Expr), ...)``."""
     if not effects:
         return ()
@@ -31,8 +36,8 @@ def effects_of(effects) -> tuple:
 class Outcome:
     """One declared result of a primitive: a status, its effects, and a name."""
 
-    status: Status
-    effects: tuple = ()
+    status: "Status | str"  # a Status once built
+    effects: EffectsLike = ()  # a tuple of (var, Expr) once built
     name: str = ""
 
     def __post_init__(self):
@@ -60,7 +65,7 @@ class Primitive:
     run takes, ``(min, max)`` seconds (docs/semantics.md section 6.1), None: any time."""
 
     name: str
-    outcomes: tuple = (Outcome(Status.SUCCESS),)
+    outcomes: Sequence[Outcome] = (Outcome(Status.SUCCESS),)  # a tuple once built
     duration: "tuple | None" = None  # (min, max or None) seconds of one run (btfsm.timing)
 
     def __post_init__(self):

@@ -22,6 +22,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from .bt import names_in
+
 __all__ = ["Profile", "PROFILES", "SEMANTICS", "DEFAULT_SEMANTICS", "TICKS", "DEFAULT_TICK", "profile"]
 
 
@@ -57,8 +59,9 @@ class Profile:
     #: a Parallel that reaches its failure rule and its success rule in one tick fails
     #: (py_trees checks for a failed child first); off: success wins (docs/semantics.md 2)
     parallel_failure_first: bool = False
-    #: what the engine calls btfsm's node types, for messages (lints): btfsm type -> name
-    names: tuple = ()
+    #: whose names the engine's messages (lints) give btfsm's node types: the node classes'
+    #: ``btcpp`` or ``pytrees`` names (``btfsm.bt.names_in``), or btfsm's own (None)
+    naming: "str | None" = None
 
     def node_name(self, btfsm_type: str) -> str:
         """The engine's name of a btfsm node type (the btfsm name when it has no other).
@@ -66,20 +69,15 @@ class Profile:
         >>> PROFILES["btcpp"].node_name("MemorySequence"), PROFILES["btfsm"].node_name("MemorySequence")
         ('Sequence', 'MemorySequence')
         """
-        return dict(self.names).get(btfsm_type, btfsm_type)
+        return names_in(self.naming).get(btfsm_type, btfsm_type) if self.naming else btfsm_type
 
 
 PROFILES = {
     "btfsm": Profile("btfsm", "btfsm (docs/semantics.md sections 1-7)"),
     "btcpp": Profile("btcpp", "BehaviorTree.CPP 4.x", halt_before_start=False, parallel_memory=True,
-                     loop_wake_up=True, stale_condition=True, restart_in_tick=True,
-                     names=(("MemorySequence", "Sequence"), ("MemoryFallback", "Fallback"),
-                            ("Retry", "RetryUntilSuccessful"))),
+                     loop_wake_up=True, stale_condition=True, restart_in_tick=True, naming="btcpp"),
     "pytrees": Profile("pytrees", "py_trees 2.6", halt_before_start=False, parallel_failure_first=True,
-                       names=(("ReactiveSequence", "Sequence(memory=False)"), ("MemorySequence", "Sequence(memory=True)"),
-                              ("ReactiveFallback", "Selector(memory=False)"), ("MemoryFallback", "Selector(memory=True)"),
-                              ("ForceSuccess", "FailureIsSuccess"), ("ForceFailure", "SuccessIsFailure"),
-                              ("Guard", "EternalGuard"))),
+                       naming="pytrees"),
 }
 SEMANTICS = tuple(PROFILES)
 DEFAULT_SEMANTICS = "btfsm"

@@ -20,18 +20,22 @@ An outcome is returned as its name, a Status (when only one outcome has it), or 
 """
 from __future__ import annotations
 
-from typing import Callable, Iterable, Mapping
+from typing import TYPE_CHECKING, Any, Callable, Iterable, Mapping, Sequence
 
 from .errors import ConformanceError
+from .oracles import Oracle
 from .clock import Clock
 from .status import Status
 from .trace import TraceWriter, render_answers, tick_record
+
+if TYPE_CHECKING:
+    from .semantics import Site
 
 __all__ = ["Runtime", "Call", "Clock"]
 
 _RUNNING = int(Status.RUNNING)
 _STATUS = tuple(sorted(Status, key=int))  # int status -> Status, without Status(x)
-_NO_EVENTS = frozenset()
+_NO_EVENTS: frozenset = frozenset()
 
 
 class _VarView(Mapping):
@@ -67,7 +71,7 @@ class Call:
         self.goal = goal
 
 
-class _ImplOracle:
+class _ImplOracle(Oracle):
     """Answers the step function from implementations and observed events.
 
     One per Runtime, reset each tick (no per-tick allocation); it caches, per site, the
@@ -86,7 +90,7 @@ class _ImplOracle:
         if self.used:
             self.used = set()
 
-    def env(self, i):
+    def env(self, i: int) -> bool:
         name = self.rt.program.env[i][0]
         if name in self.events:
             self.used.add(name)
@@ -97,7 +101,7 @@ class _ImplOracle:
         f = self.rt.program.fsm_info[fsm_index][0]
         self.goals[f.name] = f.goals[goal_index]
 
-    def choose(self, i, enabled):
+    def choose(self, i: int | tuple[Any, ...], enabled: Sequence[Any]) -> int:
         name, _, _, options = self.rt.program.env[i]
         seen = [k for k, opt in enumerate(enabled) if options[opt][0] in self.events]
         if not seen and len(enabled) == 1:
@@ -108,7 +112,8 @@ class _ImplOracle:
         self.used.add(options[enabled[seen[0]]][0])
         return seen[0]
 
-    def outcome(self, site):
+    def outcome(self, site: Site) -> int:
+        k: Any
         rt = self.rt
         impl = rt.implementations.get(site.primitive)
         if impl is None:
@@ -141,7 +146,7 @@ class _ImplOracle:
             self.log.append(k)
         return k
 
-    def halt(self, site):
+    def halt(self, site: Site) -> None:
         rt = self.rt
         if site.index in rt._busy:
             rt._busy.discard(site.index)
@@ -198,6 +203,7 @@ class Runtime:
         self._live = self.state
         self._busy: set = set()
         self._view = _VarView(self)
+        self._var_slots = tuple((v.name, self.program.scope[v.name].index) for v in self.model.variables)
         self.trace = None
         if trace_mode not in ("deferred", "live"):
             raise ValueError("trace_mode must be 'deferred' or 'live'")
@@ -208,15 +214,15 @@ class Runtime:
         self._last_status: dict = {}
         self._oracle = _ImplOracle(self)
         self._answers: list = []
-        self._render_from = (self.state, 0, {})  # state, tick and statuses where rendering resumes
+        self._render_from: tuple = (self.state, 0, {})  # state, tick and statuses where rendering resumes
         self.last = None
-        self.last_record = None
+        self.last_record: "dict | None" = None
 
     @property
     def vars(self) -> dict:
         """World variables of the current state, by name."""
-        d = self.program.decode(self.state)
-        return {v.name: d[v.name] for v in self.model.variables}
+        decode, state = self.program.decode_slot, self.state
+        return {name: decode(i, state[i]) for name, i in self._var_slots}
 
     def fsm_state(self, fsm: str) -> tuple:
         """(state id, held goal or None) of an FSM now."""

@@ -14,23 +14,32 @@ the oracle's answers:
 The runtime answers from implementations and sensors, the model checker answers every
 way the model allows, replay answers from a trace. docs/semantics.md states the rules;
 each rule's implementation below carries the same name as its row there.
+
+Node types compile through ``RULES``: one function per row of docs/semantics.md sections
+2, 3 and 8.3, registered with ``@rule(NodeType)`` at the end of this module (a new node
+type: docs/nodes.md). Why one module of more than 1,000 lines: it is the one step
+function, written once. The layout of the state (slots, flags, memories), the rules'
+tick closures, the FSM tick and ``Program.step`` share compile-time facts (``_N``) and the
+helpers of the hot path (``_halt_running``, ``finish``); split across modules, each of
+those would become a public interface that only this function uses.
 """
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any, Callable, Optional
 
 from .bt import (Action, Condition, Effects, FailureIsRunning, ForceFailure, ForceSuccess, Guard, IfThenElse,
                  Inverter, KeepRunningUntilFailure, MemoryFallback, MemorySequence, Node, Parallel, ParallelAll,
                  PipelineSequence, RecoveryNode, RoundRobin, RunningIsFailure, RunningIsSuccess,
                  ReactiveFallback, ReactiveSequence, Repeat, Retry, RunOnce, SequenceWithMemory,
-                 SkillRequest, SubTree, WhileDoElse)
+                 SkillRequest, SubTree, WhileDoElse, check_arity, check_bounds)
 from .errors import ModelError
 from .expr import BOOL, Scope, Slot, Type, compile_effects, compile_fn
 from .profiles import profile
 from .timing import duration_ticks, interval_ticks
 from .status import Status
 
-__all__ = ["Program", "Site", "Step", "SlotInfo"]
+__all__ = ["Program", "Site", "Step", "SlotInfo", "RULES", "SLOTS", "CAN_RUN", "rule", "NodeRule", "Tick"]
 
 RUNNING, SUCCESS, FAILURE = int(Status.RUNNING), int(Status.SUCCESS), int(Status.FAILURE)
 _INVERT = (RUNNING, FAILURE, SUCCESS)
@@ -41,7 +50,9 @@ class Site:
 
     __slots__ = ("kind", "node", "fsm", "state", "primitive", "args", "outcomes", "index", "ticks", "timer")
 
-    def __init__(self, kind, node, fsm, state, primitive, args, outcomes, index, ticks=None, timer=None):
+    def __init__(self, kind: str, node: Optional[str], fsm: Optional[str], state: Optional[str], primitive: str,
+                 args: Any, outcomes: tuple[Any, ...], index: int, ticks: Any = None,
+                 timer: Optional[int] = None) -> None:
         self.kind, self.node, self.fsm, self.state = kind, node, fsm, state
         self.primitive, self.args, self.outcomes, self.index = primitive, args, outcomes, index
         self.ticks = ticks  # (lo, hi or None): the ticks of running on which a run may end (section 6.1)
@@ -49,7 +60,7 @@ class Site:
 
     @property
     def label(self) -> str:
-        return self.node if self.kind == "action" else f"{self.fsm}/{self.state}"
+        return str(self.node) if self.kind == "action" else f"{self.fsm}/{self.state}"
 
     def __repr__(self) -> str:
         return f"Site({self.label} runs {self.primitive})"
@@ -73,7 +84,7 @@ class Step:
 
     __slots__ = ("state", "status", "events", "violations")
 
-    def __init__(self, state, status, events, violations):
+    def __init__(self, state: Optional[tuple[int, ...]], status: int, events: Any, violations: list[Any]) -> None:
         self.state, self.status, self.events, self.violations = state, status, events, violations
 
     def __repr__(self) -> str:
@@ -84,17 +95,22 @@ class _Late(Exception):
     """An answer the declared timing does not allow (a duration, section 6.1): the tick
     cannot go this way (``Step.state`` None, violation ``("timing", site label, text)``)."""
 
-    def __init__(self, site, text):
+    def __init__(self, site: Site, text: str) -> None:
         super().__init__(text)
         self.site, self.text = site, text
 
 
 class _Ctx:
-    __slots__ = ("s", "oracle", "rec", "fsm_done", "violations", "on_request")
+    __slots__ = ("s", "oracle", "rec", "fsm_done", "violations", "on_request", "on_merge", "reticks")
 
-    def __init__(self, s, oracle, rec):
-        self.s, self.oracle, self.rec, self.fsm_done, self.violations = s, oracle, rec, {}, []
+    def __init__(self, s: list[int], oracle: Any, rec: Optional[list[Any]]) -> None:
+        self.s, self.oracle = s, oracle
+        self.rec: Any = rec  # the events of the tick, when recorded (list), else None
+        self.fsm_done: dict[int, tuple[int, int, str, Any]] = {}  # FSM -> (goal, reply, requester, params)
+        self.violations: list[Any] = []
+        self.reticks: tuple[tuple[int, ...], ...] = ()  # the states the tickOnce re-ticks of this tick started from (rule 'tickOnce')
         self.on_request = getattr(oracle, "request", None)  # optional: told which goal an FSM drives
+        self.on_merge = getattr(oracle, "merge", None)  # optional: told where the tick's context is its state
 
 
 class _N:
@@ -103,28 +119,106 @@ class _N:
     __slots__ = ("node", "can_run", "flag", "mem", "mems", "keep", "stale", "kids", "parent", "tick", "halt",
                  "on_halt", "root", "node_site")
 
-    def __init__(self, node, parent, root):
+    def __init__(self, node: Node, parent: Optional[_N], root: str) -> None:
         self.node, self.parent, self.root = node, parent, root
-        self.kids: list = []
+        self.kids: list[_N] = []
         self.can_run = False
-        self.flag = self.mem = self.keep = self.stale = None  # keep: memory that a halt keeps
-        self.mems: tuple = ()  # per-child memory (Parallel under parallel_memory, ParallelAll)
-        self.tick = self.halt = self.on_halt = None
+        # slots, None until the layout gives them (Any: the compiled closures index with them)
+        self.flag: Any = None
+        self.mem: Any = None
+        self.keep: Any = None  # memory that a halt keeps
+        self.stale: Any = None
+        self.mems: tuple[int, ...] = ()  # per-child memory (Parallel under parallel_memory, ParallelAll)
+        self.tick: Any = None  # Tick, once compiled
+        self.halt: Any = None  # Halt, once compiled
+        self.on_halt: Optional[Halt] = None
+        self.node_site: Optional[Site] = None  # an Action's site
 
-    def state_slots(self) -> tuple:
+    def state_slots(self) -> tuple[int, ...]:
         """Every state slot this node owns: running flag, memories and an Action's run counter."""
-        site = getattr(self, "node_site", None)
+        site = self.node_site
         timer = site.timer if site is not None else None
         return tuple(x for x in (self.flag, self.mem, self.keep, self.stale, *self.mems, timer) if x is not None)
+
+
+
+#: a compiled node: ``tick(ctx) -> status`` (RUNNING, SUCCESS or FAILURE as ints)
+Tick = Callable[["_Ctx"], int]
+#: halting a node's subtree
+Halt = Callable[["_Ctx"], None]
+#: (running-flag slot, halt) pairs: the running ones are halted
+Halts = tuple[tuple[int, Halt], ...]
+#: ``finish(status, ctx) -> status``: a node's status recorded and its running flag kept
+Finish = Callable[[int, "_Ctx"], int]
+#: node type -> the function that compiles its tick rule: ``rule(program, NodeRule) -> Tick``
+RULES: "dict[type[Node], Callable[[Program, NodeRule], Tick]]" = {}
+#: node type -> ``slots(program, info)``: lays out the memory its rule keeps between ticks
+SLOTS: "dict[type[Node], Callable[[Program, _N], None]]" = {}
+#: node type -> ``can_run(program, info)``: whether it can return RUNNING (default: a child can)
+CAN_RUN: "dict[type[Node], Callable[[Program, _N], bool]]" = {}
+
+
+def rule(*types: "type[Node]", slots: "Optional[Callable[[Program, _N], None]]" = None,
+         can_run: "Optional[Callable[[Program, _N], bool]]" = None,
+         ) -> "Callable[[Callable[[Program, NodeRule], Tick]], Callable[[Program, NodeRule], Tick]]":
+    """Register the decorated function as the tick rule of the node ``types``: called once
+    per node when a model compiles, it returns the node's tick function. ``slots`` lays
+    out the node's memory (``program._slot(...)`` into ``info.mem``, ``info.keep``,
+    ``info.mems``, ``info.stale``: a halt resets all but ``keep``); ``can_run`` says
+    whether the node can return RUNNING when that is not just "a child can".
+    docs/nodes.md shows a whole new node type."""
+    def register(fn: "Callable[[Program, NodeRule], Tick]") -> "Callable[[Program, NodeRule], Tick]":
+        for t in types:
+            RULES[t] = fn
+            if slots is not None:
+                SLOTS[t] = slots
+            if can_run is not None:
+                CAN_RUN[t] = can_run
+        return fn
+    return register
+
+
+class NodeRule:
+    """What a node's rule is compiled from: ``node``; ``kids``, the tick functions of its
+    children; ``finish(status, ctx)``, which every tick function returns through (it keeps
+    the running flag and records the status); ``where`` (``tree.NAME``); ``flag``, its
+    running-flag slot or None; ``info``, the compile-time facts of the layout (memory
+    slots, children's flags and halts)."""
+
+    __slots__ = ("info", "node", "name", "where", "kids", "flag", "finish")
+
+    def __init__(self, info: "_N") -> None:
+        self.info = info
+        self.node: Any = info.node  # of the type the rule is registered for
+        self.name, self.where = info.node.name, f"tree.{info.node.name}"
+        self.kids: "tuple[Tick, ...]" = tuple(k.tick for k in info.kids)
+        self.flag: Any = info.flag  # int, or None for a node that never runs
+        flag, evs = info.flag, tuple(("status", self.name, st) for st in (RUNNING, SUCCESS, FAILURE))
+
+        def finish(st: int, ctx: "_Ctx") -> int:
+            if flag is not None:
+                ctx.s[flag] = 1 if st == RUNNING else 0
+            if ctx.rec is not None:
+                ctx.rec.append(evs[st])  # preallocated: no tuple per tick
+            return st
+        self.finish = finish
+
+    def halts(self) -> Halts:
+        """(flag, halt) of every child that can run."""
+        return self.later_halts(-1)
+
+    def later_halts(self, i: int) -> Halts:
+        """(flag, halt) of the children after child ``i`` that can run."""
+        return tuple((k.flag, k.halt) for k in self.info.kids[i + 1:] if k.can_run)
 
 
 class Program:
     """A model compiled for execution and exploration. Build it with ``model.program``."""
 
-    def __init__(self, model):
+    def __init__(self, model: Any) -> None:
         self.model = model
         self.profile = profile(model.semantics)  # the rule switches (btfsm.profiles)
-        self._initial: list = []
+        self._initial: list[int] = []
         self.slots: list[SlotInfo] = []
         self.sites: list[Site] = []
         self.scope = Scope()
@@ -132,16 +226,18 @@ class Program:
             self._slot(var.name, "var", var.hi - var.lo + 1, var.lo)
             self.scope[var.name] = Scope.of([var], len(self.slots) - 1)[var.name]
         self.prims = model.all_primitives()
-        self._fsm_timers: dict = {}  # FSM name -> the slot counting its state's run (rule 'Durations')
+        self._fsm_timers: dict[str, int] = {}  # FSM name -> the slot counting its state's run (rule 'Durations')
         self._layout_fsms()
         self._layout_nodes()
-        self.wake = self._wake_slot()
+        self.wake: Any = self._wake_slot()
+        self.merge_points = self._merge_points()
         self.exclusive = self._exclusive_groups()
         self._compile_fsms()
-        self.env_timers: list = []  # (event index, slot, ticks) of events with a minimum interval
+        timers: list[tuple[int, int, int]] = []  # (event index, slot, ticks) of events with a minimum interval
+        self.env_timers: Any = timers
         self.env = [self._compile_env(i, ev) for i, ev in enumerate(model.environment)]
         self.env_timers = {i: (slot, wait) for i, slot, wait in self.env_timers}
-        self.root = self.nodes[model.tree.name].tick if model.tree is not None else None
+        self.root: Any = self.nodes[model.tree.name].tick if model.tree is not None else None
         self.invariants = [(name, compile_fn(e, self.scope, f"invariants.{name}", BOOL)) for name, e in model.invariants]
         self._check_responses()
         self.workable = self._predicate(model.workable, "workable")
@@ -150,14 +246,14 @@ class Program:
         self.width = len(self.slots)
 
     # ------------------------------------------------------------------ layout
-    def _slot(self, name, kind, size, lo=0, init=0) -> int:
+    def _slot(self, name: str, kind: str, size: int, lo: int = 0, init: int = 0) -> int:
         self.slots.append(SlotInfo(name, kind, size, lo))
         if kind == "var":
             init = self.model.var(name).init_code
         self._initial.append(init)
         return len(self.slots) - 1
 
-    def _layout_fsms(self):
+    def _layout_fsms(self) -> None:
         self.fsm_index = {}
         self.fsm_info = []
         for fi, f in enumerate(self.model.fsms):
@@ -174,7 +270,7 @@ class Program:
             self.fsm_index[f.name] = fi
             self.fsm_info.append((f, ids, tok, goal, tuple(pslots)))
 
-    def fsm_scope(self, f) -> Scope:
+    def fsm_scope(self, f: Any) -> Scope:
         """World scope plus the FSM's parameters by their bare names."""
         scope = Scope(self.scope)
         for p in f.params:
@@ -183,51 +279,22 @@ class Program:
             scope[p.name] = self.scope[f"{f.name}.{p.name}"]
         return scope
 
-    def _layout_nodes(self):
+    def _layout_nodes(self) -> None:
         self.nodes: dict[str, _N] = {}
         for path, root in self.model.roots():
             self._collect(root, None, root.name)
         for info in reversed(list(self.nodes.values())):  # children before parents
+            check_bounds(info.node)  # fields below their declared bound (Retry's attempts...)
             info.can_run = self._can_run(info)
         for info in self.nodes.values():
             n = info.node
             if info.can_run:
                 info.flag = self._slot(f"{n.name}:running", "flag", 2)
-            if isinstance(n, (MemorySequence, MemoryFallback)):
-                info.mem = self._slot(f"{n.name}:child", "memory", len(n.children))
-            elif isinstance(n, SequenceWithMemory):
-                info.keep = self._slot(f"{n.name}:child", "memory", max(len(n.children), 1))
-            elif isinstance(n, ParallelAll) or (isinstance(n, Parallel) and self.profile.parallel_memory):
-                # which children finished: 0 not yet, else their status (SUCCESS 1, FAILURE 2)
-                info.mems = tuple(self._slot(f"{n.name}:done{i}", "memory", 3) for i in range(len(n.children)))
-            elif isinstance(n, IfThenElse):
-                info.mem = self._slot(f"{n.name}:branch", "memory", 3)
-            elif isinstance(n, RunOnce):
-                info.keep = self._slot(f"{n.name}:result", "memory", 3)
-            elif isinstance(n, Retry):
-                info.mem = self._slot(f"{n.name}:failures", "memory", max(n.attempts, 1))
-            elif isinstance(n, Repeat):
-                info.mem = self._slot(f"{n.name}:done", "memory", max(n.times, 1))
-            elif isinstance(n, PipelineSequence):
-                info.mem = self._slot(f"{n.name}:last", "memory", max(len(n.children), 1))
-            elif isinstance(n, RecoveryNode):
-                if n.retries < 0:
-                    raise ModelError(f"tree.{n.name}.retries", "must be at least 0")
-                info.mem = self._slot(f"{n.name}:retries", "memory", n.retries + 1)
-            elif isinstance(n, RoundRobin):
-                # the child to tick next (kept when the node finishes, reset by a halt) and the
-                # failures in a row of this run
-                info.mem = self._slot(f"{n.name}:child", "memory", max(len(n.children), 1))
-                info.mems = (self._slot(f"{n.name}:failed", "memory", max(len(n.children), 1)),)
-            elif isinstance(n, Parallel) and n.synchronise and info.can_run:
-                # rule 'parallel synchronise': which children succeeded since the parallel started
-                info.mems = tuple(self._slot(f"{n.name}:succeeded:{k.node.name}", "memory", 2) for k in info.kids)
-            if (isinstance(n, (IfThenElse, WhileDoElse)) and self.profile.stale_condition and info.kids
-                    and _stateful(info.kids[0])):
-                # the condition leaf's last status while the node keeps it (0: none)
-                info.stale = self._slot(f"{n.name}:condition", "memory", 3)
+            slots = SLOTS.get(type(n))
+            if slots is not None:  # the memory the type's rule keeps between ticks
+                slots(self, info)
 
-    def _wake_slot(self):
+    def _wake_slot(self) -> Optional[int]:
         """Rule 'tickOnce' (docs/semantics.md 8.1): under ``loop_wake_up`` with
         ``Model.tick == "once"``, a slot holding BT.CPP's pending wake-up signal, when a
         node of the tree can emit one (Retry/Repeat with a bound above 1, a
@@ -243,7 +310,7 @@ class Program:
                 return self._slot("tick:wake-up", "memory", 2)
         return None
 
-    def _collect(self, node: Node, parent, root):
+    def _collect(self, node: Node, parent: Optional[_N], root: str) -> None:
         info = _N(node, parent, root)
         self.nodes[node.name] = info
         if parent is not None:
@@ -251,38 +318,22 @@ class Program:
         for child in node.children_of():
             self._collect(child, info, root)
 
-    def _can_run(self, info) -> bool:
-        n = info.node
-        if isinstance(n, Condition):
-            return False
-        if isinstance(n, Action):
-            return Status.RUNNING in self.prims[n.primitive].statuses()
-        if isinstance(n, SkillRequest):
-            return True
-        if isinstance(n, Retry):
-            if n.attempts < 1:
-                raise ModelError(f"tree.{n.name}.attempts", "must be at least 1")
-            return n.attempts > 1 or info.kids[0].can_run
-        if isinstance(n, Repeat):
-            if n.times < 1:
-                raise ModelError(f"tree.{n.name}.times", "must be at least 1")
-            return n.times > 1 or info.kids[0].can_run
-        if isinstance(n, (KeepRunningUntilFailure, FailureIsRunning)):
-            return True
-        if isinstance(n, SequenceWithMemory) and self.profile.loop_wake_up and len(info.kids) > 1:
-            return True  # RUNNING after a child that succeeded at once (the wake-up)
-        # a Parallel of instant children decides every tick (S successes, or too many
-        # failures for S): like every other composite it runs only through a child
-        return any(k.can_run for k in info.kids)
+    def _can_run(self, info: _N) -> bool:
+        """Whether the node can return RUNNING (it then has a running flag): its type's
+        ``can_run`` (``rule``), else whether a child can (a Parallel of instant children
+        decides every tick: like every other composite it runs only through a child)."""
+        can_run = CAN_RUN.get(type(info.node))
+        return can_run(self, info) if can_run is not None else any(k.can_run for k in info.kids)
 
     # ------------------------------------------------------------------ helpers
-    def _predicate(self, expr, where):
+    def _predicate(self, expr: Any, where: str) -> Callable[[Any], bool]:
         if expr is None:  # default workable: every FSM token on its initial state
             pairs = [(tok, ids.index(f.initial)) for f, ids, tok, _, _ in self.fsm_info]
             return lambda s: all(s[t] == v for t, v in pairs)
-        return compile_fn(expr, self.scope, where, BOOL)
+        fn: Callable[[Any], bool] = compile_fn(expr, self.scope, where, BOOL)
+        return fn
 
-    def _compile_env(self, i, ev, where=None, option=False):
+    def _compile_env(self, i: int, ev: Any, where: Optional[str] = None, option: bool = False) -> tuple[Any, ...]:
         """(name, guard, effects, options): options is None for an event, else a tuple
         of compiled options for a choice."""
         where = where or f"environment.{ev.name}"
@@ -298,7 +349,7 @@ class Program:
             self.env_timers.append((i, self._slot(f"{ev.name}:since", "timer", wait + 1, 0, wait), wait))
         return (ev.name, guard, compile_effects(ev.effects, self.scope, f"{where}.effects"), None)
 
-    def _check_responses(self):
+    def _check_responses(self) -> None:
         """The requirements' expressions compile and their trigger events exist (property
         'response' evaluates them over the explored states)."""
         events = {e.name for e in self.model.environment} | {
@@ -311,7 +362,8 @@ class Program:
                 raise ModelError(f"{where}.trigger", f"no environment event or option '{r.trigger_event}'")
             compile_fn(r.response, self.scope, f"{where}.response", BOOL)
 
-    def _site(self, kind, node, fsm, state, primitive, args, where, duration=None) -> Site:
+    def _site(self, kind: str, node: Optional[str], fsm: Optional[str], state: Optional[str], primitive: str,
+              args: Any, where: str, duration: Any = None) -> Site:
         prim = self.prims.get(primitive)
         if prim is None:
             raise ModelError(where, f"unknown primitive '{primitive}'")
@@ -324,7 +376,7 @@ class Program:
         self.sites.append(site)
         return site
 
-    def _time_site(self, site, duration, where):
+    def _time_site(self, site: Site, duration: Any, where: str) -> None:
         """Rule 'Durations' (docs/semantics.md section 6.1): a run may end (answer a
         non-RUNNING outcome) on its k-th tick of running only when lo <= k <= hi. A counter
         slot holds the RUNNING answers so far, saturated where no bound needs more."""
@@ -346,26 +398,27 @@ class Program:
             site.timer = self._slot(f"{site.label}:ran", "timer", cap + 1)
             return
         # one counter per FSM: only the token's state runs, and leaving a state resets it
-        slot = self._fsm_timers.get(site.fsm)
+        fsm = str(site.fsm)
+        slot = self._fsm_timers.get(fsm)
         if slot is None:
-            slot = self._fsm_timers[site.fsm] = self._slot(f"{site.fsm}:ran", "timer", cap + 1)
+            slot = self._fsm_timers[fsm] = self._slot(f"{fsm}:ran", "timer", cap + 1)
         elif self.slots[slot].size < cap + 1:
             self.slots[slot] = SlotInfo(f"{site.fsm}:ran", "timer", cap + 1)
         site.timer = slot
 
-    def _halt_fn(self, info):
+    def _halt_fn(self, info: _N) -> Halt:
         """halt(ctx): halt every running node of ``info``'s subtree, children first."""
-        items = []
+        found: list[tuple[int, Optional[Halt], str]] = []
 
-        def post(i):
+        def post(i: _N) -> None:
             for k in i.kids:
                 post(k)
             if i.can_run:
-                items.append((i.flag, i.on_halt, i.node.name))
+                found.append((i.flag, i.on_halt, i.node.name))
         post(info)
-        items = tuple(items)
+        items = tuple(found)
 
-        def halt(ctx):
+        def halt(ctx: _Ctx) -> None:
             s = ctx.s
             for flag, on_halt, name in items:
                 if s[flag]:
@@ -377,7 +430,7 @@ class Program:
         return halt
 
     # ------------------------------------------------------------------ FSMs
-    def _compile_fsms(self):
+    def _compile_fsms(self) -> None:
         self.fsm_rows = []  # per FSM: rows[state][goal]
         # node on_halt/tick closures need FSM ticks, and FSM states may run subtrees,
         # so compile subtrees first (their closures only look FSM ticks up at run time)
@@ -394,7 +447,7 @@ class Program:
             self.fsm_rows.append(self._compile_fsm(fi, f, ids))
         self.fsm_ticks = [self._fsm_tick_fn(fi) for fi in range(len(self.fsm_info))]
 
-    def _compile_fsm(self, fi, f, ids):
+    def _compile_fsm(self, fi: int, f: Any, ids: tuple[str, ...]) -> list[Any]:
         scope = self.fsm_scope(f)
         where = f"fsms.{f.name}"
         index = {sid: k for k, sid in enumerate(ids)}
@@ -403,9 +456,10 @@ class Program:
             runner, leave = self._state_runner(f, st, f"{where}.states.{st.id}")
             row_for_goal = []
             for g in f.goals:
-                dedges, dmarkers = [], []
-                edges = ([], [], [])
-                markers = ([], [], [])
+                dedges: list[Any] = []
+                dmarkers: list[Any] = []
+                edges: tuple[list[Any], list[Any], list[Any]] = ([], [], [])
+                markers: tuple[list[Any], list[Any], list[Any]] = ([], [], [])
                 applicable = False
                 for e in f.edges:
                     if e.source != st.id or g not in e.goals:
@@ -420,20 +474,20 @@ class Program:
                         continue
                     applicable = True
                     guard = compile_fn(m.guard, scope, f"{where}.markers.{m.id}.guard", BOOL) if m.guard is not None else None
-                    item = (guard, int(m.outcome), m.id)
-                    (dmarkers if m.direct else markers[int(m.on)]).append(item)
+                    mitem = (guard, int(m.outcome), m.id)
+                    (dmarkers if m.direct else markers[int(m.on)]).append(mitem)
                 row_for_goal.append((tuple(dedges), tuple(dmarkers), applicable,
                                      tuple(map(tuple, edges)), tuple(map(tuple, markers)), runner, leave))
             rows.append(row_for_goal)
         return rows
 
-    def _state_runner(self, f, st, where):
+    def _state_runner(self, f: Any, st: Any, where: str) -> Any:
         """(run(ctx) -> status, leave(ctx)) for one FSM state."""
         if st.subtree is not None:
             info = self.nodes[st.subtree.name]
             tick, halt, flag = info.tick, info.halt, info.flag
 
-            def leave(ctx):
+            def leave(ctx: _Ctx) -> None:
                 if flag is not None and ctx.s[flag]:
                     halt(ctx)
             return tick, leave
@@ -441,14 +495,15 @@ class Program:
         site = self._site("state", None, f.name, st.id, prim, st.args, where, st.duration)
         return self._primitive_runner(site), _site_halt(site)
 
-    def _primitive_runner(self, site):
+    def _primitive_runner(self, site: Site) -> Tick:
         outs = site.outcomes
         evs = tuple(("outcome", site.label, o[2]) for o in outs)
         if site.ticks is not None:
             return self._timed_runner(site, evs)
 
-        def run(ctx):
+        def run(ctx: _Ctx) -> int:
             k = ctx.oracle.outcome(site)
+            status: int
             status, eff, _ = outs[k]
             if eff is not None:
                 eff(ctx.s)
@@ -459,16 +514,17 @@ class Program:
             return status
         return run
 
-    def _timed_runner(self, site, evs):
+    def _timed_runner(self, site: Site, evs: Any) -> Tick:
         """A primitive run under rule 'Durations': the answer must fit the run's tick count."""
         outs, (lo, hi), timer = site.outcomes, site.ticks, site.timer
         cap = (hi if hi is not None else lo) - 1
         rate = self.model.tick_rate
 
-        def run(ctx):
+        def run(ctx: _Ctx) -> int:
             s = ctx.s
             done = s[timer] if timer is not None else 0  # RUNNING answers so far (saturated at cap)
             k = ctx.oracle.outcome(site)
+            status: int
             status, eff, name = outs[k]
             if status == RUNNING:
                 if hi is not None and done >= hi - 1:
@@ -491,7 +547,7 @@ class Program:
             return status
         return run
 
-    def _fsm_tick_fn(self, fi):
+    def _fsm_tick_fn(self, fi: int) -> Any:
         f, ids, tok, goal_slot, pslots = self.fsm_info[fi]
         rows = self.fsm_rows[fi]
         name = f.name
@@ -499,7 +555,7 @@ class Program:
         bound = len(ids)
         restart = self.profile.restart_in_tick
 
-        def move(ctx, row, target, eff, eid):
+        def move(ctx: _Ctx, row: Any, target: int, eff: Any, eid: str) -> None:
             row[6](ctx)  # leave the source state
             s = ctx.s
             s[tok] = target
@@ -510,7 +566,7 @@ class Program:
                 if eff is not None:
                     _record_writes(ctx, eff)
 
-        def drive(ctx, g):
+        def drive(ctx: _Ctx, g: int) -> int:
             """FSM tick rule (docs/semantics.md, 'FSM tick'), steps 1-6."""
             s = ctx.s
             if ctx.on_request is not None:
@@ -526,6 +582,7 @@ class Program:
                     break
             else:
                 raise RuntimeError(f"{name}: direct-edge chain longer than {bound}")
+            outcome: int
             for guard, outcome, mid in row[1]:  # 2. direct markers
                 if guard is None or guard(s):
                     if ctx.rec is not None:
@@ -549,7 +606,7 @@ class Program:
                     break
             return reply
 
-        def tick(ctx, g, pvals, requester, starting=True):
+        def tick(ctx: _Ctx, g: int, pvals: tuple[int, ...], requester: str, starting: bool = True) -> int:
             """Rules 'Requests, goals and parameters' (docs/semantics.md section 5):
             once per request, share, hand-over, conflict."""
             done = ctx.fsm_done.get(fi)
@@ -585,7 +642,7 @@ class Program:
             ctx.fsm_done[fi] = (g, result, requester, pvals)
             return result
 
-        def withdraw_goal(ctx, requester):
+        def withdraw_goal(ctx: _Ctx, requester: str) -> None:
             done = ctx.fsm_done.get(fi)
             if done is not None and done[2] != requester:
                 return  # another request drove the FSM this tick
@@ -596,17 +653,17 @@ class Program:
                 if ctx.rec is not None:
                     ctx.rec.append(("withdraw", name, requester))
 
-        tick.withdraw = withdraw_goal
+        tick.withdraw = withdraw_goal  # type: ignore[attr-defined]
         return tick
 
     # ------------------------------------------------------------------ nodes
-    def _prepare_on_halt(self, info):
+    def _prepare_on_halt(self, info: _N) -> None:
         n = info.node
         if isinstance(n, Action):
             site_holder = info  # the site is made in _compile_node; look it up lazily
 
-            def on_halt(ctx):
-                site = site_holder.node_site
+            def on_halt(ctx: _Ctx) -> None:
+                site: Any = site_holder.node_site
                 if site.timer is not None:
                     ctx.s[site.timer] = 0  # a halted run starts afresh (rule 'Durations')
                 ctx.oracle.halt(site)
@@ -617,7 +674,7 @@ class Program:
         elif info.mem is not None or info.mems or info.stale is not None:
             resets = tuple(x for x in (info.mem, *info.mems, info.stale) if x is not None)
 
-            def on_halt(ctx):
+            def on_halt(ctx: _Ctx) -> None:
                 s = ctx.s
                 for x in resets:
                     s[x] = 0
@@ -626,453 +683,59 @@ class Program:
             eff = compile_effects(n.on_halt, self.scope, f"tree.{n.name}.on_halt")
             info.on_halt = lambda ctx: _apply(ctx, eff)
 
-    def _compile_node(self, info):
+    def _compile_node(self, info: _N) -> Tick:
+        """The tick function of one node: its type's rule (``RULES``, one function per row
+        of docs/semantics.md sections 2 and 3) compiled with what the layout gave it."""
         n = info.node
-        where = f"tree.{n.name}"
-        kids = tuple(k.tick for k in info.kids)
-        flag, name = info.flag, n.name
+        check_arity(n)
+        try:
+            compile_rule = RULES[type(n)]
+        except KeyError:
+            raise ModelError(f"tree.{n.name}", f"unknown node type {type(n).__name__}") from None
+        return compile_rule(self, NodeRule(info))
 
-        evs = (("status", name, RUNNING), ("status", name, SUCCESS), ("status", name, FAILURE))
+    def _merge_points(self) -> frozenset[str]:
+        """The nodes that tell the oracle (``oracle.merge``, rule 'in-tick retries',
+        docs/semantics.md 8.3) where the rest of the tick depends on nothing but the tick's
+        state list, its violations, FSM records and tickOnce re-ticks so far: a
+        RecoveryNode where a retry starts within the tick, and the sequences and fallbacks
+        before each child after the first. Only when the main tree has a RecoveryNode that
+        can retry, and only nodes of the main tree whose ancestors, once a child returns,
+        read nothing but the state, the child's status and its position (no count of
+        earlier children's results, as a Parallel keeps). Empty for every other model."""
+        if self.model.tree is None:
+            return frozenset()
+        main = self.model.tree.name
+        clean: dict[str, bool] = {}
+        for info in self.nodes.values():  # parents before children
+            p = info.parent
+            clean[info.node.name] = info.root == main and (p is None or (
+                clean[p.node.name] and isinstance(p.node, _MERGE_SAFE)))
+        if not any(isinstance(i.node, RecoveryNode) and i.node.retries > 0 and clean[i.node.name]
+                   for i in self.nodes.values()):
+            return frozenset()
+        return frozenset(name for name, ok in clean.items() if ok and isinstance(self.nodes[name].node, _MERGING))
 
-        def finish(st, ctx):
-            if flag is not None:
-                ctx.s[flag] = 1 if st == RUNNING else 0
-            if ctx.rec is not None:
-                ctx.rec.append(evs[st])  # preallocated: no tuple per tick
-            return st
-
-        def later_halts(i):
-            return tuple((k.flag, k.halt) for k in info.kids[i + 1:] if k.can_run)
-
-        if isinstance(n, (ReactiveSequence, ReactiveFallback)):
-            go_on = SUCCESS if isinstance(n, ReactiveSequence) else FAILURE
-            halts = tuple(later_halts(i) for i in range(len(kids)))
-            pairs = tuple(zip(kids, halts))
-
-            def tick(ctx):
-                for child, hs in pairs:
-                    st = child(ctx)
-                    if st != go_on:
-                        s = ctx.s
-                        for fl, h in hs:  # _halt_running, inlined: the hottest loop of a tick
-                            if s[fl]:
-                                h(ctx)
-                        return finish(st, ctx)
-                return finish(go_on, ctx)
-            return tick
-
-        if isinstance(n, (MemorySequence, MemoryFallback)):
-            go_on = SUCCESS if isinstance(n, MemorySequence) else FAILURE
-            mem, count = info.mem, len(kids)
-
-            def tick(ctx):
-                s = ctx.s
-                i = s[mem]
-                while i < count:
-                    st = kids[i](ctx)
-                    if st != go_on:
-                        s[mem] = i if st == RUNNING else 0
-                        return finish(st, ctx)
-                    i += 1
-                s[mem] = 0
-                return finish(go_on, ctx)
-            return tick
-
-        if isinstance(n, Parallel) and self.profile.parallel_memory and n.selected:
-            raise ModelError(f"{where}.selected", "selected children are py_trees' SuccessOnSelected policy; "
-                                                  "BehaviorTree.CPP's Parallel has thresholds only")
-        if isinstance(n, Parallel) and not self.profile.parallel_memory and (
-                n.synchronise or n.selected or self.profile.parallel_failure_first):
-            # py_trees' options and order (under parallel_memory finished children are never
-            # ticked again anyway, so synchronise changes nothing there)
-            return self._compile_parallel(info, kids, finish, where)
-
-        if isinstance(n, Parallel):
-            count = len(kids)
-            need = count if n.success_threshold is None else _threshold(n.success_threshold, count)
-            fail_at = _threshold(n.failure_threshold, count)
-            top = count if self.profile.parallel_memory else fail_at  # BT.CPP refuses failure > children
-            low = 0 if self.profile.parallel_memory else 1  # BT.CPP's 0: decide after the first child
-            if not low <= need <= count or not low <= fail_at <= top:
-                bound = f" <= {count}" if self.profile.parallel_memory else ""
-                zero = "" if low else " (0 is BehaviorTree.CPP's, under semantics: btcpp)"
-                raise ModelError(where, f"thresholds must satisfy {low} <= success <= {count} and {low} <= failure{bound} "
-                                        f"(negative ones count from the end: -1 is all {count} children){zero}")
-            halts = tuple((k.flag, k.halt) for k in info.kids if k.can_run)
-            if info.mems:
-                return self._parallel_memory(info, kids, need, fail_at, halts, finish)
-
-            def tick(ctx):
-                ok = bad = 0
-                for child in kids:
-                    st = child(ctx)
-                    if st == SUCCESS:
-                        ok += 1
-                    elif st == FAILURE:
-                        bad += 1
-                if ok >= need:
-                    st = SUCCESS
-                elif bad >= fail_at or bad > count - need:
-                    st = FAILURE
-                else:
-                    return finish(RUNNING, ctx)
-                _halt_running(ctx, halts)
-                return finish(st, ctx)
-            return tick
-
-        if isinstance(n, ParallelAll):
-            count, mems = len(kids), info.mems
-            most = _threshold(n.max_failures, count)
-            if not 1 <= most <= count:
-                raise ModelError(f"{where}.max_failures", f"must satisfy 1 <= max_failures <= {count} (negative ones count from the end)")
-            halts = tuple((k.flag, k.halt) for k in info.kids if k.can_run)
-            pairs = tuple(zip(kids, mems))
-
-            def tick(ctx):
-                s = ctx.s
-                for child, m in pairs:
-                    if not s[m]:
-                        st = child(ctx)
-                        if st != RUNNING:
-                            s[m] = st
-                bad = 0
-                for m in mems:
-                    if not s[m]:
-                        return finish(RUNNING, ctx)
-                    if s[m] == FAILURE:
-                        bad += 1
-                for m in mems:
-                    s[m] = 0
-                _halt_running(ctx, halts)
-                return finish(FAILURE if bad >= most else SUCCESS, ctx)
-            return tick
-
-        if isinstance(n, SequenceWithMemory):
-            keep, count = info.keep, len(kids)
-            wake, signal = self.profile.loop_wake_up, self._signal(info)
-            steps = tuple((child, k.flag) for child, k in zip(kids, info.kids))
-
-            def tick(ctx):
-                s = ctx.s
-                i = s[keep]
-                while i < count:
-                    child, fl = steps[i]
-                    was_running = fl is not None and s[fl]
-                    st = child(ctx)
-                    if st != SUCCESS:
-                        s[keep] = i  # RUNNING: resume here; FAILURE: tick this child again next time
-                        return finish(st, ctx)
-                    i += 1
-                    if wake and not was_running and i < count:
-                        s[keep] = i  # the wake-up: RUNNING now, the next child on the next tick
-                        if signal is not None:
-                            s[signal] = 1
-                        return finish(RUNNING, ctx)
-                s[keep] = 0
-                return finish(SUCCESS, ctx)
-            return tick
-
-        if isinstance(n, (PipelineSequence, RecoveryNode, RoundRobin)):
-            return self._nav2_control(info, kids, finish, where)
-
-        if isinstance(n, (IfThenElse, WhileDoElse)):
-            if len(kids) not in (2, 3):
-                raise ModelError(where, f"{type(n).__name__} needs 2 or 3 children, got {len(kids)}")
-            return self._if_then_else(info, kids, finish) if isinstance(n, IfThenElse) else self._while_do_else(info, kids, finish)
-
-        if isinstance(n, (Inverter, ForceSuccess, ForceFailure)):
-            child = kids[0]
-            table = _INVERT if isinstance(n, Inverter) else (
-                (RUNNING, SUCCESS, SUCCESS) if isinstance(n, ForceSuccess) else (RUNNING, FAILURE, FAILURE))
-            return lambda ctx: finish(table[child(ctx)], ctx)
-
-        if isinstance(n, (Retry, Repeat)):
-            child, mem, kid_flag = kids[0], info.mem, info.kids[0].flag
-            again, stop = (FAILURE, SUCCESS) if isinstance(n, Retry) else (SUCCESS, FAILURE)
-            limit = n.attempts if isinstance(n, Retry) else n.times
-
-            if self.profile.loop_wake_up:
-                signal = self._signal(info)
-
-                def tick(ctx):
-                    s = ctx.s
-                    k = s[mem]
-                    for _ in range(2):  # a child that had been running may finish and start again
-                        was_running = kid_flag is not None and s[kid_flag]
-                        st = child(ctx)
-                        if st == RUNNING:
-                            s[mem] = k
-                            return finish(RUNNING, ctx)
-                        if st == stop:
-                            s[mem] = 0
-                            return finish(st, ctx)
-                        k += 1
-                        if k >= limit:
-                            s[mem] = 0
-                            return finish(st, ctx)
-                        if not was_running:  # the wake-up: RUNNING now, the next attempt next tick
-                            s[mem] = k
-                            if signal is not None:
-                                s[signal] = 1
-                            return finish(RUNNING, ctx)
-                    raise AssertionError("unreachable: the second attempt started from idle")
-                return tick
-
-            def tick(ctx):
-                st = child(ctx)
-                s = ctx.s
-                if st == again:
-                    k = s[mem] + 1
-                    if k < limit:
-                        s[mem] = k
-                        return finish(RUNNING, ctx)
-                    s[mem] = 0
-                elif st == stop:
-                    s[mem] = 0
-                return finish(st, ctx)
-            return tick
-
-        if isinstance(n, SubTree):
-            # rule 'SubTree': the child's status. BT.CPP's SubTreeNode also resets its child
-            # when it finishes, which only matters to a stale condition (section 8.1): a
-            # SubTree is not a stateful leaf, so IfThenElse/WhileDoElse tick it afresh
-            child = kids[0]
-            return lambda ctx: finish(child(ctx), ctx)
-
-        if isinstance(n, KeepRunningUntilFailure):
-            child = kids[0]
-            table = (RUNNING, RUNNING, FAILURE)
-            return lambda ctx: finish(table[child(ctx)], ctx)
-
-        if isinstance(n, FailureIsRunning):
-            child = kids[0]
-            table = (RUNNING, SUCCESS, RUNNING)
-            return lambda ctx: finish(table[child(ctx)], ctx)
-
-        if isinstance(n, (RunningIsFailure, RunningIsSuccess)):
-            child, kid = kids[0], info.kids[0]
-            instead = FAILURE if isinstance(n, RunningIsFailure) else SUCCESS
-
-            def tick(ctx):
-                st = child(ctx)
-                if st != RUNNING:
-                    return finish(st, ctx)
-                kid.halt(ctx)  # it finished in its parent's eyes: stopped, as py_trees stops it
-                return finish(instead, ctx)
-            return tick
-
-        if isinstance(n, RunOnce):
-            if n.then_skip:
-                raise ModelError(f"{where}.then_skip", "RunOnce with then_skip: true returns SKIPPED after its first "
-                                                       "run, which btfsm does not model; use then_skip: false")
-            child, keep = kids[0], info.keep
-
-            def tick(ctx):
-                s = ctx.s
-                done = s[keep]
-                if done:
-                    return finish(done, ctx)
-                st = child(ctx)
-                if st != RUNNING:
-                    s[keep] = st
-                return finish(st, ctx)
-            return tick
-
-        if isinstance(n, Guard):
-            child, kid = kids[0], info.kids[0]
-            cond = compile_fn(n.condition, self.scope, f"{where}.condition", BOOL)
-
-            def tick(ctx):
-                s = ctx.s
-                if cond(s):
-                    return finish(child(ctx), ctx)
-                if kid.flag is not None and s[kid.flag]:
-                    kid.halt(ctx)
-                return finish(FAILURE, ctx)
-            return tick
-
-        if isinstance(n, Effects):
-            child = kids[0]
-            start = compile_effects(n.on_start, self.scope, f"{where}.on_start")
-            done = (None,
-                    compile_effects(n.on_success, self.scope, f"{where}.on_success"),
-                    compile_effects(n.on_failure, self.scope, f"{where}.on_failure"))
-
-            def tick(ctx):
-                if start is not None and (flag is None or not ctx.s[flag]):
-                    _apply(ctx, start)
-                st = child(ctx)
-                if done[st] is not None:
-                    _apply(ctx, done[st])
-                return finish(st, ctx)
-            return tick
-
-        if isinstance(n, Condition):
-            cond = compile_fn(n.expr, self.scope, f"{where}.expr", BOOL)
-            return lambda ctx: finish(SUCCESS if cond(ctx.s) else FAILURE, ctx)
-
-        conflicts = self._conflicts(info)
-
-        if isinstance(n, Action):
-            site = self._site("action", n.name, None, None, n.primitive, n.args, where, n.duration)
-            info.node_site = site
-            run = self._exclusive_start(info, self._primitive_runner(site))
-
-            def tick(ctx):
-                if flag is not None and not ctx.s[flag]:
-                    _halt_running(ctx, conflicts)
-                return finish(run(ctx), ctx)
-            return tick
-
-        if isinstance(n, SkillRequest):
-            fi = self.fsm_index[n.fsm]
-            f = self.model.fsms[fi]
-            g = f.goals.index(n.goal)
-            pre = compile_fn(n.pre, self.scope, f"{where}.pre", BOOL) if n.pre is not None else None
-            post = compile_fn(n.post, self.scope, f"{where}.post", BOOL) if n.post is not None else None
-            pfns = []
-            for p in f.params:
-                expr = dict(n.params)[p.name]
-                ptype = Type(p.kind, p.values) if p.kind == "enum" else Type(p.kind)
-                fn = compile_fn(expr, self.scope, f"{where}.params.{p.name}", ptype)
-                pfns.append((fn, p.lo, p.hi, p.kind == "bool", p.name))
-            pfns = tuple(pfns)
-            prog = self
-            rivals = self._rivals(info)
-
-            def tick(ctx):
-                s = ctx.s
-                starting = not s[flag]
-                if starting:
-                    _halt_running(ctx, conflicts)
-                if pre is not None and not pre(s):
-                    if s[flag]:  # a running request ends: withdraw its goal
-                        prog.fsm_ticks[fi].withdraw(ctx, name)
-                    return finish(FAILURE, ctx)
-                if starting and rivals:
-                    _exclusive_check(ctx, rivals)
-                pvals = tuple(_param(fn(s), lo, hi, is_bool, pname, name) for fn, lo, hi, is_bool, pname in pfns)
-                st = prog.fsm_ticks[fi](ctx, g, pvals, name, starting)
-                if st == SUCCESS and post is not None and not post(s):
-                    ctx.violations.append(("post", name))
-                    if ctx.rec is not None:
-                        ctx.rec.append(("violation", name, "post"))
-                return finish(st, ctx)
-            return tick
-        raise ModelError(where, f"unknown node type {type(n).__name__}")
-
-    def _nav2_control(self, info, kids, finish, where):
-        """Rules 'PipelineSequence', 'RecoveryNode', 'RoundRobin' (docs/semantics.md 8.3),
-        ported from navigation2's nav2_behavior_tree/plugins/control/*.cpp."""
-        n, s_mem, count = info.node, info.mem, len(kids)
-        every = tuple((k.flag, k.halt) for k in info.kids if k.can_run)  # BT.CPP's haltChildren()
-        if isinstance(n, PipelineSequence):
-            def tick(ctx):
-                s = ctx.s
-                last = s[s_mem]
-                for i in range(count):
-                    st = kids[i](ctx)
-                    if st == FAILURE:
-                        _halt_running(ctx, every)
-                        s[s_mem] = 0
-                        return finish(FAILURE, ctx)
-                    if st == RUNNING and i >= last:
-                        s[s_mem] = i
-                        return finish(RUNNING, ctx)
-                    # SUCCESS, or RUNNING of an earlier stage: it keeps running, go on
-                _halt_running(ctx, every)
-                s[s_mem] = 0
-                return finish(SUCCESS, ctx)
-            return tick
-
-        if isinstance(n, RecoveryNode):
-            if count != 2:
-                raise ModelError(where, f"a RecoveryNode has exactly 2 children, has {count}")
-            first, second = kids
-            k0, k1 = info.kids
-            limit = n.retries
-            halt0 = ((k0.flag, k0.halt),) if k0.can_run else ()
-            halt1 = ((k1.flag, k1.halt),) if k1.can_run else ()
-
-            def end(ctx, st):
-                _halt_running(ctx, every)  # halt(): the children, the index and the count
-                ctx.s[s_mem] = 0
-                return finish(st, ctx)
-
-            def tick(ctx):
-                s = ctx.s
-                retry = s[s_mem]
-                recovering = k1.flag is not None and s[k1.flag]  # current_child_idx_ == 1
-                while retry <= limit:
-                    if not recovering:
-                        st = first(ctx)
-                        if st == SUCCESS:
-                            _halt_running(ctx, halt1)
-                            return end(ctx, SUCCESS)
-                        if st == RUNNING:
-                            s[s_mem] = retry
-                            return finish(RUNNING, ctx)
-                        if retry >= limit:
-                            return end(ctx, FAILURE)
-                        _halt_running(ctx, halt0)
-                        recovering = True
-                    else:
-                        st = second(ctx)
-                        if st == RUNNING:
-                            s[s_mem] = retry
-                            return finish(RUNNING, ctx)
-                        if st == FAILURE:
-                            return end(ctx, FAILURE)
-                        _halt_running(ctx, halt1)
-                        retry += 1
-                        recovering = False
-                return end(ctx, FAILURE)  # pragma: no cover - the count never passes the limit
-            return tick
-
-        fail_mem, wrap = info.mems[0], n.wrap_around
-
-        def tick(ctx):  # RoundRobin
-            s = ctx.s
-            i, failed = s[s_mem], s[fail_mem]
-            while failed < count:
-                st = kids[i](ctx)
-                if st == RUNNING:
-                    s[s_mem], s[fail_mem] = i, failed
-                    return finish(RUNNING, ctx)
-                i += 1
-                if i == count:
-                    if not wrap:
-                        break  # the end of the children: FAILURE, whatever the last one returned
-                    i = 0
-                if st == SUCCESS:
-                    _halt_running(ctx, every)
-                    s[s_mem], s[fail_mem] = i, 0
-                    return finish(SUCCESS, ctx)
-                failed += 1
-            _halt_running(ctx, every)  # halt(): the children, the index and the count
-            s[s_mem] = s[fail_mem] = 0
-            return finish(FAILURE, ctx)
-        return tick
-
-    def _signal(self, info):
+    def _signal(self, info: _N) -> Optional[int]:
         """The wake-up slot a loop node of the main tree sets (rule 'tickOnce'), or None
         (``tick: exactly-once``, or a subtree an FSM state runs: its FSM steps once a tick)."""
         return self.wake if info.root == (self.model.tree.name if self.model.tree is not None else None) else None
 
-    def _parallel_memory(self, info, kids, need, fail_at, halts, finish):
+    def _parallel_memory(self, info: _N, kids: tuple[Tick, ...], need: int, fail_at: int, halts: Halts,
+                         finish: Finish) -> Tick:
         """BehaviorTree.CPP's Parallel (profile switch ``parallel_memory``): finished children
         are not ticked again; after each child, success then failure is checked."""
         count, mems = len(kids), info.mems
         pairs = tuple(zip(kids, mems))
 
-        def done(ctx, st):
+        def done(ctx: _Ctx, st: int) -> int:
             s = ctx.s
             for m in mems:
                 s[m] = 0
             _halt_running(ctx, halts)
             return finish(st, ctx)
 
-        def tick(ctx):
+        def tick(ctx: _Ctx) -> int:
             s = ctx.s
             ok = bad = 0
             for m in mems:
@@ -1096,72 +759,11 @@ class Program:
             return finish(RUNNING, ctx)
         return tick
 
-    def _if_then_else(self, info, kids, finish):
-        mem, stale, count = info.mem, info.stale, len(kids)
-        halts = tuple((k.flag, k.halt) for k in info.kids if k.can_run)
-
-        def tick(ctx):
-            s = ctx.s
-            i = s[mem]
-            if i == 0:
-                c = _condition(ctx, kids[0], stale)
-                if c == RUNNING:
-                    return finish(RUNNING, ctx)
-                if c == SUCCESS:
-                    i = 1
-                elif count == 3:
-                    i = 2
-                else:
-                    if stale is not None:
-                        s[stale] = c
-                    return finish(c, ctx)
-            st = kids[i](ctx)
-            if st == RUNNING:
-                s[mem] = i
-                return finish(RUNNING, ctx)
-            s[mem] = 0
-            if stale is not None:
-                s[stale] = 0
-            _halt_running(ctx, halts)
-            return finish(st, ctx)
-        return tick
-
-    def _while_do_else(self, info, kids, finish):
-        stale, count = info.stale, len(kids)
-        halts = tuple((k.flag, k.halt) for k in info.kids if k.can_run)
-        other = tuple((k.flag, k.halt) if k.can_run else None for k in info.kids)
-
-        def halt_kid(ctx, i):
-            if i < count and other[i] is not None and ctx.s[other[i][0]]:
-                other[i][1](ctx)
-
-        def tick(ctx):
-            s = ctx.s
-            c = _condition(ctx, kids[0], stale)
-            if c == RUNNING:
-                return finish(RUNNING, ctx)
-            if c == SUCCESS:
-                halt_kid(ctx, 2)
-                st = kids[1](ctx)
-            elif count == 3:
-                halt_kid(ctx, 1)
-                st = kids[2](ctx)
-            else:
-                st = FAILURE
-            if st == RUNNING:
-                if stale is not None:
-                    s[stale] = c
-                return finish(RUNNING, ctx)
-            if stale is not None:
-                s[stale] = 0
-            _halt_running(ctx, halts)
-            return finish(st, ctx)
-        return tick
-
-    def _compile_parallel(self, info, kids, finish, where):
+    def _compile_parallel(self, info: _N, kids: tuple[Tick, ...], finish: Finish, where: str) -> Tick:
         """Rules 'Parallel' (docs/semantics.md section 2) and, per profile, 'parallel
         failure first', 'parallel synchronise', 'parallel selected' (section 8)."""
-        n, count = info.node, len(kids)
+        n: Any = info.node
+        count = len(kids)
         names = [k.node.name for k in info.kids]
         if n.selected:
             bad_names = [x for x in n.selected if x not in names]
@@ -1182,7 +784,7 @@ class Program:
         done = info.mems or (None,) * count
         items = tuple(zip(kids, eligible, done))
 
-        def tick(ctx):
+        def tick(ctx: _Ctx) -> int:
             s = ctx.s
             ok = bad = lost = 0  # successes that count, failures, failures that count
             for child, counts, d in items:
@@ -1211,7 +813,7 @@ class Program:
             return finish(st, ctx)
         return tick
 
-    def _conflicts(self, info):
+    def _conflicts(self, info: _N) -> Halts:
         """Halt-before-start: branches to halt before this leaf starts (rule 'halt order')."""
         if not info.can_run or not self.profile.halt_before_start:
             return ()
@@ -1227,7 +829,7 @@ class Program:
             out.append((b.flag, b.halt))
         return tuple(out)
 
-    def _rivals(self, info):
+    def _rivals(self, info: _N) -> tuple[Any, ...]:
         """Rule 'Exclusive resources': for each running leaf that shares a resource with
         ``info``'s leaf, the (flag, violation, event) to report when this leaf starts
         while that one runs."""
@@ -1241,20 +843,20 @@ class Program:
                                     ("violation", me, f"exclusive {res}: starts while {m} runs")))
         return tuple(out)
 
-    def _exclusive_start(self, info, run):
+    def _exclusive_start(self, info: _N, run: Tick) -> Tick:
         """``run`` preceded by the rule 'Exclusive resources' check when the leaf starts
         (ticked while idle; a leaf that cannot return RUNNING starts on every tick)."""
         rivals, flag = self._rivals(info), info.flag
         if not rivals:
             return run
 
-        def checked(ctx):
+        def checked(ctx: _Ctx) -> int:
             if flag is None or not ctx.s[flag]:
                 _exclusive_check(ctx, rivals)
             return run(ctx)
         return checked
 
-    def _exclusive_groups(self):
+    def _exclusive_groups(self) -> tuple[Any, ...]:
         """Per resource with two leaves that can run: ((flag, name), ...) checked at the end
         of every tick (rule 'Exclusive resources')."""
         out = []
@@ -1264,7 +866,7 @@ class Program:
                 out.append((res, flags))
         return tuple(out)
 
-    def _lint_reactive_sequences(self):
+    def _lint_reactive_sequences(self) -> None:
         self.lints = []
         for info in self.nodes.values():
             if isinstance(info.node, ReactiveSequence):
@@ -1276,7 +878,7 @@ class Program:
                     self.lints.append((f"tree.{info.node.name}", f"{what} with several children that can run ({', '.join(running)}): an earlier one restarts each tick and halts the later ones; use {self.profile.node_name('MemorySequence')}"))
 
     # ------------------------------------------------------------------ running
-    def step(self, state, oracle, record: "bool | list" = False) -> Step:
+    def step(self, state: Any, oracle: Any, record: "bool | list[Any]" = False) -> Step:
         """One BT tick: environment events, then the tree. Pure in ``state``. ``record``:
         collect the trace events (``Step.events``); a list given here receives them as they
         happen, so an oracle holding it can see the tick so far."""
@@ -1295,14 +897,15 @@ class Program:
             _exclusive_end(ctx, self.exclusive)
         return Step(tuple(s), status, ctx.rec, ctx.violations)
 
-    def _reticks(self, ctx, status):
+    def _reticks(self, ctx: _Ctx, status: int) -> int:
         """Rule 'tickOnce' (docs/semantics.md 8.1): BT.CPP's ``tickOnce()`` ticks the root
         again while it returns RUNNING and a wake-up signal is pending (each tick takes the
         signal). Each re-tick is a BT tick of its own (an FSM may step again). When the
         state before a re-tick repeats, the oracle can answer as it did before, so the
         loop can go on for ever: the violation ``("tick-loop", root)`` ends the tick (the
         state is the repeated one; property ``contracts`` reports it)."""
-        s, wake, seen = ctx.s, self.wake, []
+        s, wake = ctx.s, self.wake
+        seen: list[list[int]] = []
         while status == RUNNING and s[wake]:
             s[wake] = 0
             if s in seen:
@@ -1313,19 +916,22 @@ class Program:
                                                        "starts from the state of an earlier one"))
                 return RUNNING
             seen.append(list(s))
+            ctx.reticks += (tuple(s),)
             ctx.fsm_done = {}
             if ctx.rec is not None:
                 ctx.rec.append(("wake-up", self.model.tree.name))
             status = self.root(ctx)
         return status
 
-    def environment_phase(self, s, oracle, rec=None, indices=None) -> "str | None":
+    def environment_phase(self, s: list[int], oracle: Any, rec: Optional[list[Any]] = None,
+                          indices: Any = None) -> "str | None":
         """Tick step 1 (docs/semantics.md section 1): the environment entries (those at
         ``indices`` when given) change the state list ``s`` in place, asking ``oracle``;
         ``rec`` collects env and write events. Returns the name of a choice with no enabled
         option (the tick cannot happen), else None."""
         timers = self.env_timers
         env = self.env
+        name: str
         for i in (range(len(env)) if indices is None else indices):
             name, guard, eff, options = env[i]
             if options is not None:  # a choice: exactly one enabled option
@@ -1351,7 +957,8 @@ class Program:
                     rec.extend(("write", k, s[k]) for k in eff.targets)
         return None
 
-    def fsm_step(self, state, fsm: "str | int", goal: "str | int", params, oracle, record: bool = False) -> Step:
+    def fsm_step(self, state: Any, fsm: "str | int", goal: "str | int", params: Any, oracle: Any,
+                 record: bool = False) -> Step:
         """One tick of one FSM requested from outside a tree (the FSM-level open system)."""
         fi = self.fsm_index[fsm] if isinstance(fsm, str) else fsm
         f = self.fsm_info[fi][0]
@@ -1363,11 +970,11 @@ class Program:
             return Step(None, FAILURE, ctx.rec, [("timing", late.site.label, late.text)])
         return Step(tuple(ctx.s), status, ctx.rec, ctx.violations)
 
-    def decode(self, state) -> dict:
+    def decode(self, state: Any) -> dict[str, Any]:
         """Readable values of a state: variables, FSM states/goals/params, node memory."""
         return {info.name: self.decode_slot(i, val) for i, (info, val) in enumerate(zip(self.slots, state))}
 
-    def decode_slot(self, index: int, value: int):
+    def decode_slot(self, index: int, value: int) -> Any:
         """The readable value of one slot."""
         info = self.slots[index]
         if info.kind == "var":
@@ -1377,7 +984,7 @@ class Program:
             return slot.type.values[value]
         return bool(value) if slot is not None and slot.type == BOOL else value
 
-    def encode(self, values: dict) -> tuple:
+    def encode(self, values: dict[str, Any]) -> tuple[int, ...]:
         """The state tuple of readable values (as ``decode`` gives them); slots missing
         from ``values`` keep their initial value."""
         out = list(self.initial)
@@ -1395,20 +1002,28 @@ class Program:
                 out[i] = int(val)
         return tuple(out)
 
-    def fsm_state(self, state, fsm: str) -> tuple:
+    def fsm_state(self, state: Any, fsm: str) -> tuple[Any, ...]:
         """(state id, held goal or None) of an FSM."""
         f, ids, tok, goal, _ = self.fsm_info[self.fsm_index[fsm]]
         return ids[state[tok]], (f.goals[state[goal] - 1] if state[goal] else None)
 
 
-def _stateful(info) -> bool:
+#: node types whose tick, after a child returns, reads only the state, that child's status and
+#: its position (``Program._merge_points``), and those of them that tell the oracle
+_MERGING = (RecoveryNode, ReactiveSequence, ReactiveFallback, MemorySequence, MemoryFallback, PipelineSequence)
+_MERGE_SAFE = (ReactiveSequence, ReactiveFallback, MemorySequence, MemoryFallback, PipelineSequence, RecoveryNode,
+               RoundRobin, Inverter, ForceSuccess, ForceFailure, SubTree, KeepRunningUntilFailure, FailureIsRunning,
+               RunningIsFailure, RunningIsSuccess, RunOnce, Guard, Effects)
+
+
+def _stateful(info: _N) -> bool:
     """A leaf that keeps a status between ticks in BehaviorTree.CPP (a StatefulActionNode).
     Only a leaf: every decorator, SubTree included, resets its child's status when the
     child finishes (BT.CPP's ``DecoratorNode::executeTick`` and ``SubTreeNode::tick``)."""
     return isinstance(info.node, SkillRequest) or (isinstance(info.node, Action) and info.can_run)
 
 
-def _condition(ctx, tick, stale):
+def _condition(ctx: _Ctx, tick: Tick, stale: Optional[int]) -> int:
     """The status of an IfThenElse/WhileDoElse condition: the one its leaf kept (profile
     switch ``stale_condition``; ``stale`` is then its memory slot), else a fresh tick."""
     if stale is not None and ctx.s[stale]:
@@ -1421,7 +1036,7 @@ def _threshold(value: int, count: int) -> int:
     return value if value >= 0 else max(count + value + 1, 0)
 
 
-def _halt_running(ctx, pairs):
+def _halt_running(ctx: _Ctx, pairs: Halts) -> None:
     """Halt each ``(flag, halt)`` whose running flag is set (section 4): the children a node
     leaves running, or halt before start's competing branches."""
     s = ctx.s
@@ -1430,7 +1045,7 @@ def _halt_running(ctx, pairs):
             halt(ctx)
 
 
-def _exclusive_check(ctx, rivals):
+def _exclusive_check(ctx: _Ctx, rivals: tuple[Any, ...]) -> None:
     s = ctx.s
     for flag, violation, event in rivals:
         if s[flag]:
@@ -1439,7 +1054,7 @@ def _exclusive_check(ctx, rivals):
                 ctx.rec.append(event)
 
 
-def _exclusive_end(ctx, groups):
+def _exclusive_end(ctx: _Ctx, groups: tuple[Any, ...]) -> None:
     """Rule 'Exclusive resources' at the end of a tick: two leaves of one resource running."""
     s = ctx.s
     for res, flags in groups:
@@ -1455,48 +1070,706 @@ def _exclusive_end(ctx, groups):
                 break
 
 
-def _site_halt(site):
+def _site_halt(site: Site) -> Halt:
     """leave(ctx) of an FSM state that runs a primitive: the run is abandoned (a timed run's
     counter starts afresh, rule 'Durations') and the oracle is told."""
     timer = site.timer
     if timer is None:
         return lambda ctx: ctx.oracle.halt(site)
 
-    def leave(ctx):
+    def leave(ctx: _Ctx) -> None:
         ctx.s[timer] = 0
         ctx.oracle.halt(site)
     return leave
 
 
-def _apply(ctx, eff):
+def _apply(ctx: _Ctx, eff: Any) -> None:
     eff(ctx.s)
     if ctx.rec is not None:
         _record_writes(ctx, eff)
 
 
-def _record_writes(ctx, eff):
+def _record_writes(ctx: _Ctx, eff: Any) -> None:
     s = ctx.s
     ctx.rec.extend([("write", idx, s[idx]) for idx in eff.targets])
 
 
-def _param(value, lo, hi, is_bool, pname, node):
-    value = int(value)
-    if not lo <= value <= hi:
+def _param(value: Any, lo: int, hi: int, is_bool: bool, pname: str, node: str) -> int:
+    out = int(value)
+    if not lo <= out <= hi:
         from .errors import DomainError
 
-        raise DomainError(pname, value, f"tree.{node}.params")
-    return value
+        raise DomainError(pname, out, f"tree.{node}.params")
+    return out
 
 
-def _lca(a, b):
+def _lca(a: _N, b: _N) -> tuple[_N, Node]:
     """Lowest common ancestor of two node infos and the child of it on b's side."""
     ancestors = []
-    x = a
+    x: Optional[_N] = a
     while x is not None:
         ancestors.append(x)
         x = x.parent
     seen = {id(x) for x in ancestors}
-    prev, y = None, b
+    prev: Optional[_N] = None
+    y: Any = b
     while id(y) not in seen:
         prev, y = y, y.parent
     return y, (prev.node if prev is not None else b.node)
+
+
+# ============================================================================ node rules
+# One function per row of docs/semantics.md sections 2, 3 and 8.3, registered for its node
+# types. Each runs once per node when a model compiles and returns the node's tick
+# function; the closures are the hot path of every tick.
+
+
+def _never(prog: Program, info: _N) -> bool:
+    return False
+
+
+def _always(prog: Program, info: _N) -> bool:
+    return True
+
+
+def _child_slot(prog: Program, info: _N) -> None:
+    info.mem = prog._slot(f"{info.node.name}:child", "memory", len(info.node.children_of()))
+
+
+def _done_slots(prog: Program, info: _N) -> None:
+    # which children finished: 0 not yet, else their status (SUCCESS 1, FAILURE 2)
+    info.mems = tuple(prog._slot(f"{info.node.name}:done{i}", "memory", 3) for i in range(len(info.kids)))
+
+
+def _parallel_slots(prog: Program, info: _N) -> None:
+    n: Any = info.node
+    if prog.profile.parallel_memory:
+        _done_slots(prog, info)
+    elif n.synchronise and info.can_run:
+        # rule 'parallel synchronise': which children succeeded since the parallel started
+        info.mems = tuple(prog._slot(f"{n.name}:succeeded:{k.node.name}", "memory", 2) for k in info.kids)
+
+
+def _stale_slot(prog: Program, info: _N) -> None:
+    if prog.profile.stale_condition and info.kids and _stateful(info.kids[0]):
+        # the condition leaf's last status while the node keeps it (0: none)
+        info.stale = prog._slot(f"{info.node.name}:condition", "memory", 3)
+
+
+def _if_then_else_slots(prog: Program, info: _N) -> None:
+    info.mem = prog._slot(f"{info.node.name}:branch", "memory", 3)
+    _stale_slot(prog, info)
+
+
+def _sequence_with_memory_slots(prog: Program, info: _N) -> None:
+    info.keep = prog._slot(f"{info.node.name}:child", "memory", max(len(info.kids), 1))
+
+
+def _sequence_with_memory_can_run(prog: Program, info: _N) -> bool:
+    # RUNNING after a child that succeeded at once (the wake-up)
+    return (prog.profile.loop_wake_up and len(info.kids) > 1) or any(k.can_run for k in info.kids)
+
+
+def _loop_slots(prog: Program, info: _N) -> None:
+    n: Any = info.node
+    if isinstance(n, Retry):
+        info.mem = prog._slot(f"{n.name}:failures", "memory", max(n.attempts, 1))
+    else:
+        info.mem = prog._slot(f"{n.name}:done", "memory", max(n.times, 1))
+
+
+def _loop_can_run(prog: Program, info: _N) -> bool:
+    n: Any = info.node
+    return (n.attempts if isinstance(n, Retry) else n.times) > 1 or bool(info.kids[0].can_run)
+
+
+def _run_once_slots(prog: Program, info: _N) -> None:
+    info.keep = prog._slot(f"{info.node.name}:result", "memory", 3)
+
+
+def _action_can_run(prog: Program, info: _N) -> bool:
+    n: Any = info.node
+    return Status.RUNNING in prog.prims[n.primitive].statuses()
+
+
+def _pipeline_slots(prog: Program, info: _N) -> None:
+    info.mem = prog._slot(f"{info.node.name}:last", "memory", max(len(info.kids), 1))
+
+
+def _recovery_slots(prog: Program, info: _N) -> None:
+    n: Any = info.node
+    info.mem = prog._slot(f"{n.name}:retries", "memory", n.retries + 1)
+
+
+def _round_robin_slots(prog: Program, info: _N) -> None:
+    # the child to tick next (kept when the node finishes, reset by a halt) and the
+    # failures in a row of this run
+    count = max(len(info.kids), 1)
+    info.mem = prog._slot(f"{info.node.name}:child", "memory", count)
+    info.mems = (prog._slot(f"{info.node.name}:failed", "memory", count),)
+
+
+@rule(ReactiveSequence, ReactiveFallback)
+def _reactive(prog: Program, c: NodeRule) -> Tick:
+    """Rules 'ReactiveSequence' and 'ReactiveFallback' (docs/semantics.md section 2)."""
+    n, kids, finish = c.node, c.kids, c.finish
+    go_on = SUCCESS if isinstance(n, ReactiveSequence) else FAILURE
+    halts = tuple(c.later_halts(i) for i in range(len(kids)))
+    pairs = tuple(zip(kids, halts))
+    if c.name in prog.merge_points:
+        return _merging_reactive(c.name, pairs, go_on, finish)
+
+    def tick(ctx: _Ctx) -> int:
+        for child, hs in pairs:
+            st = child(ctx)
+            if st != go_on:
+                s = ctx.s
+                for fl, h in hs:  # _halt_running, inlined: the hottest loop of a tick
+                    if s[fl]:
+                        h(ctx)
+                return finish(st, ctx)
+        return finish(go_on, ctx)
+    return tick
+
+
+def _merging_reactive(name: str, pairs: "tuple[tuple[Tick, Halts], ...]", go_on: int, finish: Finish) -> Tick:
+    """A ReactiveSequence/ReactiveFallback that is a merge point (``Program._merge_points``):
+    the same tick, telling the oracle before each child after the first."""
+    def tick(ctx: _Ctx) -> int:
+        s = ctx.s
+        for i, (child, hs) in enumerate(pairs):
+            if i and ctx.on_merge is not None:
+                ctx.on_merge((name, i), s, ctx.violations, ctx.fsm_done, ctx.reticks)
+            st = child(ctx)
+            if st != go_on:
+                _halt_running(ctx, hs)
+                return finish(st, ctx)
+        return finish(go_on, ctx)
+    return tick
+
+
+@rule(MemorySequence, MemoryFallback, slots=_child_slot)
+def _memory(prog: Program, c: NodeRule) -> Tick:
+    """Rules 'MemorySequence' and 'MemoryFallback' (section 2)."""
+    n, info, kids, finish = c.node, c.info, c.kids, c.finish
+    go_on = SUCCESS if isinstance(n, MemorySequence) else FAILURE
+    mem, count = info.mem, len(kids)
+    name, merge = c.name, c.name in prog.merge_points
+
+    def tick(ctx: _Ctx) -> int:
+        s = ctx.s
+        i = s[mem]
+        while i < count:
+            if merge and i and ctx.on_merge is not None:
+                ctx.on_merge((name, i), s, ctx.violations, ctx.fsm_done, ctx.reticks)
+            st = kids[i](ctx)
+            if st != go_on:
+                s[mem] = i if st == RUNNING else 0
+                return finish(st, ctx)
+            i += 1
+        s[mem] = 0
+        return finish(go_on, ctx)
+    return tick
+
+
+@rule(Parallel, slots=_parallel_slots)
+def _parallel(prog: Program, c: NodeRule) -> Tick:
+    """Rule 'Parallel' (section 2; BehaviorTree.CPP's and py_trees' variants: section 8)."""
+    n, info, kids, finish, where = c.node, c.info, c.kids, c.finish, c.where
+    if prog.profile.parallel_memory and n.selected:
+        raise ModelError(f"{where}.selected", "selected children are py_trees' SuccessOnSelected policy; "
+                                              "BehaviorTree.CPP's Parallel has thresholds only")
+    if not prog.profile.parallel_memory and (
+            n.synchronise or n.selected or prog.profile.parallel_failure_first):
+        # py_trees' options and order (under parallel_memory finished children are never
+        # ticked again anyway, so synchronise changes nothing there)
+        return prog._compile_parallel(info, kids, finish, where)
+
+    count = len(kids)
+    need = count if n.success_threshold is None else _threshold(n.success_threshold, count)
+    fail_at = _threshold(n.failure_threshold, count)
+    top = count if prog.profile.parallel_memory else fail_at  # BT.CPP refuses failure > children
+    low = 0 if prog.profile.parallel_memory else 1  # BT.CPP's 0: decide after the first child
+    if not low <= need <= count or not low <= fail_at <= top:
+        bound = f" <= {count}" if prog.profile.parallel_memory else ""
+        zero = "" if low else " (0 is BehaviorTree.CPP's, under semantics: btcpp)"
+        raise ModelError(where, f"thresholds must satisfy {low} <= success <= {count} and {low} <= failure{bound} "
+                                f"(negative ones count from the end: -1 is all {count} children){zero}")
+    halts = tuple((k.flag, k.halt) for k in info.kids if k.can_run)
+    if info.mems:
+        return prog._parallel_memory(info, kids, need, fail_at, halts, finish)
+
+    def tick(ctx: _Ctx) -> int:
+        ok = bad = 0
+        for child in kids:
+            st = child(ctx)
+            if st == SUCCESS:
+                ok += 1
+            elif st == FAILURE:
+                bad += 1
+        if ok >= need:
+            st = SUCCESS
+        elif bad >= fail_at or bad > count - need:
+            st = FAILURE
+        else:
+            return finish(RUNNING, ctx)
+        _halt_running(ctx, halts)
+        return finish(st, ctx)
+    return tick
+
+
+@rule(ParallelAll, slots=_done_slots)
+def _parallel_all(prog: Program, c: NodeRule) -> Tick:
+    """Rule 'ParallelAll' (section 2)."""
+    n, info, kids, finish, where = c.node, c.info, c.kids, c.finish, c.where
+    count, mems = len(kids), info.mems
+    most = _threshold(n.max_failures, count)
+    if not 1 <= most <= count:
+        raise ModelError(f"{where}.max_failures", f"must satisfy 1 <= max_failures <= {count} (negative ones count from the end)")
+    halts = tuple((k.flag, k.halt) for k in info.kids if k.can_run)
+    pairs = tuple(zip(kids, mems))
+
+    def tick(ctx: _Ctx) -> int:
+        s = ctx.s
+        for child, m in pairs:
+            if not s[m]:
+                st = child(ctx)
+                if st != RUNNING:
+                    s[m] = st
+        bad = 0
+        for m in mems:
+            if not s[m]:
+                return finish(RUNNING, ctx)
+            if s[m] == FAILURE:
+                bad += 1
+        for m in mems:
+            s[m] = 0
+        _halt_running(ctx, halts)
+        return finish(FAILURE if bad >= most else SUCCESS, ctx)
+    return tick
+
+
+@rule(SequenceWithMemory, slots=_sequence_with_memory_slots, can_run=_sequence_with_memory_can_run)
+def _sequence_with_memory(prog: Program, c: NodeRule) -> Tick:
+    """Rule 'SequenceWithMemory' (section 2; the wake-up under ``loop_wake_up``: section 8.1)."""
+    info, kids, finish = c.info, c.kids, c.finish
+    keep, count = info.keep, len(kids)
+    wake, signal = prog.profile.loop_wake_up, prog._signal(info)
+    steps = tuple((child, k.flag) for child, k in zip(kids, info.kids))
+
+    def tick(ctx: _Ctx) -> int:
+        s = ctx.s
+        i = s[keep]
+        while i < count:
+            child, fl = steps[i]
+            was_running = fl is not None and s[fl]
+            st = child(ctx)
+            if st != SUCCESS:
+                s[keep] = i  # RUNNING: resume here; FAILURE: tick this child again next time
+                return finish(st, ctx)
+            i += 1
+            if wake and not was_running and i < count:
+                s[keep] = i  # the wake-up: RUNNING now, the next child on the next tick
+                if signal is not None:
+                    s[signal] = 1
+                return finish(RUNNING, ctx)
+        s[keep] = 0
+        return finish(SUCCESS, ctx)
+    return tick
+
+
+@rule(IfThenElse, slots=_if_then_else_slots)
+def _if_then_else(prog: Program, c: NodeRule) -> Tick:
+    """Rule 'IfThenElse' (section 2; a stale condition under ``stale_condition``: section 8.1)."""
+    info, kids, finish = c.info, c.kids, c.finish
+    mem, stale, count = info.mem, info.stale, len(kids)
+    halts = tuple((k.flag, k.halt) for k in info.kids if k.can_run)
+
+    def tick(ctx: _Ctx) -> int:
+        s = ctx.s
+        i = s[mem]
+        if i == 0:
+            c = _condition(ctx, kids[0], stale)
+            if c == RUNNING:
+                return finish(RUNNING, ctx)
+            if c == SUCCESS:
+                i = 1
+            elif count == 3:
+                i = 2
+            else:
+                if stale is not None:
+                    s[stale] = c
+                return finish(c, ctx)
+        st = kids[i](ctx)
+        if st == RUNNING:
+            s[mem] = i
+            return finish(RUNNING, ctx)
+        s[mem] = 0
+        if stale is not None:
+            s[stale] = 0
+        _halt_running(ctx, halts)
+        return finish(st, ctx)
+    return tick
+
+@rule(WhileDoElse, slots=_stale_slot)
+def _while_do_else(prog: Program, c: NodeRule) -> Tick:
+    """Rule 'WhileDoElse' (section 2; a stale condition under ``stale_condition``: section 8.1)."""
+    info, kids, finish = c.info, c.kids, c.finish
+    stale, count = info.stale, len(kids)
+    halts = tuple((k.flag, k.halt) for k in info.kids if k.can_run)
+    other: tuple[Any, ...] = tuple((k.flag, k.halt) if k.can_run else None for k in info.kids)
+
+    def halt_kid(ctx: _Ctx, i: int) -> None:
+        if i < count and other[i] is not None and ctx.s[other[i][0]]:
+            other[i][1](ctx)
+
+    def tick(ctx: _Ctx) -> int:
+        s = ctx.s
+        c = _condition(ctx, kids[0], stale)
+        if c == RUNNING:
+            return finish(RUNNING, ctx)
+        if c == SUCCESS:
+            halt_kid(ctx, 2)
+            st = kids[1](ctx)
+        elif count == 3:
+            halt_kid(ctx, 1)
+            st = kids[2](ctx)
+        else:
+            st = FAILURE
+        if st == RUNNING:
+            if stale is not None:
+                s[stale] = c
+            return finish(RUNNING, ctx)
+        if stale is not None:
+            s[stale] = 0
+        _halt_running(ctx, halts)
+        return finish(st, ctx)
+    return tick
+
+
+#: the child's status through a table (indexed by RUNNING, SUCCESS, FAILURE)
+_STATUS_TABLES = {
+    Inverter: _INVERT, ForceSuccess: (RUNNING, SUCCESS, SUCCESS), ForceFailure: (RUNNING, FAILURE, FAILURE),
+    KeepRunningUntilFailure: (RUNNING, RUNNING, FAILURE), FailureIsRunning: (RUNNING, SUCCESS, RUNNING),
+}
+
+
+@rule(*_STATUS_TABLES)
+def _status_map(prog: Program, c: NodeRule) -> Tick:
+    """Rules 'Inverter', 'ForceSuccess', 'ForceFailure', 'KeepRunningUntilFailure' and
+    'FailureIsRunning' (section 3): the child's status through the type's table."""
+    child, finish, table = c.kids[0], c.finish, _STATUS_TABLES[type(c.node)]
+    return lambda ctx: finish(table[child(ctx)], ctx)
+
+
+rule(KeepRunningUntilFailure, FailureIsRunning, can_run=_always)(_status_map)  # they make RUNNING themselves
+
+
+@rule(Retry, Repeat, slots=_loop_slots, can_run=_loop_can_run)
+def _retry_repeat(prog: Program, c: NodeRule) -> Tick:
+    """Rules 'Retry' and 'Repeat' (section 3; under ``loop_wake_up``: section 8.1)."""
+    n, info, kids, finish = c.node, c.info, c.kids, c.finish
+    child, mem, kid_flag = kids[0], info.mem, info.kids[0].flag
+    again, stop = (FAILURE, SUCCESS) if isinstance(n, Retry) else (SUCCESS, FAILURE)
+    limit = n.attempts if isinstance(n, Retry) else n.times
+
+    if prog.profile.loop_wake_up:
+        signal = prog._signal(info)
+
+        def tick_wake(ctx: _Ctx) -> int:
+            s = ctx.s
+            k = s[mem]
+            for _ in range(2):  # a child that had been running may finish and start again
+                was_running = kid_flag is not None and s[kid_flag]
+                st = child(ctx)
+                if st == RUNNING:
+                    s[mem] = k
+                    return finish(RUNNING, ctx)
+                if st == stop:
+                    s[mem] = 0
+                    return finish(st, ctx)
+                k += 1
+                if k >= limit:
+                    s[mem] = 0
+                    return finish(st, ctx)
+                if not was_running:  # the wake-up: RUNNING now, the next attempt next tick
+                    s[mem] = k
+                    if signal is not None:
+                        s[signal] = 1
+                    return finish(RUNNING, ctx)
+            raise AssertionError("unreachable: the second attempt started from idle")
+        return tick_wake
+
+    def tick(ctx: _Ctx) -> int:
+        st = child(ctx)
+        s = ctx.s
+        if st == again:
+            k = s[mem] + 1
+            if k < limit:
+                s[mem] = k
+                return finish(RUNNING, ctx)
+            s[mem] = 0
+        elif st == stop:
+            s[mem] = 0
+        return finish(st, ctx)
+    return tick
+
+
+@rule(SubTree)
+def _subtree(prog: Program, c: NodeRule) -> Tick:
+    """Rule 'SubTree' (section 3)."""
+    kids, finish = c.kids, c.finish
+    # rule 'SubTree': the child's status. BT.CPP's SubTreeNode also resets its child
+    # when it finishes, which only matters to a stale condition (section 8.1): a
+    # SubTree is not a stateful leaf, so IfThenElse/WhileDoElse tick it afresh
+    child = kids[0]
+    return lambda ctx: finish(child(ctx), ctx)
+
+
+@rule(RunningIsFailure, RunningIsSuccess)
+def _running_is(prog: Program, c: NodeRule) -> Tick:
+    """Rules 'RunningIsFailure' and 'RunningIsSuccess' (section 3)."""
+    n, info, kids, finish = c.node, c.info, c.kids, c.finish
+    child, kid = kids[0], info.kids[0]
+    instead = FAILURE if isinstance(n, RunningIsFailure) else SUCCESS
+
+    def tick(ctx: _Ctx) -> int:
+        st = child(ctx)
+        if st != RUNNING:
+            return finish(st, ctx)
+        kid.halt(ctx)  # it finished in its parent's eyes: stopped, as py_trees stops it
+        return finish(instead, ctx)
+    return tick
+
+
+@rule(RunOnce, slots=_run_once_slots)
+def _run_once(prog: Program, c: NodeRule) -> Tick:
+    """Rule 'RunOnce' (section 3)."""
+    n, info, kids, finish, where = c.node, c.info, c.kids, c.finish, c.where
+    if n.then_skip:
+        raise ModelError(f"{where}.then_skip", "RunOnce with then_skip: true returns SKIPPED after its first "
+                                               "run, which btfsm does not model; use then_skip: false")
+    child, keep = kids[0], info.keep
+
+    def tick(ctx: _Ctx) -> int:
+        s = ctx.s
+        done = s[keep]
+        if done:
+            return finish(done, ctx)
+        st = child(ctx)
+        if st != RUNNING:
+            s[keep] = st
+        return finish(st, ctx)
+    return tick
+
+
+@rule(Guard)
+def _guard(prog: Program, c: NodeRule) -> Tick:
+    """Rule 'Guard' (section 3)."""
+    n, info, kids, finish, where = c.node, c.info, c.kids, c.finish, c.where
+    child, kid = kids[0], info.kids[0]
+    cond = compile_fn(n.condition, prog.scope, f"{where}.condition", BOOL)
+
+    def tick(ctx: _Ctx) -> int:
+        s = ctx.s
+        if cond(s):
+            return finish(child(ctx), ctx)
+        if kid.flag is not None and s[kid.flag]:
+            kid.halt(ctx)
+        return finish(FAILURE, ctx)
+    return tick
+
+
+@rule(Effects)
+def _effects(prog: Program, c: NodeRule) -> Tick:
+    """Rule 'Effects' (section 3)."""
+    n, kids, finish, where, flag = c.node, c.kids, c.finish, c.where, c.flag
+    child = kids[0]
+    start = compile_effects(n.on_start, prog.scope, f"{where}.on_start")
+    done = (None,
+            compile_effects(n.on_success, prog.scope, f"{where}.on_success"),
+            compile_effects(n.on_failure, prog.scope, f"{where}.on_failure"))
+
+    def tick(ctx: _Ctx) -> int:
+        if start is not None and (flag is None or not ctx.s[flag]):
+            _apply(ctx, start)
+        st = child(ctx)
+        if done[st] is not None:
+            _apply(ctx, done[st])
+        return finish(st, ctx)
+    return tick
+
+
+@rule(Condition, can_run=_never)
+def _condition_leaf(prog: Program, c: NodeRule) -> Tick:
+    """Rule 'Condition' (section 3)."""
+    n, finish, where = c.node, c.finish, c.where
+    cond = compile_fn(n.expr, prog.scope, f"{where}.expr", BOOL)
+    return lambda ctx: finish(SUCCESS if cond(ctx.s) else FAILURE, ctx)
+
+
+@rule(Action, can_run=_action_can_run)
+def _action(prog: Program, c: NodeRule) -> Tick:
+    """Rule 'Action' (section 3; halt before start: section 4)."""
+    n, info, finish, where, flag = c.node, c.info, c.finish, c.where, c.flag
+    conflicts = prog._conflicts(info)
+    site = prog._site("action", n.name, None, None, n.primitive, n.args, where, n.duration)
+    info.node_site = site
+    run = prog._exclusive_start(info, prog._primitive_runner(site))
+
+    def tick(ctx: _Ctx) -> int:
+        if flag is not None and not ctx.s[flag]:
+            _halt_running(ctx, conflicts)
+        return finish(run(ctx), ctx)
+    return tick
+
+
+@rule(SkillRequest, can_run=_always)
+def _skill_request(prog: Program, c: NodeRule) -> Tick:
+    """Rule 'SkillRequest' (section 3; the FSM tick: section 5)."""
+    n, info, finish, where, flag, name = c.node, c.info, c.finish, c.where, c.flag, c.name
+    conflicts = prog._conflicts(info)
+    fi = prog.fsm_index[n.fsm]
+    f = prog.model.fsms[fi]
+    g = f.goals.index(n.goal)
+    pre = compile_fn(n.pre, prog.scope, f"{where}.pre", BOOL) if n.pre is not None else None
+    post = compile_fn(n.post, prog.scope, f"{where}.post", BOOL) if n.post is not None else None
+    found = []
+    for p in f.params:
+        expr = dict(n.params)[p.name]
+        ptype = Type(p.kind, p.values) if p.kind == "enum" else Type(p.kind)
+        fn = compile_fn(expr, prog.scope, f"{where}.params.{p.name}", ptype)
+        found.append((fn, p.lo, p.hi, p.kind == "bool", p.name))
+    pfns = tuple(found)
+    rivals = prog._rivals(info)
+
+    def tick(ctx: _Ctx) -> int:
+        s = ctx.s
+        starting = not s[flag]
+        if starting:
+            _halt_running(ctx, conflicts)
+        if pre is not None and not pre(s):
+            if s[flag]:  # a running request ends: withdraw its goal
+                prog.fsm_ticks[fi].withdraw(ctx, name)
+            return finish(FAILURE, ctx)
+        if starting and rivals:
+            _exclusive_check(ctx, rivals)
+        pvals = tuple(_param(fn(s), lo, hi, is_bool, pname, name) for fn, lo, hi, is_bool, pname in pfns)
+        st = prog.fsm_ticks[fi](ctx, g, pvals, name, starting)
+        if st == SUCCESS and post is not None and not post(s):
+            ctx.violations.append(("post", name))
+            if ctx.rec is not None:
+                ctx.rec.append(("violation", name, "post"))
+        return finish(st, ctx)
+    return tick
+
+
+@rule(PipelineSequence, slots=_pipeline_slots)
+def _pipeline_sequence(prog: Program, c: NodeRule) -> Tick:
+    """Rule 'PipelineSequence' (docs/semantics.md 8.3), ported from navigation2's
+    nav2_behavior_tree/plugins/control/pipeline_sequence.cpp."""
+    info, kids, finish = c.info, c.kids, c.finish
+    s_mem, count, every = info.mem, len(kids), c.halts()  # every: BT.CPP's haltChildren()
+    name, merge = c.name, c.name in prog.merge_points
+
+    def tick(ctx: _Ctx) -> int:
+        s = ctx.s
+        last = s[s_mem]
+        for i in range(count):
+            if merge and i and ctx.on_merge is not None:
+                ctx.on_merge((name, i), s, ctx.violations, ctx.fsm_done, ctx.reticks)
+            st = kids[i](ctx)
+            if st == FAILURE:
+                _halt_running(ctx, every)
+                s[s_mem] = 0
+                return finish(FAILURE, ctx)
+            if st == RUNNING and i >= last:
+                s[s_mem] = i
+                return finish(RUNNING, ctx)
+            # SUCCESS, or RUNNING of an earlier stage: it keeps running, go on
+        _halt_running(ctx, every)
+        s[s_mem] = 0
+        return finish(SUCCESS, ctx)
+    return tick
+
+
+@rule(RecoveryNode, slots=_recovery_slots)
+def _recovery_node(prog: Program, c: NodeRule) -> Tick:
+    """Rule 'RecoveryNode' (docs/semantics.md 8.3), ported from navigation2's recovery_node.cpp."""
+    n, info, kids, finish = c.node, c.info, c.kids, c.finish
+    s_mem, every = info.mem, c.halts()  # every: BT.CPP's haltChildren()
+    first, second = kids
+    k0, k1 = info.kids
+    limit = n.retries
+    halt0 = ((k0.flag, k0.halt),) if k0.can_run else ()
+    halt1 = ((k1.flag, k1.halt),) if k1.can_run else ()
+    name, merge = c.name, c.name in prog.merge_points
+
+    def end(ctx: _Ctx, st: int) -> int:
+        _halt_running(ctx, every)  # halt(): the children, the index and the count
+        ctx.s[s_mem] = 0
+        return finish(st, ctx)
+
+    def tick(ctx: _Ctx) -> int:
+        s = ctx.s
+        retry = s[s_mem]
+        recovering = k1.flag is not None and s[k1.flag]  # current_child_idx_ == 1
+        while retry <= limit:
+            if not recovering:
+                st = first(ctx)
+                if st == SUCCESS:
+                    _halt_running(ctx, halt1)
+                    return end(ctx, SUCCESS)
+                if st == RUNNING:
+                    s[s_mem] = retry
+                    return finish(RUNNING, ctx)
+                if retry >= limit:
+                    return end(ctx, FAILURE)
+                _halt_running(ctx, halt0)
+                recovering = True
+            else:
+                st = second(ctx)
+                if st == RUNNING:
+                    s[s_mem] = retry
+                    return finish(RUNNING, ctx)
+                if st == FAILURE:
+                    return end(ctx, FAILURE)
+                _halt_running(ctx, halt1)
+                retry += 1
+                recovering = False
+                s[s_mem] = retry  # the count in the state, where an oracle can see it
+                if merge and ctx.on_merge is not None:
+                    ctx.on_merge(name, s, ctx.violations, ctx.fsm_done, ctx.reticks)
+        return end(ctx, FAILURE)  # pragma: no cover - the count never passes the limit
+    return tick
+
+
+@rule(RoundRobin, slots=_round_robin_slots)
+def _round_robin(prog: Program, c: NodeRule) -> Tick:
+    """Rule 'RoundRobin' (docs/semantics.md 8.3), ported from navigation2's round_robin_node.cpp."""
+    n, info, kids, finish = c.node, c.info, c.kids, c.finish
+    s_mem, count, every = info.mem, len(kids), c.halts()  # every: BT.CPP's haltChildren()
+    fail_mem, wrap = info.mems[0], n.wrap_around
+
+    def tick(ctx: _Ctx) -> int:
+        s = ctx.s
+        i, failed = s[s_mem], s[fail_mem]
+        while failed < count:
+            st = kids[i](ctx)
+            if st == RUNNING:
+                s[s_mem], s[fail_mem] = i, failed
+                return finish(RUNNING, ctx)
+            i += 1
+            if i == count:
+                if not wrap:
+                    break  # the end of the children: FAILURE, whatever the last one returned
+                i = 0
+            if st == SUCCESS:
+                _halt_running(ctx, every)
+                s[s_mem], s[fail_mem] = i, 0
+                return finish(SUCCESS, ctx)
+            failed += 1
+        _halt_running(ctx, every)  # halt(): the children, the index and the count
+        s[s_mem] = s[fail_mem] = 0
+        return finish(FAILURE, ctx)
+    return tick

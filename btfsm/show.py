@@ -24,21 +24,18 @@ import shutil
 import subprocess
 import sys
 from pathlib import Path
+from typing import Any, cast
 
-from .bt import (Action, Composite, Condition, Decorator, Effects, ForceFailure, ForceSuccess, Guard, Inverter,
-                 MemoryFallback, MemorySequence, Parallel, ReactiveFallback, ReactiveSequence, Repeat,
-                 Retry, SkillRequest)
+from .bt import Action, Composite, Condition, Decorator, Effects, Guard, Parallel, Repeat, Retry, SkillRequest
 from .errors import UsageError
 from .escape import dot_string
-from .expr import to_text
+from .expr import Expr, to_text
 from .fsm import FSM
 
 __all__ = ["tree_to_dot", "fsm_to_dot", "pictures", "render", "GraphvizError", "cli_show"]
 
 RENDER_TIMEOUT = 60  # seconds for one dot run
 
-_SYMBOL = {ReactiveSequence: "->", MemorySequence: "->*", ReactiveFallback: "?", MemoryFallback: "?*"}
-_DECORATOR = {Inverter: "NOT", ForceSuccess: "ForceSuccess", ForceFailure: "ForceFailure"}
 _TRIGGER_COLOR = {"success": "black", "failure": "firebrick", "running": "royalblue", "direct": "gray30"}
 
 
@@ -71,9 +68,8 @@ def _constant(v) -> str:
 
 def _node_look(n) -> dict:
     """dot attributes (shape, label, style) of one tree node."""
-    cls = type(n)
-    if cls in _SYMBOL:
-        return {"shape": "box", "label": f"{_SYMBOL[cls]}\n{n.name}", "style": "filled", "fillcolor": "gray92"}
+    if isinstance(n, Composite) and n.glyph:  # the classes' symbols (btfsm.bt): -> ? ...
+        return {"shape": "box", "label": f"{n.glyph}\n{n.name}", "style": "filled", "fillcolor": "gray92"}
     if isinstance(n, Parallel):
         s = "all" if n.success_threshold is None else n.success_threshold
         s = f"S={','.join(n.selected)}" if n.selected else f"S>={s}"
@@ -88,27 +84,27 @@ def _node_look(n) -> dict:
         elif isinstance(n, Repeat):
             head = f"Repeat x{n.times}"
         elif isinstance(n, Guard):
-            head = f"Guard [{to_text(n.condition)}]"
+            head = f"Guard [{to_text(cast(Expr, n.condition))}]"
         elif isinstance(n, Effects):
             lines = [f"{f[3:]}: {t}" for f in ("on_start", "on_success", "on_failure", "on_halt")
                      for t in _effects_text(getattr(n, f))]
             head = "\n".join(["Effects"] + lines)
         else:
-            head = _DECORATOR.get(type(n), type(n).__name__)
+            head = n.glyph or type(n).__name__
         return {"shape": "hexagon", "label": f"{head}\n{n.name}", "style": "filled", "fillcolor": "lavender"}
     if isinstance(n, Condition):
-        return {"shape": "ellipse", "label": f"{n.name}\n{to_text(n.expr)}", "style": "filled", "fillcolor": "lightyellow"}
+        return {"shape": "ellipse", "label": f"{n.name}\n{to_text(cast(Expr, n.expr))}", "style": "filled", "fillcolor": "lightyellow"}
     if isinstance(n, Action):
         call = f"{n.primitive}({_args_text(n.args)})"
         outs = f"\n[{', '.join(o.name for o in n.outcomes)}]" if n.outcomes is not None else ""
         return {"shape": "box", "label": f"{n.name}\n{call}{outs}", "style": "rounded,filled", "fillcolor": "lightblue"}
     if isinstance(n, SkillRequest):
-        params = ", ".join(f"{k}={to_text(e)}" for k, e in n.params)
+        params = ", ".join(f"{k}={to_text(e)}" for k, e in cast("tuple[tuple[str, Expr], ...]", n.params))
         lines = [n.name, f"{n.fsm}.{n.goal}({params})"]
         if n.pre is not None:
-            lines.append(f"pre: {to_text(n.pre)}")
+            lines.append(f"pre: {to_text(cast(Expr, n.pre))}")
         if n.post is not None:
-            lines.append(f"post: {to_text(n.post)}")
+            lines.append(f"post: {to_text(cast(Expr, n.post))}")
         return {"shape": "box", "label": "\n".join(lines), "style": "bold,filled", "fillcolor": "palegreen"}
     return {"shape": "box", "label": f"{type(n).__name__}\n{n.name}"}
 
@@ -189,7 +185,7 @@ def fsm_to_dot(model, fsm) -> str:
              f"  {dot_string('start')} {_attrs(shape='point', width='0.12', label='')};",
              f"  {dot_string('start')} -> {dot_string('s:' + f.initial)} {_attrs(tooltip='initial state')};"]
     for st in f.states:
-        look = {"shape": "box", "style": "rounded", "label": _state_label(st)}
+        look: Any = {"shape": "box", "style": "rounded", "label": _state_label(st)}
         if st.id in f.terminal:
             look["peripheries"] = "2"
         if st.id == f.initial:

@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Any
 
 from .errors import ModelError
 from .expr import as_expr
@@ -84,8 +85,8 @@ class Response:
     expression. ``within``: seconds, or None to measure only (``btfsm bound``)."""
 
     name: str
-    trigger: str
-    response: object
+    trigger: Any  # an expression (text, then an Expr once built) or "event:<name>"
+    response: Any  # an expression (an Expr once built)
     within: "float | None" = None
 
     def __post_init__(self):
@@ -106,7 +107,7 @@ class Response:
         return t[len("event:"):] if isinstance(t, str) else None
 
 
-def responses_of(x) -> tuple:
+def responses_of(x: Any) -> tuple:
     """Responses given as Response objects, or a mapping name -> {trigger, response, within}."""
     if not x:
         return ()
@@ -126,8 +127,8 @@ def responses_of(x) -> tuple:
                     raise ModelError(f"responses.{name}", f"missing '{k}'")
             out.append(Response(str(name), spec["trigger"], spec["response"], spec.get("within")))
         return tuple(out)
-    out = tuple(x)
-    for r in out:
+    given = tuple(x)
+    for r in given:
         if not isinstance(r, Response):
             raise ModelError("responses", f"not a Response: {r!r}")
-    return out
+    return given

@@ -24,11 +24,16 @@ from __future__ import annotations
 
 import json
 import os
+from typing import TYPE_CHECKING, Any, Sequence
 
 from .clock import Clock
 from .outputs import atomic_writer
 from .errors import DomainError
 from .formats import FormatError, decode_utf8, parse_json, printable, validate
+from .oracles import Oracle
+
+if TYPE_CHECKING:
+    from .semantics import Site
 
 __all__ = ["TraceWriter", "tick_record", "read_trace", "replay", "ReplayOracle", "AnswerOracle",
            "render_answers", "FORMAT", "FormatError"]
@@ -197,6 +202,7 @@ def read_trace(source) -> tuple[dict, list]:
     checked against the format (``btfsm/schema/trace.schema.json``); blank lines are
     skipped. Raises ``FormatError`` (a ValueError) naming the file, line and field."""
     name, lines = _lines_of(source)
+    records: list
     header, records = None, []
     for no, line in lines:
         if not line.strip():
@@ -244,18 +250,21 @@ def encode_state(program, values: dict) -> tuple:
     return tuple(state)
 
 
-class _NamedEvents:
+class _NamedEvents(Oracle):
     """Environment answers by event name, for oracles that replay what was recorded.
     Replay drives no implementation, so there is nothing to halt."""
 
-    def env(self, i):
+    program: Any  # the Program replayed
+    events: Any  # the names of the events that happened (a set or another collection)
+
+    def env(self, i: int) -> bool:
         return self.program.env[i][0] in self.events
 
     def _named(self, i, enabled):
         options = self.program.env[i][3]
         return next((k for k, opt in enumerate(enabled) if options[opt][0] in self.events), None)
 
-    def halt(self, site):
+    def halt(self, site: Site) -> None:
         return None
 
 
@@ -267,16 +276,16 @@ class ReplayOracle(_NamedEvents):
         self.events = set(record.get("env", ()))
         self.outcomes = list(record.get("outcomes", ()))
         self.pos = 0
-        self.error = None
+        self.error: "str | None" = None
 
-    def choose(self, i, enabled):
+    def choose(self, i: int | tuple[Any, ...], enabled: Sequence[Any]) -> int:
         k = self._named(i, enabled)
         if k is None:
             self.error = f"choice '{self.program.env[i][0]}': the trace names none of its enabled options"
             return 0
         return k
 
-    def outcome(self, site):
+    def outcome(self, site: Site) -> int:
         if self.pos >= len(self.outcomes):
             self.error = f"{site.label} ran but the trace records no more outcomes"
             return 0
@@ -300,11 +309,11 @@ class AnswerOracle(_NamedEvents):
     def __init__(self, program, events, outcome_indices):
         self.program, self.events, self.it = program, events, iter(outcome_indices)
 
-    def choose(self, i, enabled):
+    def choose(self, i: int | tuple[Any, ...], enabled: Sequence[Any]) -> int:
         k = self._named(i, enabled)
         return 0 if k is None else k  # a lone option may go unreported: it is forced
 
-    def outcome(self, site):
+    def outcome(self, site: Site) -> int:
         return next(self.it)
 
 
@@ -336,6 +345,7 @@ def replay(source, model, state=None) -> "tuple[int, str] | None":
         except ValueError as exc:
             return (0, f"the trace's initial state does not fit this model ({exc})")
     s = tuple(state)
+    last: dict
     clock, last = Clock(model.tick_rate), {}
     for rec in records:
         oracle = ReplayOracle(program, rec)

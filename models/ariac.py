@@ -29,14 +29,17 @@ as soon as a belt part is detected; ``baseline`` puts all four in one memory fal
 """
 from __future__ import annotations
 
+from typing import cast
+
 from btfsm import (FSM, Action, Bool, Condition, Edge, Effects, Int, Marker, MemoryFallback,
                    MemorySequence, Model, Parallel, Primitive, ReactiveFallback, ReactiveSequence,
                    SkillRequest, State, EnvEvent, failure, running, success)
+from btfsm.bt import Node
 from btfsm.timing import Response
 
 __all__ = ["AREAS", "ROTATIONS", "SKILLS", "PRIMITIVES", "ARM_REQUESTS", "generate_fsm", "unite", "arm_fsm",
            "tree", "preemptive", "baseline", "states_of", "HUBS", "ARM_DURATIONS", "ARRIVAL_MIN_INTERVAL",
-           "PICK_WINDOW", "timed", "preemptive_timed", "baseline_timed"]
+           "PICK_WINDOW", "TIMING_FILE", "derived_timing", "timed", "preemptive_timed", "baseline_timed"]
 
 AREAS = ("agv", "bins", "conveyor")
 # the authors' rotation order: (area, area before, area after)
@@ -174,7 +177,7 @@ def unite(parts) -> tuple:
                 seen.add(s.id)
                 states.append(s)
         for e in ed:
-            key = (e.source, e.target, e.direct, e.on, e.guard, e.effects)
+            key: tuple = (e.source, e.target, e.direct, e.on, e.guard, e.effects)
             edges[key] = edges[key] + tuple(g for g in e.goals if g not in edges[key]) if key in edges else e.goals
         for m in mk:
             key = (m.state, m.direct, m.on, m.guard, m.outcome)
@@ -231,7 +234,7 @@ def tree(n_tray: int = 18, variant: str = "preemptive"):
                 on_halt={"tray": "tray + 1 if not gripper_full else tray"})])
     pick = MemorySequence("pick_branch", [Condition("gripper_empty", "not gripper_full"), s1])
     if variant == "preemptive":
-        executive = ReactiveFallback("executive", [belt, MemoryFallback("kitting", [done, place, pick])])
+        executive: Node = ReactiveFallback("executive", [belt, MemoryFallback("kitting", [done, place, pick])])
     elif variant == "baseline":
         executive = MemoryFallback("executive", [belt, done, place, pick])
     else:
@@ -298,21 +301,50 @@ ARRIVAL_MIN_INTERVAL = 30.0
 PICK_WINDOW = 16.0
 
 
-def timed(model: Model) -> Model:
-    """``model`` (an ARIAC variant) with the arm's measured durations, the arrivals' minimum
+TIMING_FILE = "ariac_timing.json"  # written by ``python -m btfsm.sim.durations --write``
+
+
+def derived_timing() -> dict:
+    """The position abstraction with the durations derived from the ARIAC scene
+    (``btfsm.sim.durations.derive``): ``{"classes": .., "table": .., "where": ..}``."""
+    import json
+    from pathlib import Path
+
+    return json.loads((Path(__file__).resolve().parent / TIMING_FILE).read_text(encoding="utf-8"))
+
+
+def timed(model: Model, durations: str = "derived") -> Model:
+    """``model`` (an ARIAC variant) with the arm's durations, the arrivals' minimum
     interval and the requirement ``reach``: every detected belt part is reached (the arm
     starts grasping at the conveyor) within dt* = 16 s. Picking it cannot be bounded in this
-    model: its grasp may miss (a declared outcome), after which the part is given up."""
+    model: its grasp may miss (a declared outcome), after which the part is given up.
+
+    ``durations="derived"``: the arm FSM split by goal class and entry (``btfsm.positions``)
+    with every copy's slowest run derived from the scene (``derived_timing``);
+    ``"measured"``: one context-free maximum per state, measured in trials
+    (``ARM_DURATIONS``)."""
     import dataclasses
 
+    from btfsm.positions import split_by_entry, split_by_goal
+
     f = model.fsms[0]
-    states = tuple(dataclasses.replace(s, duration=(0.0, ARM_DURATIONS[s.id])) if s.id in ARM_DURATIONS else s
-                   for s in f.states)
-    env = tuple(dataclasses.replace(e, min_interval=ARRIVAL_MIN_INTERVAL) for e in model.environment)
-    reach = Response("reach", "event:arrive", "arm.state == 'grasp_conveyor'", PICK_WINDOW)
-    return dataclasses.replace(model, name=f"{model.name}-timed", fsms=(dataclasses.replace(f, states=states),),
-                               environment=env, responses=(reach,),
-                               description=model.description + "; durations measured in the cell (ARM_DURATIONS)")
+    if durations == "derived":
+        t = derived_timing()
+        table = {s: {u: tuple(iv) for u, iv in rows.items()} for s, rows in t["table"].items()}
+        model = split_by_entry(split_by_goal(model, f.name, t["classes"]), f.name, table)
+        how = "derived from the scene per goal class and entry (models/ariac_timing.json)"
+    elif durations == "measured":
+        states = tuple(dataclasses.replace(s, duration=(0.0, ARM_DURATIONS[s.id])) if s.id in ARM_DURATIONS else s
+                       for s in f.states)
+        model = dataclasses.replace(model, fsms=(dataclasses.replace(f, states=states),))
+        how = "measured in the cell (ARM_DURATIONS)"
+    else:
+        raise ValueError(f"durations: 'derived' or 'measured', not {durations!r}")
+    env = tuple(dataclasses.replace(cast(EnvEvent, e), min_interval=ARRIVAL_MIN_INTERVAL) for e in model.environment)
+    grasp = [s.id for s in model.fsms[0].states if s.id.split("#")[0].split("@")[0] == "grasp_conveyor"]
+    reach = Response("reach", "event:arrive", " or ".join(f"arm.state == '{g}'" for g in grasp), PICK_WINDOW)
+    return dataclasses.replace(model, name=f"{model.name}-timed", environment=env, responses=(reach,),
+                               description=model.description + "; durations " + how)
 
 
 def preemptive_timed(n_tray: int = 2) -> Model:

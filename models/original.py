@@ -28,9 +28,13 @@ more realistic declarations (``NARROW_PRIMITIVES``).
 """
 from __future__ import annotations
 
+from typing import cast
+
 from btfsm import (FSM, Action, Bool, Condition, Edge, EnvEvent, Int, Inverter, Marker,
                    MemoryFallback, Model, Parallel, Primitive, ReactiveFallback, ReactiveSequence,
                    SkillRequest, State, failure, running, success)
+from btfsm.bt import Node
+from btfsm.status import Status
 
 __all__ = ["ROTATIONS", "TRACKS", "TARGETS", "PRIMITIVES", "NARROW_PRIMITIVES", "generate_nodes", "generate_pick",
            "generate_place", "movement_manager", "executive", "original", "original_preemptive",
@@ -167,13 +171,14 @@ def movement_manager(n_targets: int = len(TARGETS)) -> FSM:
 def transit_table(fsm: FSM) -> dict:
     """``{(state, track): "S:target" | "D:target" | "marker ..."}`` for the table of
     original-design.md section 3.3 (first element per state and track)."""
-    out = {}
+    out: dict = {}
     for e in fsm.edges:
         for g in e.goals:
             out.setdefault((e.source, g), f"{'D' if e.direct else 'S'}:{e.target}")
     for m in fsm.markers:
         for g in m.goals:
-            out.setdefault((m.state, g), f"marker {'direct' if m.direct else m.on.name.lower()}->{m.outcome.name.lower()}")
+            on, outcome = cast(Status, m.on), cast(Status, m.outcome)  # Statuses once built
+            out.setdefault((m.state, g), f"marker {'direct' if m.direct else on.name.lower()}->{outcome.name.lower()}")
     return out
 
 
@@ -246,7 +251,7 @@ def executive(n_parts: int = 18, variant: str = "memory"):
         _act("forget_part_z2", "forget_part"),
     ])
     if variant == "memory":  # ((X << done) << Y) << Z
-        chain = MemoryFallback("memsel_z", [MemoryFallback("memsel_y", [MemoryFallback("memsel_done", [x, done]), y]), z])
+        chain: Node = MemoryFallback("memsel_z", [MemoryFallback("memsel_y", [MemoryFallback("memsel_done", [x, done]), y]), z])
     elif variant == "preemptive":  # X + ((done << Y) << Z)
         chain = ReactiveFallback("sel_x", [x, MemoryFallback("memsel_z", [MemoryFallback("memsel_y", [done, y]), z])])
     else:

@@ -1,5 +1,6 @@
 #!/usr/bin/env bash
-# Set up everything the tests need on a fresh machine, then run the whole test suite.
+# Set up everything the tests need on a fresh machine, then run the type checker
+# (scripts/typecheck.sh) and the whole test suite.
 # Usage: bash scripts/test.sh [pytest args]
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -18,4 +19,5 @@ PY=${PYTHON:-python3}
 if [ ! -x .venv/bin/python ]; then "$PY" -m venv .venv; fi
 .venv/bin/python -m pip install -q --upgrade pip >/dev/null
 .venv/bin/python -m pip install -q -e ".[sim,test,bench]"
+bash scripts/typecheck.sh
 exec .venv/bin/python -m pytest "$@"

@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import cast
 
 from btfsm.errors import ModelError
 
@@ -152,7 +153,7 @@ class KittingBinding(Binding):
     def __init__(self, scene, model, world, *, robot: str = "arm", bins=("bin2", "bin3"), tray: str = "tray",
                  belt: str = "conveyor", sensor: str = "beam", speed_scale: float = 0.5, clearance: float = 0.2):
         self.scene, self.world, self.model = scene, world, model
-        self.d = dialect_of(model)
+        self.d = cast(Dialect, dialect_of(model))  # None is refused just below
         if self.d is None:
             raise ModelError("binding", f"the kitting binding cannot run model '{model.name}' ({unsupported(model)})",
                              scene.file)
@@ -168,6 +169,7 @@ class KittingBinding(Binding):
         if not scene.areas[tray]["slots"]:
             raise ModelError(f"areas.{tray}", "the kitting binding needs a tray with slots", scene.file)
         self.robot, self.bins, self.tray, self.belt, self.sensor = robot, tuple(bins), tray, belt, sensor
+        self.belt_area = "conveyor"  # the model's name for the belt's area
         self.speed = float(speed_scale)  # the authors' move_to default velocity scaling is 0.5
         self.clearance = float(clearance)
         self.r = world.robots[robot]
@@ -308,6 +310,28 @@ class KittingBinding(Binding):
         (px, py), (ex, ey) = self._window()
         x, y = self.scene.clamp_to_reach(self.robot, ((px + ex) / 2, (py + ey) / 2))
         return (x, y, self.scene.belts[self.belt]["height"] + 0.05 + self.clearance)
+
+    def geometry(self) -> dict:
+        """Where the primitives move the arm, for deriving their durations
+        (``btfsm.sim.durations``): ``hub`` {model area: (x, y, z)}; ``spots`` {model area:
+        [(x, y)]} the targets a pick or place can choose there (bin spots, tray slots; the
+        belt's pick stretch as its two ends); ``contact`` {model area: [z]} the heights of
+        the contact poses (a part's top, or a held part touching the surface, for every
+        part type); ``clearance``, ``speed`` (the velocity scale; accelerations scale by
+        its square), ``home`` (x, y, z)."""
+        sc = self.scene
+        heights = sorted({float(h) for h in sc.part_heights.values()})
+        surface = {"agv": sc.areas[self.tray]["height"], "conveyor": sc.belts[self.belt]["height"]}
+        bins = [spot for k in self.bins for spot in self._bin_grid(k)]
+        surface["bins"] = None
+        contact = {a: sorted({h + p for p in heights}) for a, h in surface.items() if h is not None}
+        contact["bins"] = sorted({sc.areas[k]["height"] + p for k in self.bins for p in heights})
+        spots = {"agv": list(sc.areas[self.tray]["slots"]), "bins": bins,
+                 "conveyor": [sc.clamp_to_reach(self.robot, p) for p in self._window()]}
+        r = sc.robots[self.robot]
+        return {"hub": {a: self._hub(a) for a in ("agv", "bins", "conveyor")}, "spots": spots, "contact": contact,
+                "clearance": self.clearance, "speed": self.speed,
+                "home": (r["home"][0], r["home"][1], r["z"]["home"])}
 
     # ------------------------------------------------------------------ targets
     def _target(self, area: str, kind: str):

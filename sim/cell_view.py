@@ -13,6 +13,8 @@ or before it, with its tick.
 """
 from __future__ import annotations
 
+from typing import Any
+
 from btfsm.html import RunRecorder
 
 __all__ = ["CellView"]
@@ -22,7 +24,7 @@ class CellView:
     def __init__(self, model, title: str, max_pictures: int = 40, every: int = 50):
         self.every = every
         self.rec = RunRecorder(model, "cell", title, max_pictures)
-        self.world = None
+        self.world: Any = None
         self.prev = None
         self.snaps: list = []  # (index of the tick, snapshot)
 
@@ -68,8 +70,9 @@ class ConformViews:
 
     def __init__(self, model, max_pictures: int = 40):
         self.model, self.max_pictures = model, max_pictures
-        self.current = None
-        self.first = self.failed = None  # (index, CellView, result)
+        self.current: "CellView | None" = None
+        self.first: "tuple | None" = None  # (index, CellView, result)
+        self.failed: "tuple | None" = None
 
     def __call__(self, index: int):
         if self.failed is not None:
@@ -91,7 +94,7 @@ class ConformViews:
         """``btfsm.html.page`` keywords: one verdict per scenario (``rows``: the command's
         JSON rows), the chosen scenario as the run."""
         index, view, res = self.failed or self.first or (None, None, None)
-        runs = []
+        runs: list = []
         if view is not None:
             what = "the first that does not conform" if res.mismatch is not None else "every scenario conforms; the first"
             runs.append(view.run(summary=f"scenario {index}: {what}; {res.ticks} tick(s)", mismatch=res.mismatch))

@@ -12,6 +12,7 @@ import json
 import os
 import sys
 import time
+from typing import Any, cast
 
 from btfsm.errors import UsageError
 
@@ -121,6 +122,7 @@ def _sim_scene(args, model, scene) -> int:
 
     from .scene_trial import run_scene
 
+    frames: list
     frames, every = [], max(1, round(model.tick_rate / args.fps)) if args.gif else 0
     seen = {}
 
@@ -176,11 +178,11 @@ def cli_sim(args) -> int:
         raise UsageError("--k must be in 1..40")
     if args.gif and not (args.fps > 0 and args.max_frames >= 1):
         raise UsageError("--gif needs --fps > 0 and --max-frames >= 1")
-    from .binding import dialect_of
+    from .binding import Dialect, dialect_of
 
-    dialect = dialect_of(model)
+    dialect = cast(Dialect, dialect_of(model))
     spec = TrialSpec(variant, args.k, parts=model.var(dialect.tray_var).hi, time_limit=args.time)
-    frames = []
+    frames: list = []
     every = max(1, round(model.tick_rate / args.fps)) if args.gif else 0
     last = {}
 
@@ -232,7 +234,7 @@ def cli_conform(args) -> int:
     if scene is None:
         variant_of(model)  # a model the cell cannot run is an error before anything is explored
     rows = []
-    views = None
+    views: Any = None
     if html:
         from .cell_view import ConformViews
 

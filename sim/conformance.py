@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import random
 from dataclasses import dataclass, field
+from typing import cast
 
 from .protocol import Mismatch
 
@@ -99,7 +100,7 @@ def random_scenarios(n: int, seed: int = 0, variant: str = "preemptive", parts: 
         while t < time_limit:
             t += rng.uniform(4.0, 40.0)
             times.append(round(t, 2))
-        regions = ()
+        regions: tuple = ()
         if drops and rng.random() < 0.5:
             x, y = rng.uniform(-0.2, 0.8), rng.uniform(-3.0, 0.0)
             regions = ((x, y, x + 0.15, y + 0.15),)
@@ -154,7 +155,7 @@ class Conformance:
         return None
 
 
-def conform(model, scenarios: int = 10, seed: int = 0, time_limit: float = 700.0, drops: bool = False,
+def conform(model, scenarios: int = 10, seed: int = 0, time_limit: "float | None" = 700.0, drops: bool = False,
             path: bool = True, max_states: "int | None" = 2_000_000, on_explored=None, on_result=None,
             scene=None, views=None) -> Conformance:
     """Run ``scenarios`` seeded random scenarios of ``model`` in the cell under the
@@ -181,10 +182,10 @@ def conform(model, scenarios: int = 10, seed: int = 0, time_limit: float = 700.0
     monitor, checked, incomplete = _explore_monitor(model, path, max_states, on_explored)
     if incomplete:
         return Conformance(model.name, [], [], None, incomplete=True)
-    from .binding import dialect_of
+    from .binding import Dialect, dialect_of
 
-    parts = model.var(dialect_of(model).tray_var).hi
-    cases = random_scenarios(scenarios, seed, variant, parts=parts, time_limit=time_limit, drops=drops)
+    parts = model.var(cast(Dialect, dialect_of(model)).tray_var).hi
+    cases = random_scenarios(scenarios, seed, variant, parts=parts, time_limit=cast(float, time_limit), drops=drops)
     results = []
     for i, sc in enumerate(cases):
         res = run_scenario(sc, model, monitor, on_tick=views(i) if views is not None else None)

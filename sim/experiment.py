@@ -181,8 +181,8 @@ def format_table(summary: dict, paper: dict = PAPER) -> str:
         lines.append(f"{label:34s}" + "".join(f"{ours(summary[v], v):>20s}{theirs(v):>20s}" for v in summary))
     ns = sorted({summary[v]["trials"] for v in summary})
     if ns != [n_paper]:
-        ours = " or ".join(_trials(n) for n in ns)
-        lines.append(f"note: ours are totals over {ours} per variant, the paper's over {n_paper}: "
+        totals = " or ".join(_trials(n) for n in ns)
+        lines.append(f"note: ours are totals over {totals} per variant, the paper's over {n_paper}: "
                      "compare counts per trial, not the totals")
     return "\n".join(lines)
 

@@ -302,6 +302,7 @@ class SceneBinding(Binding):
     def __init__(self, scene, model, world):
         self.scene, self.model, self.world = scene, model, world
         self.sites: dict = {}  # site index -> (start(world), {library outcome: model outcome})
+        self.calls: dict = {}  # site index -> (library primitive, robot, its arguments): what the site runs
         self.active: dict = {}  # site index -> activity
         self.backlog: list = []  # events raised by sensors, not yet given to the model
         self._seen = 0
@@ -486,6 +487,7 @@ def bind_model(scene, model, world):
 
             def start(world, lib=lib, robot=robot, full=full):
                 return lib.start(world, robot, full)
+            b.calls[site.index] = (lib.name, robot, dict(full))
         explicit = chosen.get("outcomes", {})
         omap = {}
         for status, lname in lib_outs:

@@ -121,6 +121,7 @@ def run_loop(rt, world, binding: Binding, time_limit: float, hooks: "Hooks | Non
         tick = rt.clock.tick
         hooks.before(rt, world)
         before = rt.state
+        found: "Mismatch | None"
         try:
             step = rt.tick(binding.events(before))
         except (ConformanceError, DomainError) as exc:

@@ -11,7 +11,10 @@ dTa for trial k is 30 + 0.2 k seconds; each trial is seeded from (variant, k) on
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Protocol, runtime_checkable
+from typing import TYPE_CHECKING, Any, Protocol, runtime_checkable
+
+if TYPE_CHECKING:
+    from btfsm.runtime import Runtime
 
 __all__ = ["VARIANTS", "arrival_period", "TrialSpec", "TrialResult", "Mismatch", "Binding"]
 
@@ -87,17 +90,17 @@ class Binding(Protocol):
     (``binding.KittingBinding``). Such a class is constructed as ``Class(scene, model,
     world, **args)`` and raises ``ModelError`` for a model it cannot run."""
 
-    def implementations(self) -> dict:
+    def implementations(self) -> dict[str, Any]:
         """Primitive name -> implementation (a callable or an object with ``tick(call)``
         and optionally ``halt(call)``), as ``btfsm.runtime.Runtime`` takes them."""
         ...
 
-    def events(self, state) -> list:
+    def events(self, state: tuple[int, ...]) -> list[str]:
         """The environment events (names) of the next tick, given the model's state
         before it; an event is given once."""
         ...
 
-    def after_tick(self, rt) -> list:
+    def after_tick(self, rt: Runtime) -> list[str]:
         """Bookkeeping after a tick, then the disagreements between the model's variables
         and the world (empty when they agree)."""
         ...

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import json
 from dataclasses import dataclass, field
+from typing import Any, cast
 
 from .loop import Hooks, run_loop, start
 
@@ -45,6 +46,8 @@ class CellReplay:
     held: int = 0  # ticks a primitive that had finished in the cell was held RUNNING to follow it
     diverged: "tuple | None" = None  # (tick, counterexample's FSM state, the cell's) where pacing stopped
     mismatch: "str | None" = None  # the runtime refused a tick of the cell: the replay stopped there
+    reaches: list = field(default_factory=list)  # (part id, s from its detection to the arm starting its grasp)
+    at_ticks: bool = False  # the parts were sent at the counterexample's ticks (the arm unpaced)
 
     def text(self) -> str:
         lines = [f"cell replay of a counterexample on {self.model}: {len(self.triggers)} environment event(s)"]
@@ -55,7 +58,8 @@ class CellReplay:
                 t, want, got = self.diverged
                 lines.append(f"  pacing stopped at tick {t}: the counterexample is at '{want}', the cell at '{got}'")
         for t, st, pid in self.injected:
-            lines.append(f"  t = {t:6.1f} s: belt part {pid} sent to the sensor (arm FSM at '{st}', as in the counterexample)")
+            how = "at the counterexample's tick" if self.at_ticks else "as in the counterexample"
+            lines.append(f"  t = {t:6.1f} s: belt part {pid} sent to the sensor (arm FSM at '{st}', {how})")
         for t, pid in self.lost:
             lines.append(f"  t = {t:6.1f} s: belt part {pid} reached the end of the belt: LOST")
         if self.frozen:
@@ -64,6 +68,8 @@ class CellReplay:
         lines.append("  last FSM states: " + "; ".join(f"{t:.1f} s {s} ({g or '-'})" for t, s, g in self.timeline[-4:]))
         if self.mismatch:
             lines.append(f"  stopped: {self.mismatch}")
+        for pid, r in self.reaches:
+            lines.append(f"  belt part {pid} reached (the grasp starts) {r:.1f} s after its detection")
         if self.kind == "response":  # a late response loses the belt part in the cell, or it does not
             lines.append("  the cell shows the late response: a belt part was lost" if self.lost else
                          "  the cell does not show the late response: no belt part was lost")
@@ -100,7 +106,7 @@ class _Pacer:
     visit whose state differs from the counterexample's (``diverged``)."""
 
     def __init__(self, states: list):
-        runs = []  # [state, ticks] of each visit; states[0] is the state before the first tick
+        runs: list = []  # [state, ticks] of each visit; states[0] is the state before the first tick
         for st in states:
             if runs and runs[-1][0] == st:
                 runs[-1][1] += 1
@@ -109,6 +115,7 @@ class _Pacer:
         self.visits = runs
         self.ticks = len(states) - 1
         self.v = self.c = 0  # the current visit, and the ticks the cell spent in it so far
+        self.diverged: "tuple | None"
         self.now, self.held, self.diverged = None, 0, None
         self.tick = 0
 
@@ -164,10 +171,18 @@ class _CellHooks(Hooks):
     (at the counterexample's FSM states, or paced to its ticks), the animation frames, and
     the end ``settle`` seconds after the last injected part left the belt."""
 
-    def __init__(self, fsm, beam, result, pending, pacer, arrive_at, frames, settle, on_tick=None):
+    def __init__(self, fsm, beam, result, pending, pacer, arrive_at, frames, settle, on_tick=None, binding=None,
+                 arrive_ticks=None):
         self.fsm, self.beam, self.result, self.pending, self.pacer = fsm, beam, result, pending, pacer
         self.arrive_at, self.frames, self.settle, self.on_tick = arrive_at, frames, settle, on_tick
         self.last, self.since, self.done_at = None, 0.0, None
+        self.binding, self.arrive_ticks = binding, arrive_ticks
+        self.reached: set = set()
+        self.grasps: set = set()  # the arm FSM's states that grasp on the belt
+        if binding is not None:
+            d = binding.d
+            f = next(x for x in binding.model.fsms if x.name == d.fsm)
+            self.grasps = {st.id for st in f.states if st.primitive == d.grasp and d.area(dict(st.args)) == binding.belt_area}
 
     def _stay(self, st, world) -> None:
         """The FSM stayed in ``st`` from ``since`` until now: keep the longest stay."""
@@ -185,8 +200,11 @@ class _CellHooks(Hooks):
                     self._stay(self.last[0], world)
                 self.since = world.time
             self.last = (st, goal)
-        due = (pending and (pacer.at(*self.arrive_at[len(result.injected)]) if pacer is not None and pacer.active()
-                            else pending[0][0] == st))
+        if self.arrive_ticks is not None:  # at the counterexample's ticks, the arm at its own speed
+            due = bool(pending) and rt.clock.tick >= self.arrive_ticks[len(result.injected)]
+        else:
+            due = (pending and (pacer.at(*self.arrive_at[len(result.injected)]) if pacer is not None and pacer.active()
+                                else pending[0][0] == st))
         if due:
             pid = world.spawn(self.beam)
             result.injected.append((round(world.time, 2), st, pid))
@@ -197,6 +215,13 @@ class _CellHooks(Hooks):
     def after(self, rt, world, step, before) -> None:
         if self.pacer is not None:
             self.pacer.after(rt.fsm_state(self.fsm)[0])
+        b = self.binding
+        if b is not None and rt.fsm_state(self.fsm)[0] in self.grasps:
+            pid = b.targets.get(b.belt)
+            detected = dict(b.detections)
+            if pid in detected and pid not in self.reached:  # the grasp of this belt part starts
+                self.reached.add(pid)
+                self.result.reaches.append((pid, round(world.time - detected[pid] - 1.0 / rt.model.tick_rate, 2)))
         if self.on_tick is not None:
             self.on_tick(rt, world)
         if self.frames is not None and rt.clock.tick % 5 == 0 and len(self.frames) < 2000:
@@ -239,10 +264,13 @@ def replay_in_cell(model, ce, *, time_limit: float = 120.0, render: "str | None"
     kind = (ce.get("violation") or {}).get("kind", "")
     spec = TrialSpec("preemptive", 1, time_limit=time_limit)
     pacer = arrive_at = None
-    if pace if pace is not None else kind == "response":
-        from .binding import dialect_of
+    arrive_ticks = None
+    if pace == "times":  # the counterexample's arrival ticks, the arm unpaced
+        arrive_ticks = [i - 1 for i, step in enumerate(ce["steps"], start=1) for ev in step.get("env", ()) if ev == "arrive"]
+    elif pace if pace is not None else kind == "response":
+        from .binding import Dialect, dialect_of
 
-        pacer = _Pacer(fsm_states_of(ce, dialect_of(model).fsm))
+        pacer = _Pacer(fsm_states_of(ce, cast(Dialect, dialect_of(model)).fsm))
         # a part for the counterexample's tick i reaches the sensor in the world steps before
         # the cell's tick at the same point of the same visit
         arrive_at = [pacer.position(i) for i, step in enumerate(ce["steps"], start=1)
@@ -251,10 +279,11 @@ def replay_in_cell(model, ce, *, time_limit: float = 120.0, render: "str | None"
     model, world, binding, rt = build_trial(spec, model, detections=(), wrap=pacer.wrap if pacer else None)
     d = binding.d
     pending = [t for t in triggers_of(ce, d.fsm) if t[1] == "arrive"]
-    result = CellReplay(model.name, list(pending), kind=kind, paced=pacer.ticks if pacer else 0)
-    frames = [] if gif else None
+    result = CellReplay(model.name, list(pending), kind=kind, paced=pacer.ticks if pacer else 0,
+                        at_ticks=arrive_ticks is not None)
+    frames: "list | None" = [] if gif else None
     hooks = _CellHooks(d.fsm, world.scene.sensors[binding.sensor]["region"], result, pending, pacer, arrive_at,
-                       frames, settle, on_tick)
+                       frames, settle, on_tick, binding, arrive_ticks)
     end = run_loop(rt, world, binding, time_limit, hooks, stop_at_mismatch=False)
     hooks.finish(world)
     if end.ended_by is not None:
@@ -351,6 +380,7 @@ class _SceneReplayHooks(Hooks):
         pending = self.pending
         if pending and all(now.get(f) == s for f, s in pending[0][0].items() if s is not None):
             states, ev = pending.pop(0)
+            pid: "str | None"
             if ev in self.exits and ev not in self.sensors:
                 pid = "world"  # a part leaving: it happens in the world, or it does not
             else:
@@ -419,7 +449,8 @@ def replay_for_cli(model, ce_json: dict, args, record: bool = False):
     from .scene_trial import scene_for
 
     path = getattr(args, "scene", None)
-    view = None
+    view: Any = None
+    out: Any
     if path is None and dialect_of(model) is not None:
         if record:
             from .cell_view import CellView

@@ -99,6 +99,8 @@ class Scene:
         self.part_friction.update({k: float(v.get("friction", DEFAULT_FRICTION)) for k, v in ptypes.items()})
         self.part_colours = {DEFAULT_PART: None}
         self.part_colours.update({k: v.get("colour") for k, v in ptypes.items()})
+        self.doors: dict
+        self.faults: dict
         self.areas, self.belts, self.sinks, self.doors = {}, {}, {}, {}
         self.sensors, self.faults, self.robots = {}, {}, {}
         for name, a in data.get("areas", {}).items():
@@ -371,6 +373,20 @@ class Profile:
         return self.dist - 0.5 * self.a * r * r
 
 
+def _horizon(m: int, margins, e: float) -> int:
+    """The largest ``j <= m`` (0 if below 2) such that no margin ``a + i * b`` (satisfied
+    when >= 0) changes sign for i <= j when each may be off by ``i * e``."""
+    for a, b in margins:
+        if a >= 0.0:
+            if b - e < 0.0:  # satisfied now; it holds while a + i (b - e) >= 0
+                m = min(m, int(a / (e - b)) - 1)
+        elif b + e > 0.0:  # violated now; it stays so while a + i (b + e) < 0
+            m = min(m, int(-a / (b + e)) - 1)
+        if m < 2:
+            return 0
+    return m
+
+
 # --------------------------------------------------------------------------- world
 _PART, _WALL = 1, 2  # collision types of parts and walls
 INCIDENTS = ("slip", "drop", "collision", "fell_off", "pushed_off", "pushed_out_of_slot", "off_target")
@@ -393,7 +409,7 @@ class _Part:
 class _Robot:
     __slots__ = ("name", "spec", "x", "y", "z", "x0", "y0", "z0", "x1", "y1", "z1", "prof", "k", "moving",
                  "blocked", "holding", "closing", "armed", "faults_in", "tracking", "vel", "arrived", "body", "peak",
-                 "last_v", "anchor")
+                 "last_v", "anchor", "coasting", "cruise_v")
 
     def __init__(self, name, spec):
         self.name, self.spec = name, spec
@@ -412,6 +428,8 @@ class _Robot:
         self.peak = 0.0  # the tool's largest acceleration (m/s^2) while it holds the part
         self.last_v = (0.0, 0.0)  # the tool's velocity in the last step
         self.anchor = (0.0, 0.0)  # where the held part's centre was, relative to the tool, when gripped
+        self.coasting = False  # holding, in a move's constant-velocity phase: Chipmunk moves the tool body
+        self.cruise_v = (0.0, 0.0)  # the tool's velocity in the constant-velocity phase of its move
 
 
 class World:
@@ -430,7 +448,7 @@ class World:
         self.doors = {n: (1.0 if d["open"] else 0.0) for n, d in scene.doors.items()}  # openness 0..1
         self.door_goal = {n: (1.0 if d["open"] else 0.0) for n, d in scene.doors.items()}
         self.robots = {n: _Robot(n, spec) for n, spec in scene.robots.items()}
-        self.inside = {n: set() for n in scene.sensors}
+        self.inside: dict = {n: set() for n in scene.sensors}
         self.incidents: list = []  # (time, kind, part id, cause): what physics did that nobody commanded
         self._sensed_log = -1
         self.arrivals = {n: self._arrival_times(b) for n, b in scene.belts.items()}
@@ -452,7 +470,11 @@ class World:
 
         self._cp_step = lib.cpSpaceStep  # our collision callback never changes the space (see ``step``)
         self._cp_pos, self._cp_set_pos, self._cp_set_vel = lib.cpBodyGetPosition, lib.cpBodySetPosition, lib.cpBodySetVelocity
-        self._cp_activate = lib.cpBodyActivate
+        self._cp_activate, self._cp_vel, self._cp_sleeping = lib.cpBodyActivate, lib.cpBodyGetVelocity, lib.cpBodyIsSleeping
+        self._contact = False  # a contact callback ran (ends a batch of steps, see ``_coast``)
+        self._wait = 1  # steps to take one at a time before ``_quiet`` looks again
+        self._carriers: list = []  # robots whose tool and part a batch of steps drives every step
+        self._calm_until = -1  # until this step no belt part can cross a sensor's or sink's edge (``_belt_horizon``)
         sc = self.scene
         space = self.space = pymunk.Space()
         space.iterations = 10
@@ -466,6 +488,7 @@ class World:
         self._belt_body, self._belt_vel = {}, {}
         self._belt_places = [Place("BELT", b) for b in sc.belts]
         self._sensor_regions = [s["region"] for s in sc.sensors.values()]
+        self._watched_regions = self._sensor_regions + list(sc.sinks.values())  # a belt part crossing an edge matters
         self._belt_rows = [(Place("BELT", n), *b["from"], (b["to"][0] - b["from"][0]) / b["length"],
                             (b["to"][1] - b["from"][1]) / b["length"], b["length"], b["width"] / 2, b["end"] == "lost")
                            for n, b in sc.belts.items()]
@@ -505,6 +528,7 @@ class World:
     def _pressed(self, arbiter, space, data) -> None:
         """A part in contact (with a part or a wall) may move: watch it until it rests
         (every step of the contact: a sleeping group of touching parts wakes as a whole)."""
+        self._contact, self._calm_until = True, -1
         for s in arbiter.shapes:
             p = getattr(s.body, "part", None)
             if p is not None and p.place.kind != "BELT":
@@ -512,6 +536,7 @@ class World:
 
     def _touch(self, arbiter, space, data) -> None:
         """Two parts touched: both may now move (they are watched until they rest)."""
+        self._contact, self._calm_until = True, -1
         a, b = (s.body.part for s in arbiter.shapes)
         for p, q in ((a, b), (b, a)):
             p.pushed_by = q.id
@@ -547,6 +572,7 @@ class World:
             self.space.add(pj, gj)
             part.joints = (pj, gj)
             r.peak, r.last_v = 0.0, None  # the tool's acceleration counts from its second step with the part
+            r.coasting = False
             self._disturbed.pop(part.id, None)
             return
         if kind == "BELT":
@@ -591,6 +617,7 @@ class World:
         if "random" in arr:
             r = arr["random"]
             mean, lo = float(r["mean_interval"]), float(r.get("min_interval", 0.0))
+            out: list
             t, out = float(arr.get("first", 0.0)), []
             while (count is None and t <= limit) or (count is not None and len(out) < count):
                 if len(out) >= MAX_ARRIVALS:
@@ -636,6 +663,7 @@ class World:
     # ---- place bookkeeping
     def _move(self, part: _Part, place: Place) -> None:
         old = part.place
+        self._calm_until = -1
         if old is not None:
             self.members[old].remove(part.id)
             if old.kind == "BELT":  # the parts queued behind it may move on
@@ -767,7 +795,9 @@ class World:
             if d_z > 0.0:
                 v, a = min(v, zs["speed"] / d_z), min(a, zs["acceleration"] / d_z)
             r.prof = Profile(1.0 if v != math.inf else 0.0, v * speed, a * acc)
-        r.k, r.moving, r.blocked = 0, True, False
+        prof = r.prof
+        r.cruise_v = ((r.x1 - r.x0) * prof.v / prof.dist, (r.y1 - r.y0) * prof.v / prof.dist) if prof.dist > 0.0 else (0.0, 0.0)
+        r.k, r.moving, r.blocked, r.coasting = 0, True, False, False
         return True
 
     def track(self, robot: str, part_id: int, z: "float | None" = None) -> None:
@@ -778,7 +808,7 @@ class World:
         r = self.robots[robot]
         if r.tracking is None:
             r.vel = (0.0, 0.0)
-        r.tracking, r.moving, r.blocked, r.arrived, r.k = part_id, True, False, False, 0
+        r.tracking, r.moving, r.blocked, r.arrived, r.k, r.coasting = part_id, True, False, False, 0, False
         zs = r.spec["z"]
         r.z0, r.z1 = r.z, (r.z if z is None or zs is None else float(z))
         r.prof = Profile(abs(r.z1 - r.z0), zs["speed"], zs["acceleration"]) if zs else Profile(0.0, 1.0, 1.0)
@@ -851,9 +881,9 @@ class World:
                 continue
             for pid in ids:
                 p = self.parts[pid]
-                if zmax is not None and zmax > self.top(pid):
-                    continue  # the cup is above the part
                 d = math.hypot(p.x - r.x, p.y - r.y)
+                if d > bd or (zmax is not None and zmax > self.top(pid)):
+                    continue  # too far, or the cup is above the part
                 if d < bd or (best is None and d <= bd) or (d == bd and best is not None and pid < best):
                     best, bd = pid, d
         return best
@@ -881,9 +911,30 @@ class World:
 
     # ---- stepping
     def step(self, n: int = 1) -> None:
+        """Advance ``n`` steps of ``dt``. A run of steps in which no Python-side check can
+        fire (``_quiet``) goes to Chipmunk as one batch (``_coast``); its result is the one
+        of stepping one at a time, bit for bit."""
+        wait = 0  # steps to take one at a time before looking for a batch again
+        while n > 0:
+            if wait <= 0 and n > 1:
+                m = self._quiet(n)
+                if m > 1:
+                    k = self._coast(m)
+                    n -= k
+                    if k < m:  # a contact ended the batch: one at a time for the rest of this call
+                        wait = n
+                    continue
+                wait = self._wait
+            j = min(n, max(wait, 1))
+            self._steps(j)
+            n -= j
+            wait -= j
+
+    def _steps(self, n: int) -> None:
+        """``n`` steps one at a time."""
         space, dt, robots = self.space, self.dt, tuple(self.robots.values())
         cp_step, cp_space = self._cp_step, space._space
-        doors, belts, sinks, sensors = bool(self.doors), bool(self.scene.belts), bool(self.scene.sinks), bool(self.scene.sensors)
+        doors, after = bool(self.doors), self._after_step
         for _ in range(n):
             self.steps += 1
             if self.steps * dt + _EPS >= self._next_arrival:
@@ -900,17 +951,345 @@ class World:
                 self._added = False
             else:
                 cp_step(cp_space, dt)  # the same Chipmunk step without pymunk's per-call overhead
-            for r in robots:
-                if r.holding is not None:
-                    self._held(r)
-            if belts:
-                self._belts()
-            if self._disturbed:
-                self._resting()
-            if sinks:
-                self._sinks()
-            if sensors:
-                self._sense()
+            after()
+
+    def _after_step(self) -> None:
+        for r in self.robots.values():
+            if r.holding is not None:
+                self._held(r)
+        if self._belt_rows:
+            self._belts()
+        if self._disturbed:
+            self._resting()
+        if self.scene.sinks:
+            self._sinks()
+        if self._sensor_regions:
+            self._sense()
+
+    def _quiet(self, n: int) -> int:
+        """How many of the next ``n`` steps (0 or 1: none) need no Python-side work
+        between them but the robots that carry or track a part (``self._carriers``: their
+        tool is driven and their part checked every step, as one at a time): no belt
+        arrival is due, no door moves (nor a robot in a scene with doors), no fingers
+        finish closing, no cup tracking a part is armed, and no part on a belt or watched
+        resting part (``_disturbed``) can reach a belt's end or side, a sensor's, sink's
+        or area's edge, a slot's tolerance or the reach of an armed cup: such a part rides
+        a friction joint without bias, so while nothing touches it its speed relative to
+        its support can only fall, and after ``j`` steps it lies within
+        ``j * dt * (|v - v_support| + 1 mm/s)`` of where its support carries it
+        (``_belt_horizon``, ``_rest_horizon``). A robot that carries a part at a constant
+        velocity (at rest or in the cruise phase of a move, the part settled under the
+        tool) needs nothing at all (``_steady``). A contact or a change of place (a part
+        slips) ends a batch (``_coast``). When it finds no batch, ``self._wait`` says how
+        many steps to take one at a time before looking again (only a matter of speed:
+        stepping one at a time is always right)."""
+        self._wait = 1
+        self._carriers = carriers = []
+        if self._added or (self._sensor_regions and len(self.log) != self._sensed_log):
+            return 0
+        dt, steps, m = self.dt, self.steps, n
+        nxt = self._next_arrival
+        if nxt != math.inf:
+            if nxt == -math.inf:
+                return 0
+            m = min(m, int((nxt - _EPS) / dt) - steps + 1)
+            while m > 1 and (steps + m) * dt + _EPS >= nxt:
+                m -= 1
+            if m < 2:
+                return 0
+        if self.doors and any(self.doors[d] != self.door_goal[d] for d in self.doors):
+            self._wait = n
+            return 0
+        robots = self.robots.values()
+        for r in robots:  # the robots' own limits first (cheap)
+            if r.moving and self.doors:  # a moving tool stops short of a closed door
+                self._wait = n
+                return 0
+            if r.tracking is not None:  # the tool follows its part step by step
+                if r.closing == 0 and r.armed:
+                    return 0
+                carriers.append(r)
+                if r.closing is not None:
+                    m = min(m, r.closing - 1)
+            elif r.holding is not None:
+                steady = self._steady(r, m)
+                if steady > 1:
+                    m = steady
+                else:
+                    carriers.append(r)
+            elif r.closing is not None and r.closing > 0:
+                m = min(m, r.closing - 1)
+            if m < 2:
+                return 0
+        movers: dict = {}
+        m = min(m, self._belt_horizon(movers))
+        if m > 1 and self._disturbed:
+            if carriers:  # a carrier's part may land by them (``landing``) or its tool follow them
+                return 0
+            m = min(m, self._rest_horizon(movers))
+        if m < 2:
+            return 0
+        for r in robots:  # an armed vacuum cup attaches the first part that comes within its radius
+            if r.holding is None and r.closing == 0 and r.armed:
+                m = self._out_of_grip(r, m, movers)
+                if m < 2:
+                    self._wait = 4
+                    return 0
+        return m
+
+    def _steady(self, r: _Robot, m: int) -> int:
+        """``m`` or fewer steps (0 or 1: none) in which ``r``'s tool carries its part at a
+        constant velocity (at rest, or in the cruise phase of its move) with the part
+        settled under it: the part cannot slip, and Chipmunk moves the tool body alone."""
+        if self.scene.faults:
+            return 0
+        dt, prof = self.dt, r.prof
+        if r.moving:
+            if not r.coasting:
+                return 0
+            while m > 1 and (r.k + m) * dt > prof.total - prof.t_acc:  # the batch ends in the cruise phase
+                m = min(m - 1, int((prof.total - prof.t_acc) / dt) - r.k + 1)
+        elif r.last_v != (0.0, 0.0):
+            return 0
+        part = self.parts[r.holding]  # it sits well within the cup and moves with the tool
+        ax, ay = r.anchor
+        v = self._cp_vel(part.cb)
+        tv = r.cruise_v if r.moving else (0.0, 0.0)
+        if (math.hypot(part.x - r.x - ax, part.y - r.y - ay) > r.spec["radius"] / 2
+                or math.hypot(v.x - tv[0], v.y - tv[1]) * m * dt > r.spec["radius"] / 4):
+            return 0
+        return min(m, int(0.5 * self.space.sleep_time_threshold / dt))  # the part is woken once per batch
+
+    def _belt_horizon(self, movers: dict) -> int:
+        """Steps (0 or 1: none) in which no belt part can reach a belt's end or side or a
+        sensor's or sink's edge, while nothing touches it (see ``_quiet``); the checks
+        after a step skip sensors and sinks until then (``_calm_until``; a contact or a
+        change of place ends that). Appends ``(x, y, dx, dy, e)`` for each belt part to
+        ``movers`` (part id -> ``(dx, dy, e)``): after ``j`` steps it lies within ``j * e``
+        of where it is plus ``j`` times ``(dx, dy)``."""
+        m, dt, parts, vel = 1 << 30, self.dt, self.parts, self._cp_vel
+        for place, ax, ay, ux, uy, L, half, lost in self._belt_rows:
+            ids = self.members.get(place)
+            if not ids:
+                continue
+            bvx, bvy = self._belt_vel[place.name]
+            for pid in ids:
+                p = parts[pid]
+                v = vel(p.cb)
+                e = (math.hypot(v.x - bvx, v.y - bvy) + 1e-3) * dt
+                dx, dy = bvx * dt, bvy * dt
+                x, y = p.x, p.y
+                movers[pid] = (dx, dy, e)
+                s, ds = (x - ax) * ux + (y - ay) * uy, dx * ux + dy * uy
+                q, dq = -(x - ax) * uy + (y - ay) * ux, -dx * uy + dy * ux
+                m = _horizon(m, ((s, ds), (half - q, -dq), (half + q, dq)) + (((L - s, -ds),) if lost else ()), e)
+                for rx0, ry0, rx1, ry1 in self._watched_regions:
+                    m = _horizon(m, ((x - rx0, dx), (rx1 - x, -dx), (y - ry0, dy), (ry1 - y, -dy)), e)
+                if m < 2:
+                    self._calm_until = -1
+                    return 0
+        self._calm_until = self.steps + m
+        return m
+
+    def _rest_horizon(self, movers: dict) -> int:
+        """Steps (0 or 1: none) in which no watched resting part (``_disturbed``) can leave
+        its area or slot or cross a sensor's or sink's edge: held by friction to the ground
+        and untouched, its speed can only fall. Adds them to ``movers``."""
+        m, dt, parts, vel, areas = 1 << 30, self.dt, self.parts, self._cp_vel, self.scene.areas
+        for pid in self._disturbed:
+            p = parts[pid]
+            v = vel(p.cb)
+            e = (math.hypot(v.x, v.y) + 1e-3) * dt
+            movers[pid] = (0.0, 0.0, e)
+            x, y = p.x, p.y
+            margins = []
+            if p.place.kind == "AREA":
+                rx0, ry0, rx1, ry1 = areas[p.place.name]["region"]
+                margins += [(x - rx0, 0.0), (rx1 - x, 0.0), (y - ry0, 0.0), (ry1 - y, 0.0)]
+                if p.slot is not None:
+                    margins.append((areas[p.place.name]["slot_tolerance"] - math.hypot(x - p.slot[0], y - p.slot[1]), 0.0))
+            for rx0, ry0, rx1, ry1 in self._watched_regions:
+                margins += [(x - rx0, 0.0), (rx1 - x, 0.0), (y - ry0, 0.0), (ry1 - y, 0.0)]
+            m = _horizon(m, margins, e)
+            if m < 2:
+                return 0
+        return m
+
+    def _out_of_grip(self, r: _Robot, m: int, movers: dict) -> int:
+        """``m`` or fewer steps in which no part comes under ``r``'s cup (``part_under``:
+        within its radius, its top within the grasp tolerance of the cup's height). The
+        tool moves along a straight line, its height monotone; belt parts move as
+        ``movers`` says (``_belt_horizon``), other parts rest."""
+        dt, radius, zs = self.dt, r.spec["radius"], r.spec["z"]
+        while m > 1:
+            tx, ty, tz = r.x, r.y, r.z
+            if r.moving:
+                prof = r.prof
+                t = min((r.k + m) * dt, prof.total)
+                f = 1.0 if prof.dist <= 0.0 else prof.at(t) / prof.dist
+                tx, ty = r.x0 + (r.x1 - r.x0) * f, r.y0 + (r.y1 - r.y0) * f
+                if zs is not None:
+                    tz = r.z0 + (r.z1 - r.z0) * f
+            reach = radius + math.hypot(tx - r.x, ty - r.y) + 1e-6
+            zmax = None if zs is None else min(r.z, tz) - r.spec["grasp_tolerance"] - 1e-9
+            ok = True
+            for place, ids in self.members.items():
+                if place.kind in ("GRIPPER", "LOST"):
+                    continue
+                for pid in ids:
+                    if zmax is not None and zmax > self.top(pid):
+                        continue  # the cup stays above it
+                    p, mv = self.parts[pid], movers.get(pid)
+                    far = reach + (0.0 if mv is None else m * (math.hypot(mv[0], mv[1]) + mv[2]))
+                    if math.hypot(p.x - r.x, p.y - r.y) <= far:
+                        ok = False
+                        break
+                if not ok:
+                    break
+            if ok:
+                return m
+            m //= 2
+        return 0
+
+    def _coast(self, m: int) -> int:
+        """Up to ``m`` steps (``_quiet`` said they need nothing between them but the
+        carriers' tools and parts) straight through Chipmunk; a contact callback or a
+        change of place ends the batch after its step. The other robots then take those
+        steps at once (their positions are functions of their step count; a coasting
+        tool body was moved by Chipmunk at its constant velocity) and the checks after a
+        step run once. Returns the steps taken."""
+        cp_step, cp_space, dt = self._cp_step, self.space._space, self.dt
+        carriers = self._carriers
+        for r in self.robots.values():
+            if r.holding is not None and r not in carriers:
+                self._cp_activate(self.parts[r.holding].cb)
+        self._contact = False
+        k = 0
+        if len(carriers) == 1 and carriers[0].tracking is None and not self.doors and not self.scene.faults:
+            k = self._carry(carriers[0], m)
+        elif carriers:
+            log, n_log, parts, get_pos = self.log, len(self.log), self.parts, self._cp_pos
+            while k < m:
+                self.steps += 1
+                k += 1
+                for r in carriers:
+                    if r.tracking is not None:  # the tracked part where the last step left it (``_belts``)
+                        p = parts[r.tracking]
+                        if p.place.kind == "BELT":
+                            pos = get_pos(p.cb)
+                            p.x, p.y = pos.x, pos.y
+                    if r.holding is None:
+                        self._drive(r)
+                    else:
+                        self._robot(r)
+                cp_step(cp_space, dt)
+                for r in carriers:
+                    if r.holding is not None:
+                        self._held(r)
+                if self._contact or len(log) != n_log:
+                    break
+        else:
+            while k < m:
+                self.steps += 1
+                k += 1
+                cp_step(cp_space, dt)
+                if self._contact:
+                    break
+        for r in self.robots.values():
+            if r.moving and r not in carriers:
+                prof = r.prof
+                end = r.k + k
+                if r.holding is None:  # the step at which the move ends, if it ends within the batch
+                    last = max(r.k + 1, math.ceil(prof.total / dt) - 1)
+                    while last * dt < prof.total:
+                        last += 1
+                    while last - 1 > r.k and (last - 1) * dt >= prof.total:
+                        last -= 1
+                    end = min(end, last)
+                r.k = end
+                t = end * dt
+                f = 1.0 if prof.dist <= 0.0 or t >= prof.total else prof.at(t) / prof.dist
+                r.x, r.y = r.x0 + (r.x1 - r.x0) * f, r.y0 + (r.y1 - r.y0) * f
+                if r.spec["z"] is not None:
+                    r.z = r.z0 + (r.z1 - r.z0) * f
+                if t >= prof.total:
+                    r.moving, r.arrived = False, True
+            if r.holding is None and r.closing is not None and r.closing > 0 and r not in carriers:
+                r.closing -= k  # fingers closing (``_quiet``: they close after the batch)
+        self._after_step()
+        return k
+
+    def _carry(self, r: _Robot, m: int) -> int:
+        """The steps of a batch with one carrier and no doors or faults: ``_drive``
+        (with ``Profile.at``), ``_robot`` and ``_held`` of the carrier inlined, on local
+        variables (the same arithmetic in the same order: ``tests/test_physics.py``
+        compares batches with steps one at a time)."""
+        cp_step, cp_space, dt, hypot = self._cp_step, self.space._space, self.dt, math.hypot
+        set_pos, set_vel, activate, get_pos = self._cp_set_pos, self._cp_set_vel, self._cp_activate, self._cp_pos
+        part = self.parts[r.holding]
+        tb, pb, radius, (ax, ay) = r.body._body, part.cb, r.spec["radius"], r.anchor
+        prof, zs = r.prof, r.spec["z"] is not None
+        dist, total, t_acc, a, v = (prof.dist, prof.total, prof.t_acc, prof.a, prof.v) if prof else (0.0,) * 5
+        cruise_end = total - t_acc
+        x0, y0, z0, dx, dy, dz = r.x0, r.y0, r.z0, r.x1 - r.x0, r.y1 - r.y0, r.z1 - r.z0
+        cvx, cvy = r.cruise_v
+        x, y, z, rk, moving, coasting, lv, peak = r.x, r.y, r.z, r.k, r.moving, r.coasting, r.last_v, r.peak
+        moves = moving and not r.blocked
+        steps, k, slipped = self.steps, 0, False
+        while k < m:
+            k += 1
+            self.steps = steps + k  # a contact callback reads the time
+            ox, oy = x, y
+            if moving:  # _drive
+                rk += 1
+                t = rk * dt
+                if dist <= 0.0 or t >= total:
+                    f = 1.0
+                elif t <= t_acc:
+                    f = 0.5 * a * t * t / dist
+                elif t <= cruise_end:
+                    f = (0.5 * a * t_acc * t_acc + v * (t - t_acc)) / dist
+                else:
+                    rt = total - t
+                    f = (dist - 0.5 * a * rt * rt) / dist
+                x, y = x0 + dx * f, y0 + dy * f
+                if zs:
+                    z = z0 + dz * f
+                if t >= total:
+                    moving = False
+            if moves and (rk - 1) * dt >= t_acc and rk * dt <= cruise_end:
+                vx, vy = cvx, cvy  # _robot
+                if not coasting:
+                    coasting = True
+                    set_pos(tb, (ox, oy))
+                    set_vel(tb, (vx, vy))
+            else:
+                moves = moving and moves
+                coasting = False
+                vx, vy = (x - ox) / dt, (y - oy) / dt
+                set_pos(tb, (ox, oy))
+                set_vel(tb, (vx, vy))
+            if lv is not None:
+                acc = hypot(vx - lv[0], vy - lv[1]) / dt
+                if acc > peak:
+                    peak = acc
+            lv = (vx, vy)
+            activate(pb)
+            cp_step(cp_space, dt)
+            pos = get_pos(pb)  # _held
+            px, py = pos.x, pos.y
+            if hypot(px - x - ax, py - y - ay) > radius:
+                slipped = True
+                break
+            if self._contact:
+                break
+        if r.moving and not moving:
+            r.moving, r.arrived = False, True
+        r.x, r.y, r.z, r.k, r.coasting, r.last_v, r.peak = x, y, z, rk, coasting, lv, peak
+        part.x, part.y = px, py
+        if slipped:
+            self._slip(r, part)
+        return k
 
     def _arrive(self) -> None:
         t = self.time + _EPS
@@ -941,18 +1320,31 @@ class World:
 
     def _robot(self, r: _Robot) -> None:
         ox, oy = r.x, r.y
+        profiled = r.moving and r.tracking is None
         self._drive(r)
         if r.holding is not None:  # the tool (a kinematic body) drags the held part through the grip joint
             dt = self.dt
-            vx, vy = (r.x - ox) / dt, (r.y - oy) / dt
+            prof = r.prof
+            if profiled and not r.blocked and (r.k - 1) * dt >= prof.t_acc and r.k * dt <= prof.total - prof.t_acc:
+                # the constant-velocity phase of the move: the tool body keeps the profile's velocity and
+                # Chipmunk moves it (as a batch of steps does, ``_coast``: the same result either way)
+                vx, vy = r.cruise_v
+                if not r.coasting:
+                    r.coasting = True
+                    cb = r.body._body
+                    self._cp_set_pos(cb, (ox, oy))
+                    self._cp_set_vel(cb, (vx, vy))
+            else:
+                r.coasting = False
+                vx, vy = (r.x - ox) / dt, (r.y - oy) / dt
+                cb = r.body._body
+                self._cp_set_pos(cb, (ox, oy))
+                self._cp_set_vel(cb, (vx, vy))
             if r.last_v is not None:
                 acc = math.hypot(vx - r.last_v[0], vy - r.last_v[1]) / dt
                 if acc > r.peak:
                     r.peak = acc
             r.last_v = (vx, vy)
-            cb = r.body._body
-            self._cp_set_pos(cb, (ox, oy))
-            self._cp_set_vel(cb, (vx, vy))
             self._cp_activate(self.parts[r.holding].cb)
 
     def _held(self, r: _Robot) -> None:
@@ -1072,9 +1464,11 @@ class World:
     def _resting(self) -> None:
         """Resting parts that something touched: pushed out of their area or slot they
         leave it (to where they lie); once asleep they are no longer watched."""
+        get, sleeping = self._cp_pos, self._cp_sleeping
         for pid in list(self._disturbed):
             p = self.parts[pid]
-            p.x, p.y = p.body.position
+            pos = get(p.cb)
+            p.x, p.y = pos.x, pos.y
             kind, name = p.place
             by = f" by part {p.pushed_by}" if p.pushed_by is not None else ""
             if kind == "AREA":
@@ -1087,14 +1481,14 @@ class World:
                                            f"pushed {math.hypot(p.x - p.slot[0], p.y - p.slot[1]):.3f} m out of its "
                                            f"slot in {name}{by} (tolerance {a['slot_tolerance']:g} m)"))
                     self._move(p, FLOOR)
-            if p.place.kind in ("LOST", "GRIPPER", "BELT") or p.body.is_sleeping:
+            if p.place.kind in ("LOST", "GRIPPER", "BELT") or sleeping(p.cb):
                 self._disturbed.pop(pid, None)
             elif any(_inside(r, (p.x, p.y)) for r in self.scene.sinks.values()):
                 self._move(p, LOST)
 
     def _sinks(self) -> None:
         # resting parts were checked when they landed (``landing``): only belt parts move
-        if not self.scene.sinks:
+        if not self.scene.sinks or self.steps <= self._calm_until:
             return
         sinks = tuple(self.scene.sinks.values())
         for name in self.scene.belts:
@@ -1108,6 +1502,10 @@ class World:
         if not self.scene.sensors:
             return
         full = len(self.log) != self._sensed_log  # places changed: look at every part
+        if not full and not self._disturbed:
+            if self.steps <= self._calm_until:
+                return  # no belt part can have crossed a sensor's edge (and no other part moves)
+            self._belt_horizon({})  # for the steps to come; this one is looked at below
         if full:
             self._sensed_log = len(self.log)
             movers = [pid for place, ids in self.members.items() if place.kind not in ("GRIPPER", "LOST") for pid in ids]
@@ -1148,7 +1546,7 @@ class World:
     # ---- invariant, digest, snapshot
     def check_invariant(self) -> None:
         """Raise AssertionError unless every part is in exactly one consistent place."""
-        seen = {}
+        seen: dict = {}
         for place, ids in self.members.items():
             for pid in ids:
                 assert pid not in seen, f"part {pid} is in both {seen[pid]} and {place}"

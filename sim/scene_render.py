@@ -140,7 +140,7 @@ def write_gif(scene, snaps, path, fps: float = 2.0, title: "str | None" = None, 
         raise IsADirectoryError(21, "is a directory", str(path))
     fig = _figure()
     ax = fig.add_subplot(1, 1, 1)
-    frames = []
+    frames: list = []
     total = len(snaps) if hasattr(snaps, "__len__") else None
     with progress_bar(total, desc="GIF frames", unit=" frame", disable=not progress) as bar:
         for snap in snaps:

@@ -62,10 +62,17 @@ def ariac_scene(spec: TrialSpec, detections=None, faults=()):
 
 
 def build_model(spec: TrialSpec):
+    """The checked ARIAC model of ``spec``'s variant (built and compiled once per process:
+    models are immutable, and every trial of a variant runs the same one)."""
+    return _ariac_model(spec.variant, spec.parts)
+
+
+@lru_cache(maxsize=8)
+def _ariac_model(variant: str, parts: int):
     from btfsm.models import ariac
 
-    make = {"preemptive": ariac.preemptive, "baseline": ariac.baseline}[spec.variant]
-    return make(n_tray=spec.parts)
+    make = {"preemptive": ariac.preemptive, "baseline": ariac.baseline}[variant]
+    return make(n_tray=parts)
 
 
 def build_trial(spec: TrialSpec, model=None, *, seed: "int | None" = None, detections=None, faults=(), wrap=None):

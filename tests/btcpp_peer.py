@@ -41,6 +41,7 @@ from btfsm.bt import NODE_TYPES
 from btfsm.files import model_from_data, model_to_data
 from btfsm.interop.btcpp_export import to_btcpp_xml
 from btfsm.interop.btcpp_import import xml_to_data
+from btfsm.oracles import Oracle
 from btfsm.status import Status
 
 __all__ = ["build", "imported", "run_btcpp", "run_btfsm", "compare", "LEAF_KINDS"]
@@ -174,7 +175,7 @@ def run_btcpp_isolated(model, leaves, ticks: int, xml: str, timeout: float = 300
     return [(s, [tuple(e) for e in log]) for s, log in json.loads(done.stdout.strip().splitlines()[-1])]
 
 
-class _Oracle:
+class _Oracle(Oracle):
     def __init__(self, leaves):
         self.leaves, self.tick = leaves, 0
 

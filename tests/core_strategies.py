@@ -28,11 +28,12 @@ from btfsm import (FSM, Action, Bool, Condition, Edge, Effects, Enum, EnvChoice,
                    MemorySequence, Model, Outcome, Parallel, ReactiveFallback, ReactiveSequence,
                    Repeat, Retry, SkillRequest, State, Status, walk)
 from btfsm.expr import BOOL, INT, BinOp, BoolOp, Call, Compare, Const, IfElse, Name, Type, Unary
+from btfsm.oracles import Oracle
 
 __all__ = [
     "act", "Tick", "TableOracle", "ModOracle", "run_rows", "running_nodes", "slot_of",
     "events", "parents_of", "typed_exprs", "parser_form_exprs", "expr_env", "trees",
-    "models", "variables", "to_reactive", "pick_events", "STATUS_LETTERS",
+    "models", "variables", "to_reactive", "pick_events", "STATUS_LETTERS", "every_question_model",
 ]
 
 STATUS_LETTERS = {"R": "running", "S": "success", "F": "failure"}
@@ -72,7 +73,7 @@ class Tick:
     env: str = ""
 
 
-class TableOracle:
+class TableOracle(Oracle):
     """Answers exactly the scripted outcomes, in order; anything else fails the test.
 
     Records the sites the step function halted (``halted``, site labels), which
@@ -125,7 +126,7 @@ def _split(item: str) -> tuple:
     return label, STATUS_LETTERS.get(out, out)
 
 
-class ModOracle:
+class ModOracle(Oracle):
     """Random answers that shrink well: choice point k gets ``numbers[k] % arity``, cycling
     through ``numbers`` from ``offset`` (pass the last oracle's ``pos`` to go on). Records
     the choices (``taken``, a ScriptOracle script) and the halted sites (``halted``,
@@ -151,6 +152,21 @@ class ModOracle:
 
     def halt(self, site):
         self.halted.append(site.label)
+
+
+def every_question_model() -> Model:
+    """A small model whose ticks ask an oracle every kind of question (the shared suites of
+    the oracles and the engines use it): an environment event, an environment choice,
+    primitives with several outcomes and a running one that a reactive fallback preempts
+    (so ``halt`` is called)."""
+    return Model("questions", variables=[Bool("part", False), Int("n", 0, 2)],
+                 environment=[EnvEvent("arrive", "not part", {"part": True}),
+                              EnvChoice("light", [EnvEvent("red", None, {"n": 0}),
+                                                  EnvEvent("green", "n < 2", {"n": "n + 1"})])],
+                 tree=ReactiveFallback("root", [Condition("full", "n == 2"),
+                                                ReactiveSequence("seq", [Condition("has", "part"),
+                                                                         act("pick", "RSF", S={"part": False})]),
+                                                act("wait", "RS")]))
 
 
 def slot_of(program, name: str) -> int:

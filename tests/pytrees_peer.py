@@ -15,6 +15,7 @@ import py_trees
 
 from btfsm import Action, Bool, EnvChoice, EnvEvent, Guard, Model, Outcome, Status, walk
 from btfsm.interop.pytrees import AnswerBehaviour, from_pytrees, node_names, to_pytrees
+from btfsm.oracles import Oracle
 
 STATUS = {"R": Status.RUNNING, "S": Status.SUCCESS, "F": Status.FAILURE}
 
@@ -36,7 +37,7 @@ def build_model(tree, semantics="pytrees"):
     return Model("peer", variables=variables, tree=tree, environment=env, semantics=semantics)
 
 
-class LogOracle:
+class LogOracle(Oracle):
     """Answers from the tables; logs start/tick/halt like the py_trees stub does.
     ``key`` maps a btfsm node name to its name in the tables (default: itself)."""
 

@@ -1,16 +1,17 @@
-"""The paper's reaction-time claim on the timed ARIAC models (issue 12.3; docs/verification.md 2.1).
+"""The paper's reaction-time claim on the timed ARIAC models (issues 12.3 and 21; docs/verification.md 2.1).
 
-``ariac.timed`` declares the arm's per-state durations measured in the cell
-(``ARM_DURATIONS``), belt arrivals at least 30 s apart and the requirement ``reach`` (a
-detected belt part is reached within dt* = 16 s). The checker proves the exact worst
-case; the cell runs the same timed model, the runtime refusing any primitive answer
-outside the declared durations, and every reaction measured there must lie within the
-proved worst case.
+``ariac.timed`` splits the arm FSM by goal class and entry (the position abstraction) and
+declares each copy's slowest run derived from the scene (``models/ariac_timing.json``),
+belt arrivals at least 30 s apart and the requirement ``reach`` (a detected belt part is
+reached within dt* = 16 s). The checker proves the exact worst case; the cell runs the
+same timed model, the runtime refusing any primitive answer outside the declared
+durations, and every reaction measured there must lie within the proved worst case.
 """
 from __future__ import annotations
 
 import json
 import multiprocessing as mp
+import os
 
 import pytest
 
@@ -33,9 +34,12 @@ def proved():
 
 def test_worst_cases_are_proved_and_exceed_the_window(proved):
     # figures printed by `btfsm check ariac-{preemptive,baseline}-timed --property response --json`
-    # (and the same for the 18-part models: docs/verification.md 2.1)
-    assert proved["preemptive"][0] == pytest.approx(37.1)
-    assert proved["baseline"][0] == pytest.approx(51.1)
+    # (37.1 s and 51.1 s with the measured context-free durations, ``timed(m, "measured")``)
+    assert proved["preemptive"][0] == pytest.approx(29.4)
+    assert proved["baseline"][0] == pytest.approx(42.9)
+    info = {v: proved[v][1].info["responses"]["reach"] for v in proved}
+    assert info["preemptive"]["first_late_seconds"] == pytest.approx(27.4)
+    assert info["baseline"]["first_late_seconds"] == pytest.approx(42.9)
     for v in ("preemptive", "baseline"):
         res = proved[v][1]
         assert res.holds is False and res.counterexample is not None
@@ -63,10 +67,19 @@ def test_the_two_phase_search_gives_the_ordinary_system(monkeypatch, variant):
     assert_same(fast, explore(m, engine="traced"))
 
 
-def test_cli_prints_the_proved_worst_case(capsys):
+def test_cli_prints_the_proved_worst_case(capsys, tmp_path):
     assert main(["check", "ariac-preemptive-timed", "--property", "response", "--json"]) == 1
     info = json.loads(capsys.readouterr().out)["properties"][0]["info"]["responses"]["reach"]
-    assert info["worst_seconds"] == pytest.approx(37.1) and info["bound_ticks"] == 160
+    assert info["worst_seconds"] == pytest.approx(29.4) and info["bound_ticks"] == 160
+    out = tmp_path / "late.json"
+    assert main(["bound", "ariac-preemptive-timed", "--trigger", "event:arrive", "--response",
+                 "arm.state == 'grasp_conveyor'", "--within", "16", "-o", str(out)]) == 0
+    text = capsys.readouterr().out
+    assert "worst case: 294 ticks = 29.4 s" in text
+    assert "worst first late response (every earlier trigger answered within 16 s): 274 ticks = 27.4 s" in text
+    assert json.loads(out.read_text())["violation"]["kind"] == "response"
+    assert main(["replay", str(out), "ariac-preemptive-timed"]) == 0  # a run of the model, as it says
+    assert "first holds 274 tick(s)" in capsys.readouterr().out
 
 
 def _trial(args):
@@ -78,39 +91,67 @@ def _trial(args):
     return v, k, r.reaction_times, r.lost, r.conformance_error
 
 
-def test_every_reaction_of_the_80_trials_is_within_the_proved_worst_case(proved):
-    """All 80 trials of the experiment run the timed 18-part models in the cell: no primitive
-    answers outside its declared duration (the runtime would raise a ConformanceError),
+def test_every_reaction_of_the_trials_is_within_the_proved_worst_case(proved):
+    """The experiment's trials run the timed 18-part models in the cell: no primitive
+    answers outside its derived duration (the runtime would raise a ConformanceError),
     and every measured reaction (detection to the part attached) is at most the proved
     worst-case reach plus the two grasp attempts' declared durations and their gripper
-    ticks (reach ends where the grasp starts)."""
-    grasps = 2 * (ariac.ARM_DURATIONS["grasp_conveyor"] + 0.2)
-    jobs = [(v, k) for v in ("preemptive", "baseline") for k in range(1, 41)]
+    ticks (reach ends where the grasp starts). One trial per variant (k = 1); all 80 with
+    BTFSM_LONG=1 (docs/verification.md 2.1 gives their figures)."""
+    table = ariac.derived_timing()["table"]
+    grasp = max(hi for c, rows in table.items() if c.startswith("grasp_conveyor") for _, hi in rows.values())
+    grasps = 2 * (grasp + 0.2)
+    ks = range(1, 41) if os.environ.get("BTFSM_LONG") == "1" else (1,)
+    jobs = [(v, k) for v in ("preemptive", "baseline") for k in ks]
     with mp.get_context("fork").Pool(2) as pool:
         results = pool.map(_trial, jobs)
-    assert len(results) == 80
     for v, k, reactions, lost, error in results:
         assert not error, (v, k, error)
         assert all(t <= proved[v][0] + grasps for t in reactions), (v, k, max(reactions))
     assert sum(r[3] for r in results if r[0] == "preemptive") == 0  # the paper's headline, with time declared
 
 
-def test_the_cell_replay_paced_to_the_counterexample_loses_the_part(proved):
-    """Paced to the worst-case witness (each FSM state lasts at least as long as in the
-    counterexample: the arm waits where its move ended), the cell loses the belt part
-    for both variants; unpaced, the cell's own (faster) motions pick it in time."""
+def test_the_cell_on_the_first_late_scenario_is_far_faster_than_proved(proved):
+    """Issue 21.3, measured and NOT met: the worst first late response's environment (its
+    arrival ticks) replayed in the cell unpaced (the arm at its own speed). The cell
+    reaches the part well within the proved figure, but far from the 10 % the issue asks:
+    the abstraction's slowest choices do not add up to a run the cell can be driven into
+    (docs/verification.md 2.1)."""
+    from btfsm.sim.replay import replay_in_cell
+    from btfsm.verify.explore import explore
+    from btfsm.verify.properties.response import ResponseBound, counterexample
+
+    m = load_builtin("ariac-preemptive-timed")
+    rb = ResponseBound(explore(m), m.responses[0])
+    worst, path, k = rb.first_late(160)
+    ce = counterexample(rb, path, k, None, "first late", 160).to_json()
+    r = replay_in_cell(m, ce, pace="times")
+    assert r.at_ticks and not r.lost and not r.mismatch, r.text()
+    reach = dict(r.reaches)[r.injected[-1][2]]
+    assert reach == pytest.approx(8.2, abs=0.3)  # the cell; the proof says 27.4 s
+    assert reach < worst / 10 / 3  # less than a third of the proved worst case
+
+
+def test_the_cell_replay_paced_to_the_counterexample_loses_the_part():
+    """Paced to the worst-case witness of the measured context-free durations
+    (``timed(m, "measured")``; each FSM state lasts at least as long as in the
+    counterexample: the arm waits where its move ended), the cell loses the belt part;
+    unpaced, the cell's own (faster) motions pick it in time. (The derived model's witness
+    does not replay paced: the cell's FSM leaves the witness's path, see
+    docs/verification.md 2.1.)"""
     from btfsm.sim.replay import replay_in_cell
 
-    for v in ("preemptive", "baseline"):
-        ce = proved[v][1].counterexample.to_json()
-        r = replay_in_cell(load_builtin(f"ariac-{v}-timed"), ce)
-        assert r.kind == "response" and r.paced > 160 and r.held > 0
-        assert [pid for _, pid in r.lost] == [pid for _, _, pid in r.injected], (v, r.text())
-        assert "the cell shows the late response" in r.text()
-        t_lost, t_in = r.lost[0][0], r.injected[0][0]
-        assert 15.9 <= t_lost - t_in <= 16.3  # lost at the end of the pick window
-    r = replay_in_cell(load_builtin("ariac-preemptive-timed"), proved["preemptive"][1].counterexample.to_json(),
-                       pace=False)
+    m = ariac.timed(ariac.preemptive(n_tray=2), durations="measured")
+    res = check(m, ["response"]).results[0]
+    assert res.info["responses"]["reach"]["worst_seconds"] == pytest.approx(37.1)
+    ce = res.counterexample.to_json()
+    r = replay_in_cell(m, ce)
+    assert r.kind == "response" and r.paced > 160 and r.held > 0
+    assert [pid for _, pid in r.lost] == [pid for _, _, pid in r.injected], r.text()
+    assert "the cell shows the late response" in r.text()
+    t_lost, t_in = r.lost[0][0], r.injected[0][0]
+    assert 15.9 <= t_lost - t_in <= 16.3  # lost at the end of the pick window
+    r = replay_in_cell(m, ce, pace=False)
     assert r.lost == [] and r.paced == 0 and "does not show the late response" in r.text()
 
 

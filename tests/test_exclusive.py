@@ -26,6 +26,7 @@ from btfsm.bt import walk
 from btfsm.cli import main
 from btfsm.files import dumps_model, loads_model, model_to_data
 from btfsm.models.registry import load_builtin
+from btfsm.oracles import Oracle
 from btfsm.profiles import SEMANTICS
 from btfsm.verify import check, replay_counterexample
 
@@ -35,7 +36,7 @@ from oracle_bruteforce import all_answers
 SCHEMA = json.loads((Path(__file__).resolve().parents[1] / "btfsm" / "schema" / "model.schema.json").read_text(encoding="utf-8"))
 
 
-class _Answers:
+class _Answers(Oracle):
     """Oracle: environment events from tick ``t_env`` on, first outcome of every primitive
     (all of them 'running' here), halts noted in ``log``."""
 
@@ -44,6 +45,9 @@ class _Answers:
 
     def env(self, i):
         return self.t >= self.t_env
+
+    def choose(self, i, enabled):
+        return 0
 
     def outcome(self, site):
         self.log.append(("run", site.label))

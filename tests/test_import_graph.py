@@ -2,7 +2,10 @@
 
 Every import between btfsm's own modules (at the top of a file or inside a function)
 is an edge; the graph has no cycle, and no module imports another module's private
-(underscore) names.
+(underscore) names. Imports under ``if TYPE_CHECKING:`` are not edges: they never run
+(the type checker reads them), so a Protocol's module may name the types of its
+arguments (``btfsm.oracles.Oracle`` takes a ``btfsm.semantics.Site``) and its users
+may name the Protocol.
 """
 from __future__ import annotations
 
@@ -47,11 +50,26 @@ def _own(name):
     return None
 
 
+def _type_checking_only(tree) -> set:
+    """The import nodes inside the module's ``if TYPE_CHECKING:`` (or
+    ``typing.TYPE_CHECKING``) blocks (at its top level, where such blocks are)."""
+    out = set()
+    for node in tree.body:
+        if isinstance(node, ast.If) and ast.unparse(node.test) in ("TYPE_CHECKING", "typing.TYPE_CHECKING"):
+            for stmt in node.body:
+                out.update(id(n) for n in ast.walk(stmt) if isinstance(n, (ast.Import, ast.ImportFrom)))
+    return out
+
+
 def import_edges():
-    """(importer, imported, names) for every import between btfsm's own modules."""
+    """(importer, imported, names) for every import between btfsm's own modules that runs."""
     edges = []
     for module, (path, is_pkg) in MODULES.items():
-        for node in ast.walk(ast.parse(path.read_text(), str(path))):
+        tree = ast.parse(path.read_text(), str(path))
+        skip = _type_checking_only(tree)
+        for node in ast.walk(tree):
+            if id(node) in skip:
+                continue
             if isinstance(node, ast.Import):
                 for alias in node.names:
                     target = _own(alias.name)
@@ -73,6 +91,14 @@ def test_the_walk_sees_the_known_edges():
     assert ("btfsm.verify.promela", "btfsm.verify.stepspec") in edges
     assert ("btfsm.sim.trial", "btfsm.sim.protocol") in edges
     assert len(MODULES) > 50
+
+
+def test_type_checking_imports_are_not_edges():
+    tree = ast.parse("from typing import TYPE_CHECKING\nif TYPE_CHECKING:\n    from .semantics import Site\n"
+                     "import json\n")
+    skipped = _type_checking_only(tree)
+    kinds = [(type(n).__name__, id(n) in skipped) for n in ast.walk(tree) if isinstance(n, (ast.Import, ast.ImportFrom))]
+    assert sorted(kinds) == [("Import", False), ("ImportFrom", False), ("ImportFrom", True)]
 
 
 def test_no_import_cycles():

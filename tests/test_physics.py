@@ -6,13 +6,14 @@ in crowded scenes with walls and weak grippers."""
 from __future__ import annotations
 
 import copy
+import math
 
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from btfsm.errors import ModelError
 from btfsm.sim.scene import FLOOR, Place, World, scene_from_data
-from test_scene import drive
+from test_scene import drive, random_scenes
 
 
 def _arm_scene(max_force: float, mass: float = 2.0, acceleration: float = 8.0) -> dict:
@@ -265,3 +266,116 @@ def test_typed_sensors_checks_and_events_and_the_sorter_conforms():
 
     with pytest.raises(ModelError, match=r"checks\[0\].world: only count\(AREA, TYPE\) and sensor"):
         scene_from_data(data)
+
+
+# --------------------------------------------------------------------------- batches of steps
+def _stepwise(data, commands, batched: bool) -> list:
+    """The world after each drawn command, stepped ``n`` at once (batches) or one at a time."""
+    scene = scene_from_data(copy.deepcopy(data))
+    w, seen = World(scene), []
+    for cmd, x, y, n in commands:
+        if cmd == "move" and scene.reachable("r", (x, y)):
+            w.move_to("r", (x, y), 1.0)
+        elif cmd == "grip":
+            w.grip("r")
+        elif cmd == "pick":  # to the part nearest (x, y), the gripper ready
+            near = sorted((math.hypot(p.x - x, p.y - y), p.id) for p in w.parts if p.place.kind not in ("GRIPPER", "LOST"))
+            if near and scene.reachable("r", (w.parts[near[0][1]].x, w.parts[near[0][1]].y)):
+                w.move_to("r", (w.parts[near[0][1]].x, w.parts[near[0][1]].y), 1.0)
+                w.grip("r")
+        elif cmd == "release":
+            w.release("r")
+        elif cmd == "door" and scene.doors:
+            w.set_door("d", x > 0)
+        if batched:
+            w.step(n)
+        else:
+            for _ in range(n):
+                w.step()
+        w.check_invariant()
+        seen.append((w.digest(), [str(p.place) for p in w.parts], list(w.events), list(w.incidents)))
+    return seen
+
+
+@st.composite
+def sparse_scenes(draw):
+    """Room to move: spaced parts in a bin and a tray with slots, a belt with a sensor (and
+    maybe a sink, a fence, a closed door, a fault), a vacuum cup or fingers; long waits."""
+    data = {"dt": draw(st.sampled_from([0.005, 0.01])), "seed": draw(st.integers(0, 9)), "time_limit": 60,
+            "part_types": {"p": {"radius": 0.03, "mass": draw(st.sampled_from([0.5, 2.0]))}},
+            "areas": {"bin": {"region": [-0.6, -0.6, -0.1, -0.1], "parts": {"p": draw(st.integers(0, 4))}},
+                      "tray": {"region": [0.1, -0.6, 0.5, -0.2], "slots": [[0.2, -0.4], [0.4, -0.4]]}},
+            "belts": {"b": {"from": [-0.8, 0.4], "to": [0.8, draw(st.sampled_from([0.3, 0.4]))],
+                            "speed": draw(st.sampled_from([0.1, 0.4])), "width": 0.15, "part_type": "p",
+                            "end": draw(st.sampled_from(["lost", "stop"])),
+                            "arrivals": {"period": draw(st.sampled_from([0.7, 3.0])), "count": 5}}},
+            "sensors": {"beam": {"region": [-0.1, 0.2, 0.0, 0.6], "on_enter": "seen", "on_exit": "gone"}},
+            "robots": {"r": {"base": [0, 0], "reach": 1.0, "home": [0, 0.1],
+                             "acceleration": draw(st.sampled_from([1.0, 30.0])),
+                             "gripper": {"type": draw(st.sampled_from(["vacuum", "fingers"])), "radius": 0.04,
+                                         "max_force": draw(st.sampled_from([2.0, 50.0]))}}}}
+    if draw(st.booleans()):
+        data["sinks"] = {"s": [0.5, 0.2, 0.9, 0.6]}
+    if draw(st.booleans()):
+        data["walls"] = {"fence": {"points": [[0.3, 0.5], [0.4, 0.35]], "on": "b"}}
+    if draw(st.booleans()):
+        data["doors"] = {"d": {"region": [-0.6, 0.6, -0.4, 0.8], "open_time": 0.3}}
+    if draw(st.booleans()):
+        data["faults"] = {"f": {"region": [-0.3, -0.1, -0.1, 0.1], "probability": 0.5}}
+    commands = draw(st.lists(st.tuples(st.sampled_from(["move", "pick", "pick", "release", "door", "wait"]),
+                                       _coord, _coord, st.integers(1, 150)), max_size=14))
+    return data, commands
+
+
+@settings(derandomize=True, max_examples=60, deadline=None, database=None,
+          suppress_health_check=[HealthCheck.too_slow])
+@given(st.one_of(sparse_scenes(), crowded_scenes(), random_scenes()))
+def test_a_batch_of_steps_is_the_same_as_the_steps_one_at_a_time(case):
+    """``World.step(n)`` hands quiet runs of steps to Chipmunk in one batch: the world it
+    leaves is the one ``n`` single steps leave, bit for bit (digest, places, events,
+    incidents), with contacts, slips, belts, sensors, doors and grippers in play."""
+    data, commands = case
+    try:
+        scene_from_data(copy.deepcopy(data))
+    except ModelError:
+        return
+    assert _stepwise(data, commands, True) == _stepwise(data, commands, False)
+
+
+def test_batches_end_where_a_belt_part_crosses_a_sensor_edge_or_reaches_a_waiting_cup():
+    """Long batches over a belt whose parts cross a sensor's edges, come under an armed
+    cup that waits on the belt, ride into a sink: every event at its step."""
+    data = {"dt": 0.01,
+            "belts": {"b": {"from": [-0.5, 0], "to": [0.5, 0], "speed": 0.2, "width": 0.1, "end": "lost",
+                            "arrivals": {"schedule": [0.0, 1.5, 2.2]}}},
+            "sensors": {"beam": {"region": [-0.2, -0.1, -0.15, 0.1], "on_enter": "seen", "on_exit": "gone"}},
+            "sinks": {"s": [0.3, -0.2, 0.6, 0.2]},
+            "robots": {"r": {"base": [0, 0.3], "reach": 0.5, "home": [0.1, 0.0],
+                             "gripper": {"type": "vacuum", "radius": 0.02}}}}
+    commands = [("grip", 0, 0, 350), ("release", 0, 0, 250), ("move", 0.1, 0.2, 400)]
+    batched = _stepwise(data, commands, True)
+    assert batched == _stepwise(data, commands, False)
+    events, incidents = batched[-1][2], batched[-1][3]
+    assert [e[2] for e in events] == ["seen", "gone"] * 3 and not incidents
+    assert batched[0][1][0] == "GRIPPER(r)" and batched[-1][1] == ["LOST"] * 3
+
+
+def test_an_ariac_trial_in_batches_is_the_same_as_one_step_at_a_time(monkeypatch):
+    """The ARIAC trial (carrying, coasting, tracking a belt part, the belt sensor) gives
+    the same digests tick by tick with and without batches."""
+    from btfsm.sim.protocol import TrialSpec
+    from btfsm.sim.trial import run_kitting
+
+    def digests():
+        seen = []
+        run_kitting(TrialSpec("preemptive", 3, time_limit=90.0), on_tick=lambda rt, w: seen.append(w.digest()))
+        return seen
+
+    batched = digests()
+
+    def one_at_a_time(self, n):
+        self._wait = n
+        return 0
+
+    monkeypatch.setattr(World, "_quiet", one_at_a_time)
+    assert digests() == batched and len(batched) == 900

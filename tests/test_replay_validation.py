@@ -27,7 +27,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 import btfsm.cli as cli
-import btfsm.files as files
+import btfsm.files.loading as files  # where load_cli_model looks load_model up (the cache below)
 from btfsm.formats import FormatError, validate
 from btfsm.trace import plain_record, read_trace
 from btfsm.verify.counterexample import load_counterexample

@@ -96,7 +96,8 @@ def test_a_tick_the_runtime_refuses_ends_a_trial_with_its_number(monkeypatch):
     trial ends there and reports it, numbered as the runtime numbers it (0-based: the
     ticks before it ran, it did not)."""
     monkeypatch.setattr(ariac, "ARM_DURATIONS", {s: 0.3 for s in ariac.ARM_DURATIONS})
-    r = trial.run_trial(TrialSpec("preemptive", 1, parts=2, time_limit=60.0), ariac.timed(ariac.preemptive(n_tray=2)))
+    r = trial.run_trial(TrialSpec("preemptive", 1, parts=2, time_limit=60.0),
+                        ariac.timed(ariac.preemptive(n_tray=2), durations="measured"))
     m = re.match(r"tick (\d+) \(t = ([\d.]+) s\): conformance mismatch: tick (\d+): ", r.conformance_error)
     assert m, r.conformance_error
     assert m.group(1) == m.group(3) and int(m.group(1)) == r.ticks and not r.completed

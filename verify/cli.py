@@ -14,6 +14,7 @@ from __future__ import annotations
 import json
 import os
 import sys
+from typing import cast
 
 from btfsm import reserve
 
@@ -31,6 +32,8 @@ def cli_check(args) -> int:
     unknown = [p for p in props if p not in PROPERTIES]
     if unknown:
         raise UsageError(f"unknown property {', '.join(repr(p) for p in unknown)}; known properties: {', '.join(PROPERTIES)}")
+    if getattr(args, "scheduler", None):
+        return _check_partitioned(args, props)
     max_states = DEFAULT_MAX_STATES if args.max_states is None else args.max_states
     max_transitions, max_seconds = _budgets(args, DEFAULT_MAX_TRANSITIONS)
     from btfsm.progress import ExplorationProgress
@@ -76,6 +79,84 @@ def cli_check(args) -> int:
         if not args.json:
             print(f"html report written: {html}")
     return report.exit_code
+
+
+PARTITIONED = ("workable-reachability", "no-dead-states")
+
+
+def _check_partitioned(args, props) -> int:
+    """``btfsm check --scheduler ADDRESS``: the properties of ``PARTITIONED`` with the
+    states partitioned across Dask workers (``btfsm.verify.distributed``); exit 0 when they
+    hold, 1 when one is violated (counted, without a counterexample path), 2 on bad input
+    or a scheduler that cannot be reached."""
+    import importlib.util
+    import re
+
+    from btfsm.errors import UsageError
+    from btfsm.files import load_model
+
+    other = [p for p in props if p not in PARTITIONED]
+    if other:
+        raise UsageError(f"--scheduler: only {' and '.join(PARTITIONED)} run partitioned, not {', '.join(other)}")
+    for flag in ("max_states", "max_transitions", "max_seconds", "trigger", "response", "within", "html",
+                 "counterexample_dir"):
+        if getattr(args, flag, None) is not None:
+            raise UsageError(f"--{flag.replace('_', '-')} does not go with --scheduler (the partitioned check has no "
+                             "budgets, no counterexample paths and no response properties)")
+    local = re.fullmatch(r"local(?::([0-9]+))?", args.scheduler)
+    if local is None and not re.fullmatch(r"(tcp|tls|inproc)://[^\s]+", args.scheduler):
+        raise UsageError(f"--scheduler: expected tcp://HOST:PORT or local:N, got {args.scheduler!r}")
+    workers = int(local.group(1) or 2) if local else 0
+    if local and not 1 <= workers <= 64:
+        raise UsageError(f"--scheduler local:N: N from 1 to 64, got {workers}")
+    if importlib.util.find_spec("distributed") is None:
+        raise ModuleNotFoundError("No module named 'distributed'", name="distributed")
+    opts = {"semantics": getattr(args, "semantics", None), "tick": getattr(args, "tick", None),
+            "node_library": getattr(args, "node_library", None), "nodes": tuple(getattr(args, "nodes", None) or ()),
+            "main_tree": getattr(args, "main_tree", None)}
+    model = _load(args)  # bad input is reported here, before any cluster starts
+    from .distributed import check_distributed, cluster
+    from .properties import not_applicable
+    from .traced import Untraceable
+
+    try:
+        with cluster(None if local else args.scheduler, workers or 2) as client:
+            where = f"{len(client.scheduler_info()['workers'])} Dask worker(s) " + (
+                "(an embedded local cluster)" if local else f"of {args.scheduler}")
+            r = check_distributed(client, load_model, (args.model,), opts)
+    except Untraceable as exc:
+        raise UsageError(f"{args.model}: the partitioned check needs a model the traced engine can follow ({exc})") from None
+    except (OSError, TimeoutError) as exc:
+        raise UsageError(f"--scheduler: cannot reach the Dask scheduler at {args.scheduler}: {exc}") from None
+    c = r.counts
+    verdicts = r.verdicts
+    skipped = {p: not_applicable(model, p) for p in PARTITIONED}
+    asked = props or list(PARTITIONED)
+    out = {"model": model.name, "partitioned": True, "workers": len(c.per_partition), "states": c.states,
+           "transitions": c.transitions, "rounds": c.levels, "seconds": round(r.seconds, 3),
+           "per_partition": c.per_partition, "states_sent": c.states_sent,
+           "results": {p: ("not applicable" if skipped[p] else verdicts[p]) for p in asked},
+           "traps": r.traps, "dead_states": r.dead, "sink_states": r.sinks,
+           "not_checked": "no-dead-states: the FSM-level non-progress cycles (run without --scheduler)"}
+    if args.json:
+        print(json.dumps(out))
+    else:
+        print(f"{model.name}: {c.states:,} states, {c.transitions:,} transitions on {where}, {c.levels} rounds, "
+              f"{r.seconds:.2f} s (states per worker {', '.join(f'{k:,}' for k in c.per_partition)}; "
+              f"{c.states_sent:,} states sent)")
+        for p in asked:
+            if skipped[p]:
+                print(f"  {p}: not applicable ({skipped[p]})")
+            elif p == "workable-reachability":
+                print(f"  {p}: " + ("holds" if verdicts[p] else f"VIOLATED: {r.traps:,} reachable state(s) can never get "
+                                    "back to a workable state (run without --scheduler for the counterexample)"))
+            else:
+                sinks = ", ".join(f"{k} ({v:,} states)" for k, v in r.sinks.items() if v)
+                print(f"  {p} (model level: dead and sink states): " + (
+                    "holds" if verdicts[p] else f"VIOLATED: {r.dead:,} dead state(s)" + (f"; FSM token on a sink: {sinks}"
+                                                                                         if sinks else "")))
+                print("    not checked partitioned: the FSM-level non-progress cycles (run without --scheduler)")
+    return 1 if any(v is False for v in out["results"].values()) else 0
 
 
 def _with_response(model, args):
@@ -146,9 +227,28 @@ def cli_bound(args) -> int:
            "triggers": int(rb.triggers.size), "unbounded": worst == INF,
            "worst_ticks": figure(worst), "worst_seconds": None if figure(worst) is None else rb.seconds(worst),
            "best_ticks": figure(best), "best_seconds": None if figure(best) is None else rb.seconds(best)}
+    within = getattr(args, "within", None)
+    first = None
+    if within is not None and worst is not None and ts.complete:
+        first = rb.first_late(int(round(within * model.tick_rate)))
+        if first is None:
+            raise UsageError("--within: the first late response needs an event trigger (event:NAME) whose "
+                             "min_interval exceeds the bound")
+        out.update(first_late_ticks=figure(first[0]),
+                   first_late_seconds=None if figure(first[0]) is None else rb.seconds(first[0]))
     written = None
-    if args.output and worst is not None:
-        path, k, loop = rb.worst_witness()
+    if args.output and first is not None:
+        _w, path, k = first
+        ce = counterexample(rb, path, k, None, f"the worst first late response: '{args.response}' {_w} tick(s) "
+                            f"({rb.seconds(_w):g} s) after '{args.trigger}', every earlier one within {within:g} s",
+                            None)
+        ce.violation["worst_ticks"] = _w  # this run's figure (the worst over all runs is larger)
+        from btfsm.outputs import atomic_write_text
+
+        atomic_write_text(args.output, json.dumps(ce.to_json(), indent=1, default=_plain) + "\n")
+        written = args.output
+    elif args.output and worst is not None:
+        path, k, loop = cast(tuple, rb.worst_witness())
         summary = (f"'{args.response}' may never come after '{args.trigger}'" if worst == INF else
                    f"the worst case: '{args.response}' {worst} tick(s) ({rb.seconds(worst):g} s) after '{args.trigger}'")
         ce = counterexample(rb, path, k, loop, summary, None)
@@ -168,8 +268,12 @@ def cli_bound(args) -> int:
                 return "unbounded (some behaviour never responds)" if t == INF else f"{t} ticks = {rb.seconds(t):g} s"
             print(f"worst case: {fmt(worst)}")
             print(f"best case:  {fmt(best)}")
+            if first is not None:
+                print(f"worst first late response (every earlier trigger answered within {within:g} s): "
+                      f"{fmt(first[0])}")
         if written:
-            print(f"worst-case run written: {written} (btfsm replay {written} {args.model})")
+            print(f"{'first late' if first is not None else 'worst-case'} run written: {written} "
+                  f"(btfsm replay {written} {args.model})")
     if not ts.complete:
         hit = describe_hit(ts.stopped, max_states, max_transitions, max_seconds) or "budget"
         print(f"({hit} hit: the figures cover the {ts.n_states:,} states explored; not decided)", file=sys.stderr)

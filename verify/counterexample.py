@@ -18,6 +18,7 @@ from __future__ import annotations
 import json
 import os
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any, Sequence
 
 from btfsm.errors import ConformanceError, DomainError
 from btfsm.formats import FormatError, decode_utf8, json_path, jsonable, parse_json, printable, validate
@@ -26,6 +27,9 @@ from btfsm.status import Status
 from .explore import run_script, script_of
 from .labels import readable
 from .search import EnumOracle
+
+if TYPE_CHECKING:
+    from btfsm.semantics import Site
 
 __all__ = ["Counterexample", "path_counterexample", "static_counterexample", "replay_counterexample",
            "load_counterexample", "FORMAT"]
@@ -183,7 +187,7 @@ def _step_record(ts, k, before, script, step, oracle, error=None) -> dict:
     label = readable(prog, tuple(oracle.picks), ts.open)[0]
     rec = {"tick": k, "script": list(script), "choices": jsonable(label)}
     if ts.kind == "fsm":
-        req = {"goal": None, "params": {}, "inputs": {}}
+        req: dict = {"goal": None, "params": {}, "inputs": {}}
         f = ts.model.fsm(ts.fsm)
         for item in label:
             if item[0] == "goal":
@@ -452,14 +456,14 @@ class _ChoiceOracle(EnumOracle):
         self.labels.append(label)
         return None
 
-    def env(self, i):
+    def env(self, i: int) -> bool:
         self._choose(2, ("env", i))
         c = int(self.prog.env[i][0] in self.env_names)
         self.taken.append(c)
         self.picks.append(("env", i, c))
         return c == 1
 
-    def choose(self, tag, enabled):
+    def choose(self, tag: int | tuple[Any, ...], enabled: Sequence[Any]) -> int:
         self._choose(len(enabled), ("choice", tag))
         prog = self.prog
         if isinstance(tag, int):
@@ -481,7 +485,7 @@ class _ChoiceOracle(EnumOracle):
         self.picks.append(("choice", tag, enabled[c]))
         return c
 
-    def outcome(self, site):
+    def outcome(self, site: Site) -> int:
         if not self.outs:
             self.error = f"{site.label} ran but the step records no more outcomes"
             k = 0

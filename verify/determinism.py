@@ -172,6 +172,8 @@ def analyse(model, *, gaps: bool = True) -> tuple:
         tok_var = solver.vars[prog.fsm_info[fi][2]]
         lits: dict = {}  # id(element) -> literal constraints of its guard
         done: dict = {}
+        by_edge: dict
+        by_marker: dict
         by_edge, by_marker = {}, {}  # (state, goal) -> elements, in declaration order
         for e in f.edges:
             for g in e.goals:
@@ -221,7 +223,7 @@ def analyse(model, *, gaps: bool = True) -> tuple:
 
 
 def _gaps(solver, f, st, g, edges, markers, statuses, done) -> list:
-    out = []
+    out: list = []
     if any(e.direct and e.guard is None for e in edges):
         return out  # an unguarded direct edge always fires first
     for s in statuses:

@@ -20,6 +20,7 @@ module describes the systems (``open_fsm``) and picks the engine.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any, cast
 
 from btfsm.bt import Action, Condition, Effects, Guard, SkillRequest, walk
 from btfsm.errors import DomainError
@@ -48,7 +49,7 @@ class OpenFSM:
     that can be requested; ``pres``: per goal, the ``pre`` conditions of the tree's
     SkillRequests for it (None: always requestable); ``params``: ``(slot, values)``."""
 
-    program: object
+    program: Any  # btfsm.semantics.Program
     fsm: str
     index: int
     kept: tuple
@@ -68,10 +69,10 @@ class OpenFSM:
         picks = oracle.picks
         for slot, vals in self.inputs:
             s[slot] = vals[oracle.choose(("input", slot), vals)]
-        rec = [] if record else None
+        rec: "list | None" = [] if record else None
         if not run_environment(prog, s, oracle, self.env, rec):
             return None
-        goals = self.goals
+        goals: Any = self.goals
         if self.pres:
             goals = [g for g in goals if _requestable(self.pres.get(g), s)]
             if not goals:
@@ -184,7 +185,7 @@ def _tree_footprint(prog, root, seen) -> tuple:
             reads |= r
             writes |= w
         elif isinstance(n, SkillRequest):
-            for e in (n.pre, n.post, *(x for _, x in n.params)):
+            for e in (n.pre, n.post, *(x for _, x in cast("tuple[tuple[str, Any], ...]", n.params))):
                 if e is not None:
                     reads |= _expr_slots(e, scope)
             r, w = _fsm_footprint(prog, n.fsm, seen)
@@ -228,7 +229,7 @@ def open_fsm(model, fsm: str, goals=None) -> OpenFSM:
                 pres.setdefault(g, []).append(fn)
                 if n.pre is not None:
                     reads |= _expr_slots(n.pre, prog.scope)
-            goal_idx = tuple(sorted(pres))
+            goal_idx: Any = tuple(sorted(pres))
             pres = {g: (None if any(p is None for p in ps) else tuple(ps)) for g, ps in pres.items()}
             if all(p is None for p in pres.values()):
                 pres = {}
@@ -412,13 +413,35 @@ def successor_scripts(ts, state) -> list:
     Blocked ticks are left out; DomainErrors appear with ``step`` None."""
     run = _runner(ts)
     out = []
-    for taken, st, o in all_choices(lambda s, o: run(s, o, True), tuple(state), EnumOracle, (DomainError,)):
+    if ts.kind == "model" and ts.model.program.merge_points:
+        choices = _merged_choices(lambda s, o: run(s, o, True), tuple(state))
+    else:
+        choices = all_choices(lambda s, o: run(s, o, True), tuple(state), EnumOracle, (DomainError,))
+    for taken, st, o in choices:
         if isinstance(st, DomainError):
             st = None
         elif st is not None and st.state is None:
             continue  # a blocked tick
         out.append((taken, st, o))
     return out
+
+
+def _merged_choices(run, state):
+    """``all_choices`` with in-tick retries merged (``EnumOracle.merge``), in the scalar
+    engine's order, so that it gives the transitions that engine keeps."""
+    stack, seen = [()], {}
+    while stack:
+        script = stack.pop()
+        o = EnumOracle(script, seen)
+        try:
+            result = run(state, o)
+        except DomainError as exc:
+            result = exc
+        taken = tuple(o.taken)
+        for k in range(len(script), len(o.arities) if o.cut is None else max(o.cut, len(script))):
+            for c in range(1, o.arities[k]):
+                stack.append(taken[:k] + (c,))
+        yield taken, result, o
 
 
 def script_of(ts, t: int) -> tuple:

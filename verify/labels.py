@@ -12,7 +12,8 @@ STATUS = ("RUNNING", "SUCCESS", "FAILURE")
 
 def readable(prog, key, op) -> tuple:
     """(hashable readable label, requested goal index or -1) of a picks key."""
-    out, goal = [], -1
+    out: list = []
+    goal = -1
     env = prog.env
     for p in key:
         head = p[0]

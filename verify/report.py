@@ -135,7 +135,7 @@ def lint_summary(warnings) -> str:
 
 def _system_text(s: dict) -> str:
     what = "model" if s["kind"] == "model" else f"FSM {s['fsm']}"
-    inc = "" if s["complete"] else f", incomplete ({HIT_WORDS.get(s.get('budget'), 'a')} budget hit)"
+    inc = "" if s["complete"] else f", incomplete ({HIT_WORDS.get(s.get('budget') or '', 'a')} budget hit)"
     return f"{what} {s['states']} states, {s['transitions']} transitions{inc}"
 
 

@@ -26,12 +26,16 @@ import json
 import re
 import sys
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any, Sequence, cast
 
-from btfsm.bt import Condition, Leaf, SubTree
+from btfsm.bt import Condition, Leaf, SubTree, names_in
 from btfsm.errors import ModelError
 from btfsm.interop.btcpp_import import CONTROLS, DECORATORS
 from btfsm.interop.btlog import MAGIC, STATUS_NAMES, read_btlog
 from btfsm.oracles import ScriptOracle, all_choices
+
+if TYPE_CHECKING:
+    from btfsm.semantics import Site
 
 __all__ = ["LogVerdict", "check_btlog", "check_pytrees_run", "read_pytrees_run", "cli_conform_log",
            "PYTREES_FORMAT", "DEFAULT_MAX_CONFIGS", "MAX_LOG_BYTES"]
@@ -81,7 +85,7 @@ class _Pruning(ScriptOracle):
         super().__init__(script)
         self.events, self.fits = [], fits
 
-    def outcome(self, site) -> int:
+    def outcome(self, site: Site) -> int:
         if len(site.outcomes) > 1 and not self.fits(self.events):
             raise _Dead
         return super().outcome(site)
@@ -344,12 +348,12 @@ def check_btlog(model, log, file: str = "log", allow=None, max_configs: int = DE
     program = model.program
     matcher = _Matcher(entries, mp.rule)
     n = len(entries)
-    children = [[] for _ in mp.keys]
+    children: list = [[] for _ in mp.keys]
     for k, p in enumerate(mp.parent):
         if p is not None:
             children[p].append(k)
     start = (program.initial, 0, (IDLE,) * len(mp.keys))
-    parents = {start: None}  # configuration -> (configuration before, Step): the explaining run
+    parents: dict = {start: None}  # configuration -> (configuration before, Step): the explaining run
     furthest = start
     seen = {0: {start}}  # log position -> configurations found there
     heap = [(0, 0, 0, start)]  # (position, ticks, order, configuration)
@@ -439,6 +443,7 @@ class PytreesRun:
 
 def read_pytrees_run(text: str, file: str) -> PytreesRun:
     """The ``PytreesRun`` in a recording's text (JSON lines; errors name the line)."""
+    ticks: list
     nodes, ticks = None, []
     for no, line in enumerate(text.splitlines(), 1):
         if not line.strip():
@@ -449,7 +454,7 @@ def read_pytrees_run(text: str, file: str) -> PytreesRun:
         try:
             rec = json.loads(line)
         except ValueError as exc:
-            raise fail(f"not JSON ({exc.msg})") from None
+            raise fail(f"not JSON ({getattr(exc, 'msg', exc)})") from None
         if not isinstance(rec, dict):
             raise fail("expected a JSON object")
         if nodes is None:
@@ -484,18 +489,29 @@ def read_pytrees_run(text: str, file: str) -> PytreesRun:
     return PytreesRun(nodes, ticks)
 
 
-_PYTREES_KNOWN = {"Sequence": None, "Selector": None, "Parallel": "Parallel", "Inverter": "Inverter",
-                  "FailureIsSuccess": "ForceSuccess", "SuccessIsFailure": "ForceFailure", "Retry": "Retry",
-                  # a Repeat whose count py_trees never reaches is imported as KeepRunningUntilFailure
-                  "Repeat": "Repeat|KeepRunningUntilFailure", "SuccessIsRunning": "KeepRunningUntilFailure",
-                  "FailureIsRunning": "FailureIsRunning", "RunningIsFailure": "RunningIsFailure",
-                  "RunningIsSuccess": "RunningIsSuccess", "EternalGuard": "Guard"}
+def _pytrees_known() -> dict:
+    """py_trees class name -> the btfsm node type it records (the node classes' ``pytrees``
+    names); None for a class that stands for several (Sequence, Selector: memory decides)."""
+    types: dict = {}
+    for key, name in names_in("pytrees").items():
+        types.setdefault(name.split("(")[0], []).append(key)
+    out = {name: keys[0] if len(keys) == 1 else None for name, keys in types.items()}
+    out["Repeat"] = "Repeat|KeepRunningUntilFailure"  # a count py_trees never reaches is imported as the latter
+    return out
+
+
+_PYTREES_KNOWN = _pytrees_known()
 _PY_STATUS = {"RUNNING": 0, "SUCCESS": 1, "FAILURE": 2}
 
 
 def _map_pytrees(run, model, file) -> _Map:
+    from btfsm.interop.pytrees import btfsm_names
+
+    # the names from_pytrees gives the recorded behaviours (a second 'a' is 'a_2'...)
+    named = [nd for nd in run.nodes if nd["type"] not in ("PassThrough", "Count")]
+    names = {nd["index"]: nm for nd, nm in zip(named, btfsm_names([nd["name"] for nd in named]))}
     return _map_tree(run.nodes[0], model, file, children=lambda nd: nd["children"], tag=lambda nd: nd["type"],
-                     name=lambda nd: nd["name"],
+                     name=lambda nd: names.get(nd["index"], nd["name"]),
                      label=lambda nd: f"'{nd['name']}' ({nd['type']}, node {nd['index']})", key=lambda nd: nd["index"],
                      wrapper=lambda nd: nd["type"] in ("PassThrough", "Count"),
                      known=lambda nd: _PYTREES_KNOWN.get(nd["type"]))
@@ -511,12 +527,12 @@ def check_pytrees_run(model, run, file: str = "run", allow=None, max_configs: in
     program = model.program
     flags = [(info.flag, name) for name, info in program.nodes.items() if info.flag is not None and name in mp.prim]
     states = {program.initial}
-    parents = {(0, program.initial): None}  # (tick, state) -> ((tick, state) before, Step)
+    parents: dict = {(0, program.initial): None}  # (tick, state) -> ((tick, state) before, Step)
     searched = 1
     for tick, (visited, running) in enumerate(run.ticks):
         want = [(index[i], _PY_STATUS.get(s)) for i, s in visited]
         want_running = {index[i] for i in running}
-        best = [-1, set()]
+        best: list = [-1, set()]
 
         def expected(events):
             out = []
@@ -642,7 +658,7 @@ def cli_conform_log(args) -> int:
         text = (f"{path}: conforms to {model.name} under {semantics}: {what} explained by a run of "
                 f"{verdict.ticks} tick(s) ({verdict.searched:,} configurations searched)")
     else:
-        text = f"{path}: does not conform to {model.name} under {semantics}: {verdict.first['text']}"
+        text = f"{path}: does not conform to {model.name} under {semantics}: {cast(dict, verdict.first)['text']}"
     if page:
         from btfsm.html import log_page, write_page
 

@@ -16,6 +16,7 @@ import time
 from array import array
 from collections import deque
 from operator import mul
+from typing import Any
 
 import numpy as np
 
@@ -23,7 +24,7 @@ from btfsm.errors import DomainError
 
 from .codec import codec, decode, rows
 from .labels import readable
-from .search import DEFAULT_MAX_STATES, Budget, EnumOracle, run_environment
+from .search import DEFAULT_MAX_STATES, Budget, EnumOracle, Search, run_environment
 from .system import DomainViolation, TransitionSystem
 
 __all__ = ["search", "TreeCache", "OutOfTime"]
@@ -80,11 +81,12 @@ class TreeCache:
         stack = [()]
         step = self.tree.step
         timed = budget is not None and budget.max_seconds is not None
+        seen = {} if self.tree.merge_points else None  # in-tick retries merged (EnumOracle.merge)
         while stack:
             if timed and len(res) % _CLOCK_EVERY == _CLOCK_EVERY - 1 and budget.out_of_time():
                 raise OutOfTime()
             script = stack.pop()
-            o = EnumOracle(script)
+            o = EnumOracle(script, seen)
             err = st = None
             try:
                 st = step(post, o)
@@ -94,7 +96,7 @@ class TreeCache:
             k0 = len(script)
             if len(ar) > k0:
                 taken = o.taken
-                for k in range(k0, len(ar)):
+                for k in range(k0, len(ar) if o.cut is None else max(o.cut, k0)):
                     base = tuple(taken[:k])
                     for c in range(1, ar[k]):
                         stack.append(base + (c,))
@@ -137,8 +139,8 @@ def search(model, kind, fsm, kept, run, initial, budget, progress, op, split=Non
     timed = budget.max_seconds is not None
     runs, check_at = 0, _CLOCK_EVERY  # step runs, and when to read the clock next
     visited: dict = {}
-    codes = array("q") if small else []
-    tuples = None if small else []
+    codes: Any = array("q") if small else []
+    tuples: Any = None if small else []
     parent = array("q", [-1])
     src, dst, lab, stat = array("q"), array("q"), array("q"), array("b")
     label_ids: dict = {}
@@ -147,6 +149,7 @@ def search(model, kind, fsm, kept, run, initial, budget, progress, op, split=Non
     label_goal: list = []
     errors, violations = [], []
     s0 = tuple(initial)
+    c: Any  # a state code: an int, or the kept values when the codes would not fit one
     c0 = sum(map(mul, s0, mults)) if small else tuple(s0[k] for k in kept)
     visited[c0] = 0
     if small:
@@ -156,6 +159,7 @@ def search(model, kind, fsm, kept, run, initial, budget, progress, op, split=Non
     queue = deque([s0])
     n, i, complete, nt = 1, -1, True, 0
     Oracle = EnumOracle
+    loops = kind == "model" and bool(prog.merge_points)
     last = 0
 
     def label_of(key):
@@ -180,6 +184,7 @@ def search(model, kind, fsm, kept, run, initial, budget, progress, op, split=Non
             last = i
             progress(n, nt, time.perf_counter() - t0)
         stack = [()]
+        seen: "dict | None" = {} if loops else None  # in-tick retries merged per state (EnumOracle.merge)
         if split is not None:  # environment answers here, tree results from the cache
             env = split.env
             while stack:
@@ -260,7 +265,7 @@ def search(model, kind, fsm, kept, run, initial, budget, progress, op, split=Non
                             complete, budget.hit = False, "seconds"
                             break
                 script = stack.pop()
-                o = Oracle(script)
+                o = Oracle(script, seen)
                 try:
                     st = run(s, o)
                 except DomainError as exc:
@@ -271,7 +276,7 @@ def search(model, kind, fsm, kept, run, initial, budget, progress, op, split=Non
                 k0 = len(script)
                 if len(ar) > k0:
                     taken = o.taken
-                    for k in range(k0, len(ar)):
+                    for k in range(k0, len(ar) if o.cut is None else max(o.cut, k0)):
                         base = tuple(taken[:k])
                         for c in range(1, ar[k]):
                             stack.append(base + (c,))
@@ -325,3 +330,6 @@ def search(model, kind, fsm, kept, run, initial, budget, progress, op, split=Non
                             complete=complete, seconds=seconds, status=stat_a, goal=goal_a, expanded=expanded,
                             errors=tuple(errors), violations=tuple(violations), open=op,
                             stopped=None if complete else budget.hit)
+
+
+_declared: Search = search  # an engine of the shared interface (btfsm.verify.search.Search; mypy holds it to it)

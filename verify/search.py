@@ -1,14 +1,25 @@
 """The pieces every exploration engine shares: the enumerating oracle (``EnumOracle``),
-the environment step (``run_environment``) and the budgets (``Budget``).
+the environment step (``run_environment``), the budgets (``Budget``) and the engines'
+interfaces (``Search``: what ``btfsm.verify.scalar.search`` and
+``btfsm.verify.traced.search`` are; ``Explorer``: a whole exploration with its budgets, what
+``btfsm.verify.vector.explore`` is; tests/test_engines_shared.py runs one suite over them).
 """
 from __future__ import annotations
 
 import time
+from typing import TYPE_CHECKING, Any, Callable, Protocol, Sequence
 
 from btfsm.oracles import ScriptOracle
 
+if TYPE_CHECKING:
+    from btfsm.model import Model
+    from btfsm.semantics import Site, Step
+
+    from .explore import OpenFSM
+    from .system import TransitionSystem
+
 __all__ = ["EnumOracle", "run_environment", "DEFAULT_MAX_STATES", "DEFAULT_MAX_TRANSITIONS", "Budget", "BudgetExceeded",
-           "describe_hit", "HIT_WORDS"]
+           "describe_hit", "HIT_WORDS", "Search", "Explorer", "Progress", "Run"]
 
 DEFAULT_MAX_STATES = 5_000_000
 DEFAULT_MAX_TRANSITIONS = 50_000_000  # the command line's default: about 1.3 GB of transition arrays
@@ -24,13 +35,45 @@ class EnumOracle(ScriptOracle):
     this is the innermost loop of exploration. Scripts are assumed valid (they are made
     from the arities recorded on the same prefix)."""
 
-    __slots__ = ("picks",)
+    __slots__ = ("picks", "seen", "cut", "outer", "ran", "seen_picks")
 
-    def __init__(self, script=()):
+    def __init__(self, script=(), seen=None):
         self.script, self.pos = script, 0
         self.arities, self.labels, self.taken, self.picks = [], [], [], []
+        self.seen, self.cut, self.ran = seen, None, None
 
-    def env(self, i):
+    def merge(self, node, s, violations, fsm_done, reticks=()):
+        """Merging in-tick retries (``seen``: a dict shared by every run of one enumeration of
+        a state's successors; None: off). ``Program.step`` calls this where a loop node
+        (a RecoveryNode, ``Program.merge_points``) starts a retry within the tick; from there
+        the rest of the tick depends only on ``s``, the violations, FSM records and tickOnce
+        re-ticks so far (the tick's whole context there). The first run to reach that
+        context (with the answers before it: the same environment, and whether a leaf
+        answered RUNNING) keeps it; a run reaching it after other answers sets ``cut``:
+        it finishes with its default answers, but its choice points from here on are not
+        branched (the first run's branches give every ending from here). So every
+        (target, status, violations) and every answer and event of a tick is still
+        found, each ending once per context (docs/semantics.md 8.3)."""
+        if self.seen is None or self.cut is not None:
+            return
+        picks = self.picks
+        if self.ran is None:  # the answers before the tree (environment, request), asked once
+            self.outer = tuple(p for p in picks if p[0] == "env" or p[0] == "choice")
+            self.ran, self.seen_picks = False, 0
+        if not self.ran:  # has a leaf answered RUNNING so far?
+            for k in range(self.seen_picks, len(picks)):
+                p = picks[k]
+                if len(p) == 2 and p[0].outcomes[p[1]][0] == 0:
+                    self.ran = True
+                    break
+            self.seen_picks = len(picks)
+        key = (node, tuple(s), tuple(violations), frozenset(fsm_done.items()) if fsm_done else None, reticks,
+               self.outer, self.ran)
+        prefix = tuple(self.taken)
+        if self.seen.setdefault(key, prefix) != prefix:
+            self.cut = self.pos
+
+    def env(self, i: int) -> bool:
         k = self.pos
         self.pos = k + 1
         s = self.script
@@ -41,7 +84,7 @@ class EnumOracle(ScriptOracle):
         self.picks.append(("env", i, c))
         return c == 1
 
-    def choose(self, i, enabled):
+    def choose(self, i: int | tuple[Any, ...], enabled: Sequence[Any]) -> int:
         if len(enabled) == 1:
             return 0  # a lone option is no choice (as in ScriptOracle)
         k = self.pos
@@ -54,7 +97,7 @@ class EnumOracle(ScriptOracle):
         self.picks.append(("choice", i, enabled[c]))
         return c
 
-    def outcome(self, site):
+    def outcome(self, site: Site) -> int:
         n = len(site.outcomes)
         if n == 1:
             self.picks.append((site, 0))
@@ -100,7 +143,8 @@ class Budget:
 
     __slots__ = ("max_states", "max_transitions", "max_seconds", "start", "hit")
 
-    def __init__(self, max_states=None, max_transitions=None, max_seconds=None):
+    def __init__(self, max_states: "int | None" = None, max_transitions: "int | None" = None,
+                 max_seconds: "float | None" = None) -> None:
         self.max_states = None if max_states is None else max(int(max_states), 1)
         self.max_transitions = None if max_transitions is None else max(int(max_transitions), 0)
         self.max_seconds = None if max_seconds is None else float(max_seconds)
@@ -150,3 +194,38 @@ class BudgetExceeded(Exception):
     def __init__(self, hit: str, message: str):
         super().__init__(message)
         self.hit = hit
+
+
+# ---------------------------------------------------------------------- the engines' interfaces
+
+#: ``progress(states, transitions, seconds)``, called by an engine as it goes
+Progress = Callable[[int, int, float], Any]
+#: one transition: ``run(state, oracle, record=False) -> Step`` (``Program.step``, or
+#: ``OpenFSM.run`` at FSM level)
+Run = Callable[..., "Step"]
+
+
+class Search(Protocol):
+    """An exploration engine of ``btfsm.verify.explore`` (``scalar.search``,
+    ``traced.search``; ``explore._explore_with`` picks one): breadth-first from
+    ``initial`` by ``run``, states coded over the ``kept`` slots (``kind`` is ``"model"``,
+    or ``"fsm"`` with the FSM's name ``fsm`` and its ``OpenFSM`` ``op``); the search stops
+    at the first bound of ``budget`` hit and records which in ``budget.hit``. Engines
+    give the same system, numbering included. (An engine may take more arguments after
+    these, with defaults: the scalar engine's ``split``, the traced engine's ``fallback``.)"""
+
+    def __call__(self, model: Model, kind: str, fsm: str | None, kept: Sequence[int], run: Run,
+                 initial: tuple[int, ...], budget: Budget, progress: Progress | None, op: OpenFSM | None,
+                 /) -> TransitionSystem: ...
+
+
+class Explorer(Protocol):
+    """A whole exploration: the model (``fsm`` None) or its FSM ``fsm`` as an open system
+    (requests for ``goals``, all when None) to its ``TransitionSystem``, under the budgets
+    (None: unbounded; see ``Budget``): ``btfsm.verify.vector.explore``; and the scalar,
+    traced and auto engines as ``btfsm.verify.explore.explore`` (``fsm`` None) or
+    ``explore_fsm`` with ``engine=`` their name (tests/test_engines_shared.py)."""
+
+    def __call__(self, model: Model, *, fsm: str | None = None, goals: Sequence[str] | None = None,
+                 max_states: int | None = None, max_transitions: int | None = None,
+                 max_seconds: float | None = None, progress: Progress | None = None) -> TransitionSystem: ...

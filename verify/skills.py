@@ -42,6 +42,7 @@ import json
 import time
 from collections import deque
 from dataclasses import dataclass, field
+from typing import Any
 
 from btfsm.oracles import SucceedOracle, all_choices
 from btfsm.bt import SkillRequest, walk
@@ -87,7 +88,7 @@ class Pair:
 class Derivation:
     """What ``derive`` found; ``pairs`` maps ``(a, b, kind)`` to a Pair."""
 
-    model: object
+    model: Any  # btfsm.model.Model
     skills: list
     pairs: dict
     states: int  # product states (model state x last skill)
@@ -225,7 +226,7 @@ def derive(model, *, max_states: "int | None" = None, max_transitions: "int | No
     skill_of_goal = {(s.fsm, s.goal): i for i, s in enumerate(skills)}
     held_code = [(prog.fsm_info[prog.fsm_index[s.fsm]][3], prog.model.fsm(s.fsm).goals.index(s.goal) + 1) for s in skills]
     d = Derivation(model, skills, {}, 0, 0, 0, True, 0.0)
-    start = (prog.initial, None)
+    start: Any = (prog.initial, None)
     index = {start: 0}
     parent = [(-1, ())]
     order = [start]
@@ -233,7 +234,7 @@ def derive(model, *, max_states: "int | None" = None, max_transitions: "int | No
     i = met = 0  # met: model states whose successors were enumerated (at least in part)
     while i < len(order) and d.complete:
         state, last = order[i]
-        succ = cache.get(state)
+        succ: Any = cache.get(state)
         fresh = succ is None
         if fresh:
             met += 1
@@ -245,7 +246,7 @@ def derive(model, *, max_states: "int | None" = None, max_transitions: "int | No
                     k = skill_of_goal.get((f.name, f.goals[g - 1]))
                     if k is not None:
                         d.held.setdefault(k, set()).add(state)
-        kept = [] if fresh else None
+        kept: Any = [] if fresh else None
         for item in succ:
             if item is None:  # out of time while enumerating
                 d.complete, d.stopped = False, "seconds"
@@ -265,7 +266,7 @@ def derive(model, *, max_states: "int | None" = None, max_transitions: "int | No
                     d.params.setdefault(b, set()).add(ev[2])
                     kind = "first" if cur is None else {"success": "completion", "halted": "preemption",
                                                          "failure": "failure", "running": "concurrent"}[cur[1]]
-                    a = None if cur is None else cur[0]
+                    a: Any = None if cur is None else cur[0]
                     pair = d.pairs.get((a, b, kind))
                     if pair is None:
                         pair = d.pairs[(a, b, kind)] = Pair(a, b, kind, 0, _path(parent, i) + (script,))
@@ -469,7 +470,7 @@ def check_support(d: Derivation, *, where: str = "switch", budget: int = 1_000_0
         for params in sorted(by_params):
             keys = by_params[params]
             cache_key = (b, params)
-            region = regions.get(cache_key)
+            region: Any = regions.get(cache_key)
             missing = [k for k in keys if region is None or k not in region[1]]
             if missing:
                 start = set(missing) | (region[1] if region else set())
@@ -493,7 +494,7 @@ def check_support(d: Derivation, *, where: str = "switch", budget: int = 1_000_0
 # --------------------------------------------------------------------------- output
 def _matrix(d: Derivation) -> list:
     names = [d.name(i) for i in range(len(d.skills))]
-    cells = {}
+    cells: dict = {}
     for (a, b, kind) in d.pairs:
         if a is not None:
             cells.setdefault((a, b), []).append(_MARK[kind])
@@ -622,7 +623,7 @@ def cli_skills(args) -> int:
     with ExplorationProgress() as bar:  # on a terminal only, after a second
         d = derive(model, max_states=max_states, max_transitions=max_transitions, max_seconds=max_seconds,
                    progress=lambda states, seconds: bar("skills", states))
-    support = None
+    support: Any = None
     if d.complete:
         try:
             support = check_support(d, budget=min(max_states, 1_000_000),

@@ -13,6 +13,7 @@ range of an int expression.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 from btfsm.bt import SkillRequest
 from btfsm.errors import ModelError
@@ -52,8 +53,8 @@ class StepSpec:
     expressions ``params`` as ``((slot, AST), ...)``). ``stored``: the program slots a
     state holds."""
 
-    model: object
-    program: object
+    model: Any  # btfsm.model.Model
+    program: Any  # btfsm.semantics.Program
     kind: str
     fsm: str
     index: int
@@ -147,6 +148,11 @@ def _rows(prog, fi) -> tuple:
         outcomes = tuple((int(o.status), o.effects, o.name) for o in prim.outcomes)
         per_goal = []
         for g in f.goals:
+            dedges: list
+            dmarkers: list
+            edges: Any
+            markers: Any
+            item: tuple
             dedges, dmarkers, edges, markers, applicable = [], [], ([], [], []), ([], [], []), False
             for e in f.edges:
                 if e.source != st.id or g not in e.goals:

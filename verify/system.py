@@ -22,6 +22,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from functools import cached_property
+from typing import cast
 
 import numpy as np
 
@@ -245,18 +246,18 @@ class TransitionSystem:
     def goal_of(self, t: int) -> int:
         """The requested goal of transition ``t`` (FSM level), without building ``goal``."""
         if "goal" in self.__dict__ or self.edge is None:
-            return int(self.goal[t])
-        return int(self.label_goal[self.label_of(t)])
+            return int(cast(np.ndarray, self.goal)[t])
+        return int(cast(np.ndarray, self.label_goal)[self.label_of(t)])
 
     def pick(self, tmask: np.ndarray) -> tuple:
         """``(positions, src, dst)`` of the transitions selected by ``tmask`` (int64
         positions; sources made a slice at a time)."""
-        pos, srcs = [np.zeros(0, np.int64)], [np.zeros(0, np.int64)]
+        parts, srcs = [np.zeros(0, np.int64)], [np.zeros(0, np.int64)]
         for a, b, src in self.slices():
             sel = np.flatnonzero(tmask[a:b])
-            pos.append(sel + a)
+            parts.append(sel + a)
             srcs.append(src[sel])
-        pos = np.concatenate(pos)
+        pos = np.concatenate(parts)
         return pos, np.concatenate(srcs), self.dst[pos]
 
     def where(self, fn) -> np.ndarray:
@@ -319,7 +320,7 @@ class TransitionSystem:
             raise ValueError(f"{self.n_states} states: too many for networkx (max_states={max_states})")
         import networkx as nx
 
-        g = nx.MultiDiGraph(model=self.model.name, kind=self.kind, fsm=self.fsm)
+        g: nx.MultiDiGraph = nx.MultiDiGraph(model=self.model.name, kind=self.kind, fsm=self.fsm)
         for i in range(self.n_states):
             g.add_node(i, **self.decode(i))
         for t in range(self.n_transitions):
@@ -495,7 +496,7 @@ def shortest_path(ts: TransitionSystem, start: int, goal, mask: "np.ndarray | No
     elif isinstance(goal, (set, frozenset)):
         is_goal = goal.__contains__
     else:
-        is_goal = (lambda i, g=int(goal): i == g)
+        is_goal = (lambda i, g=int(goal): i == g)  # type: ignore[misc]  # (mypy cannot type a lambda default)
     if is_goal(start):
         return []
     offs = ts.offsets

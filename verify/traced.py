@@ -37,6 +37,7 @@ from __future__ import annotations
 
 import time
 from array import array
+from typing import TYPE_CHECKING, Any, Callable, Sequence
 
 import numpy as np
 
@@ -44,8 +45,11 @@ from btfsm.errors import DomainError
 
 from .codec import code_dtype, codec
 from .labels import readable
-from .search import DEFAULT_MAX_STATES, Budget, EnumOracle
+from .search import DEFAULT_MAX_STATES, Budget, EnumOracle, Search
 from .system import DomainViolation, TransitionSystem
+
+if TYPE_CHECKING:
+    from btfsm.semantics import Site
 
 __all__ = ["search", "BatchSuccessors", "Untraceable", "TooManyPaths", "CHUNK", "DENSE_LIMIT", "PATHS_MIN", "ROWS_LIMIT"]
 
@@ -236,6 +240,10 @@ class _Visited:
         self.codes = np.zeros(1024, code_dtype(total))
         self.codes[0] = c0
         self.n = 1
+
+    # each subclass's set of codes
+    ids: Callable[[np.ndarray], np.ndarray]
+    index: Callable[[np.ndarray], Any]
 
     def batch(self, head: int, k: int) -> np.ndarray:
         return self.codes[head:head + k].astype(np.int64)
@@ -468,19 +476,19 @@ class _TracingOracle(EnumOracle):
         if len(self.arities) > k:
             self.path.append(("c", self.arities[k], self.taken[k]))
 
-    def env(self, i):
+    def env(self, i: int) -> bool:
         k = len(self.arities)
         r = EnumOracle.env(self, i)
         self._note(k)
         return r
 
-    def choose(self, i, enabled):
+    def choose(self, i: int | tuple[Any, ...], enabled: Sequence[Any]) -> int:
         k = len(self.arities)
         r = EnumOracle.choose(self, i, enabled)
         self._note(k)
         return r
 
-    def outcome(self, site):
+    def outcome(self, site: Site) -> int:
         k = len(self.arities)
         r = EnumOracle.outcome(self, site)
         self._note(k)
@@ -614,7 +622,7 @@ class _Engine:
         out = []
         emitted, wide = 0, len(codes) > 1
         every = len(codes)
-        stack = [(self.root, None, np.arange(every), ())]
+        stack: list = [(self.root, None, np.arange(every), ())]
         pop, push = stack.pop, stack.append
         while stack:
             holder, key, rows, script = pop()
@@ -637,6 +645,7 @@ class _Engine:
                     push((kids, c, rows, script + (c,)))
                 continue
             vals = ev(what)
+            groups: Any
             if not isinstance(vals, np.ndarray):  # a constant: every row goes one way
                 groups = ((bool(vals) if kind == "b" else int(vals), rows),)
             elif kind == "b":
@@ -883,6 +892,8 @@ def search(model, kind, fsm, kept, run, s0, budget, progress, op, fallback: bool
     path traced and after every batch."""
     t0 = time.perf_counter()
     prog = model.program
+    if kind == "model" and prog.merge_points:
+        raise Untraceable("in-tick retries (RecoveryNode) are merged by the scalar engine only")
     eng = _Engine(model, run, kept, s0, op)
     mults, offset, total = eng.mults, eng.offset, eng.total
     if budget is None:
@@ -965,7 +976,7 @@ def search(model, kind, fsm, kept, run, s0, budget, progress, op, fallback: bool
             visited.add(newcodes)
             parent.extend(firstpos + nt, nt + cut)
             n += len(newcodes)
-        cut_row = None if complete else int(rows[cut])
+        cut_row: Any = None if complete else int(rows[cut])
         if staged is not None:
             lid = staged.kinds(cut + 1)
         stop = None if complete or staged is not None else (cut_row, int(ords[lid[cut]]))
@@ -1073,12 +1084,20 @@ class BatchSuccessors:
         self.engine.max_paths = 1 << 62
         mults, offset = self.engine.mults, self.engine.offset
         self.initial = sum(v * m for v, m in zip(prog.initial, mults)) - offset
+        self.total = self.engine.total  # codes lie in 0..total-1
+        self.mults = tuple(int(m) for m in mults)  # slot k's value is (code // mults[k]) % size + lo
 
     def __call__(self, codes: np.ndarray):
+        return self.expand(codes)[:2]
+
+    def expand(self, codes: np.ndarray):
+        """``(rows, targets, error rows)``: the last, the batch rows (with repeats) of
+        ticks that raised a domain error."""
         codes = np.asarray(codes, np.int64)
         out, ev = self.engine.expand(codes, 1 << 62)
         rows, _lid, dst = _transitions([(leaf, r) for leaf, r in out if leaf.kind == "ok"], codes, ev)
-        return rows, dst
+        bad = [np.asarray(r, np.int64) for leaf, r in out if leaf.kind == "error"]
+        return rows, dst, np.concatenate(bad) if bad else np.zeros(0, np.int64)
 
 
 def _view(buf, dtype) -> np.ndarray:
@@ -1436,3 +1455,6 @@ class _Staged:
 def _dfs_key(script) -> tuple:
     """The order of a choice script in the scalar engine's depth-first search."""
     return tuple(c and _LAST - c for c in script)
+
+
+_declared: Search = search  # an engine of the shared interface (btfsm.verify.search.Search; mypy holds it to it)

@@ -32,6 +32,7 @@ from __future__ import annotations
 import re
 import time
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -39,7 +40,7 @@ from btfsm.errors import DomainError, ModelError
 from btfsm.expr import INT, names_in, to_numpy_source
 from btfsm.model import EnvChoice
 
-from .search import Budget
+from .search import Budget, Explorer
 from .stepspec import StepSpec, int_bounds, step_spec
 from .system import DomainViolation, TransitionSystem
 
@@ -222,7 +223,8 @@ class Engine:
         if not effects:
             return batch
         cols = batch.cols
-        values, bad = {}, _F
+        values: dict = {}
+        bad: Any = _F
         for name, value in effects:
             slot = self.scope[name]
             v = self.ev(value, cols, False, slot.type)
@@ -270,7 +272,7 @@ class Engine:
         ``(pos, codes, labels, status, post)`` arrays per final batch, as a list."""
         prog = self.prog
         c = chunk_codes.astype(self.S)
-        out = []
+        out: list = []
         self.memo = {}
         tm = self.mult[self.tok]
         bounds = np.searchsorted(chunk_codes, np.arange(len(self.ids) + 1, dtype=np.int64) * tm)
@@ -279,7 +281,7 @@ class Engine:
             if a == b:
                 continue
             part = c[a:b]
-            cols = [None] * len(prog.slots)
+            cols: list = [None] * len(prog.slots)
             for k, v in self.fixed_cols.items():
                 cols[k] = v
             for k in self.order:
@@ -963,3 +965,6 @@ def _domain_errors(model, spec, eng, codes, states, goals=None) -> tuple:
                 for c in range(1, o.arities[k]):
                     stack.append(tuple(o.taken[:k]) + (c,))
     return tuple(out)
+
+
+_declared: Explorer = explore  # a whole exploration (btfsm.verify.search.Explorer; mypy holds it to it)

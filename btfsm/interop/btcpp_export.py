@@ -53,24 +53,16 @@ from __future__ import annotations
 
 import re
 
-from ..bt import (Action, Condition, Effects, ForceFailure, ForceSuccess, Guard, IfThenElse, Inverter,
-                  KeepRunningUntilFailure, MemoryFallback, MemorySequence, Parallel, ParallelAll,
-                  ReactiveFallback, ReactiveSequence, Repeat, Retry, RunOnce, SequenceWithMemory,
-                  SkillRequest, SubTree, WhileDoElse)
+from ..bt import (NODE_TYPES, Action, Composite, Condition, Decorator, Effects, Guard, Parallel, SkillRequest, SubTree,
+                  btcpp_tags, file_fields)
 from ..errors import ModelError
 from ..expr import to_text
 
 __all__ = ["to_btcpp_xml", "xml_attr", "TAGS"]
 
-TAGS = {
-    MemorySequence: "Sequence", SequenceWithMemory: "SequenceWithMemory", ReactiveSequence: "ReactiveSequence",
-    MemoryFallback: "Fallback", ReactiveFallback: "ReactiveFallback", Parallel: "Parallel",
-    ParallelAll: "ParallelAll", IfThenElse: "IfThenElse", WhileDoElse: "WhileDoElse",
-    Inverter: "Inverter", ForceSuccess: "ForceSuccess", ForceFailure: "ForceFailure",
-    Retry: "RetryUntilSuccessful", Repeat: "Repeat", KeepRunningUntilFailure: "KeepRunningUntilFailure",
-    RunOnce: "RunOnce",
-}
-"""btfsm node type -> BehaviorTree.CPP XML tag (controls and decorators)."""
+TAGS = {NODE_TYPES[key]: tag for lib in (None, "nav2") for kind in (Composite, Decorator)
+        for tag, (key, _) in btcpp_tags(lib, kind).items()}
+"""btfsm node type -> BehaviorTree.CPP XML tag (controls and decorators, BT.CPP's and Nav2's; ``btfsm.bt`` declares them)."""
 
 _XML_NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_.-]*\Z")
 _ESCAPES = {"&": "&amp;", "<": "&lt;", ">": "&gt;", '"': "&quot;", "'": "&apos;",
@@ -103,6 +95,11 @@ def _value(v) -> str:
     return str(v)
 
 
+def _port(v, none) -> str:
+    """A node field's value as its BT.CPP port value (``none``: BT.CPP's value for None)."""
+    return _value(none if v is None else v)
+
+
 def to_btcpp_xml(model) -> str:
     """The model's tree as a BehaviorTree.CPP XML v4 document (see the module doc)."""
     if model.tree is None:
@@ -110,14 +107,14 @@ def to_btcpp_xml(model) -> str:
     leaves: dict = {}  # ID -> (kind, ports, description, node name)
     lines: list = []
     trees: dict = {model.name: (lines, None)}  # BehaviorTree ID -> (lines, leaves) (the main tree first)
-    _node(model.tree, 2, lines, leaves, trees)
+    _node(model.tree, 2, lines, leaves, trees, facts=_port_facts(model))
     name = xml_attr(model.name, "name")
     out = ['<?xml version="1.0" encoding="UTF-8"?>', f'<root BTCPP_format="4" main_tree_to_execute="{name}">']
     for ident, (body, _) in trees.items():
         out += [f'  <BehaviorTree ID="{xml_attr(ident, "name")}">', *body, "  </BehaviorTree>"]
     out.append("  <TreeNodesModel>")
     for ident, (kind, ports, desc, _) in leaves.items():
-        body = [f'      <input_port name="{xml_attr(p)}" type="std::string"/>' for p in ports]
+        body = [f'      <{d}_port name="{xml_attr(p)}" type="{xml_attr(ty)}"/>' for p, (d, ty) in ports.items()]
         if desc is not None:
             body.append(f"      <description>{xml_attr(desc)}</description>")
         if body:
@@ -128,14 +125,63 @@ def to_btcpp_xml(model) -> str:
     return "\n".join(out) + "\n"
 
 
+def _port_facts(model):
+    """(variable -> C++ type, primitive -> the variables its outcomes write)."""
+    types = {}
+    for var in model.variables:
+        kind = getattr(var, "kind", None) or type(var).__name__.lower()
+        types[var.name] = {"bool": "bool", "int": "int"}.get(kind, "std::string")
+    writes = {}
+    for name, prim in model.all_primitives().items():
+        writes[name] = {k for o in prim.outcomes for k, _ in o.effects}
+    return types, writes
+
+
+def _action_port(facts, primitive, value):
+    """(direction, C++ type) of an Action's port, as far as the model knows them: a
+    blackboard entry ``{var}`` of a world variable is an output port when the primitive's
+    outcomes write ``var``, else an input port, typed as the variable (bool, int; an enum
+    is a string); a constant is an input port typed by its value."""
+    types, writes = facts
+    if isinstance(value, str) and value.startswith("{") and value.endswith("}") and value[1:-1] in types:
+        var = value[1:-1]
+        return ("output" if var in writes.get(primitive, ()) else "input"), types[var]
+    if isinstance(value, bool):
+        return "input", "bool"
+    if isinstance(value, int):
+        return "input", "int"
+    if isinstance(value, float):
+        return "input", "double"
+    return "input", "std::string"
+
+
 def _declare(leaves, ident, kind, ports, desc, node):
     old = leaves.get(ident)
     if old is None:
-        leaves[ident] = (kind, list(ports), desc, node)
+        leaves[ident] = (kind, dict(ports), desc, node)
         return
     if old[0] != kind or old[2] != desc:  # one ID is one leaf type: same kind, same description
         raise ModelError(f"tree.{node}", f"BehaviorTree.CPP ID '{ident}' is also used by node '{old[3]}' for another leaf")
-    old[1].extend(p for p in ports if p not in old[1])
+    for p, (d, ty) in dict(ports).items():  # one port used two ways: inout, and a string when the types differ
+        if p in old[1] and old[1][p] != (d, ty):
+            od, oty = old[1][p]
+            old[1][p] = (od if od == d else "inout", oty if oty == ty else "std::string")
+        else:
+            old[1].setdefault(p, (d, ty))
+
+
+def _refuse_gate(n, where):
+    """The nav2 library models Nav2's throttling decorators as a composition with a gate
+    action (``RateController.elapsed``...): Nav2's node and its parameters (``hz``...) are
+    not in the model, so the export cannot write it back."""
+    from .nav2 import GATES
+
+    ident, _, question = n.primitive.partition(".")
+    if ident in GATES and GATES[ident][0] == question:
+        raise ModelError(where, f"'{n.name}' is the nav2 node library's gate for Nav2's {ident} (its "
+                                f"{'period' if question == 'elapsed' else question.replace('_', ' ')} as a free answer): "
+                                f"the model no longer holds the {ident} node and its parameters, so the btcpp export "
+                                "cannot write it back")
 
 
 def _leaf_tag(ident, where) -> str:
@@ -145,7 +191,7 @@ def _leaf_tag(ident, where) -> str:
     return ident
 
 
-def _node(n, depth, lines, leaves, trees, strip=""):
+def _node(n, depth, lines, leaves, trees, strip="", facts=None):
     """Write node ``n``; inside a SubTree, names lose the SubTree's ``strip`` prefix
     (``INSTANCE/``), which the importer adds again."""
     pad = "  " * depth
@@ -153,7 +199,8 @@ def _node(n, depth, lines, leaves, trees, strip=""):
     shown = n.name[len(strip):] if strip and n.name.startswith(strip) and len(n.name) > len(strip) else n.name
     name = xml_attr(shown, where)
     if isinstance(n, Action):
-        ports = [k for k, _ in n.args]
+        _refuse_gate(n, where)
+        ports = {k: _action_port(facts, n.primitive, v) for k, v in n.args}
         attrs = "".join(f' {xml_attr(k, where)}="{xml_attr(_value(v), where)}"' for k, v in n.args)
         _declare(leaves, n.primitive, "Action", ports, None, n.name)
         lines.append(f'{pad}<{_leaf_tag(n.primitive, where)} name="{name}"{attrs}/>')
@@ -171,7 +218,7 @@ def _node(n, depth, lines, leaves, trees, strip=""):
     if isinstance(n, SubTree):
         body: list = []
         mine: dict = {}  # the leaves of this SubTree's tree, declared once per tree written
-        _node(n.child, 2, body, mine, trees, n.name + "/")
+        _node(n.child, 2, body, mine, trees, n.name + "/", facts)
         tree = (body, {lid: d[:3] for lid, d in mine.items()})  # with the leaves of SubTrees inside
         ident, k = n.tree_id, 1
         while trees.get(ident, tree) != tree:  # another tree under this ID: the next free one
@@ -188,22 +235,14 @@ def _node(n, depth, lines, leaves, trees, strip=""):
     tag = TAGS.get(type(n))
     if tag is None:
         raise ModelError(where, f"node type {type(n).__name__} cannot be exported to BehaviorTree.CPP")
-    attrs = ""
     if isinstance(n, Parallel) and n.selected:
         raise ModelError(f"{where}.selected", "selected children (py_trees' SuccessOnSelected) have no "
                                               "BehaviorTree.CPP counterpart; the btcpp export cannot write them")
-    if isinstance(n, Parallel):  # synchronise needs no attribute: BT.CPP never re-ticks finished children
-        s = -1 if n.success_threshold is None else n.success_threshold
-        attrs = f' success_count="{s}" failure_count="{n.failure_threshold}"'
-    elif isinstance(n, ParallelAll):
-        attrs = f' max_failures="{n.max_failures}"'
-    elif isinstance(n, Retry):
-        attrs = f' num_attempts="{n.attempts}"'
-    elif isinstance(n, Repeat):
-        attrs = f' num_cycles="{n.times}"'
-    elif isinstance(n, RunOnce):
-        attrs = f' then_skip="{"true" if n.then_skip else "false"}"'
+    # every field with a BT.CPP port, always (Parallel's synchronise has none: BT.CPP never
+    # re-ticks finished children)
+    attrs = "".join(f' {f.metadata["btcpp"]}="{_port(getattr(n, f.name), f.metadata["btcpp_none"])}"'
+                    for f in file_fields(type(n)) if f.metadata["btcpp"])
     lines.append(f'{pad}<{tag} name="{name}"{attrs}>')
     for child in n.children_of():
-        _node(child, depth + 1, lines, leaves, trees, strip)
+        _node(child, depth + 1, lines, leaves, trees, strip, facts)
     lines.append(f"{pad}</{tag}>")

@@ -28,10 +28,11 @@ import difflib
 import re
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import cast
 from xml.parsers import expat
 
-from ..bt import NODE_TYPES
-from ..errors import ModelError
+from ..bt import NODE_TYPES, Composite, Decorator, arity_allows, arity_text, btcpp_tags, file_fields
+from ..errors import ModelError, collected
 from ..expr import as_expr, names_in
 from ..world import check_label
 from .groot import read_models as read_node_models
@@ -44,28 +45,12 @@ MAX_DEPTH = 100  # nesting of XML elements
 MAX_INLINED = 100_000  # tree nodes after SubTrees are inlined (a SubTree "bomb" stops here)
 MAX_OUTCOMES = 64  # outcomes an undeclared leaf gets for the values its output ports may write
 
+
+
 #: BT.CPP control tag -> (btfsm type key, {XML attribute: (btfsm field, default)}).
-CONTROLS = {
-    "Sequence": ("MemorySequence", {}),
-    "SequenceWithMemory": ("SequenceWithMemory", {}),
-    "ReactiveSequence": ("ReactiveSequence", {}),
-    "Fallback": ("MemoryFallback", {}),
-    "ReactiveFallback": ("ReactiveFallback", {}),
-    "Parallel": ("Parallel", {"success_count": ("success_threshold", -1), "failure_count": ("failure_threshold", 1)}),
-    "ParallelAll": ("ParallelAll", {"max_failures": ("max_failures", 1)}),
-    "IfThenElse": ("IfThenElse", {}),
-    "WhileDoElse": ("WhileDoElse", {}),
-}
+CONTROLS = btcpp_tags(None, Composite)
 #: BT.CPP decorator tag -> (btfsm type key, {XML attribute: (btfsm field, default)}).
-DECORATORS = {
-    "Inverter": ("Inverter", {}),
-    "ForceSuccess": ("ForceSuccess", {}),
-    "ForceFailure": ("ForceFailure", {}),
-    "RetryUntilSuccessful": ("Retry", {"num_attempts": ("attempts", None)}),
-    "Repeat": ("Repeat", {"num_cycles": ("times", None)}),
-    "KeepRunningUntilFailure": ("KeepRunningUntilFailure", {}),
-    "RunOnce": ("RunOnce", {"then_skip": ("then_skip", True)}),
-}
+DECORATORS = btcpp_tags(None, Decorator)
 #: BT.CPP built-in leaves with fixed outcomes.
 BUILTIN_LEAVES = {"AlwaysSuccess": ["success"], "AlwaysFailure": ["failure"]}
 #: BT.CPP nodes btfsm does not model, and why (an error unless the side file abstracts them).
@@ -231,7 +216,13 @@ def xml_to_data(xml: bytes, xml_name: str, side: "dict | None" = None, side_name
     ``<include path=...>`` (None: includes are refused)."""
     imp = _Importer(xml_name, side or {}, side_name)
     imp.library, imp.extra_models, imp.main_override, imp.include = library, models or {}, main_tree, include
-    return imp.run(parse_xml(xml, xml_name))
+    try:
+        out = imp.run(parse_xml(xml, xml_name))
+    except ModelError as exc:  # a problem that stops the import, after the entries found so far
+        raise cast(ModelError, collected(imp.errors + [exc])) from None
+    if imp.errors:  # every blackboard entry that cannot be a variable, at once
+        raise cast(ModelError, collected(imp.errors))
+    return out
 
 
 class _Importer:
@@ -269,6 +260,8 @@ class _Importer:
         self.lines: dict = {}
         self.used_nodes: set = set()
         self.pending: list = []
+        self.errors: list = []  # problems that do not stop the import (blackboard entries), reported together
+        self.bad_vars: set = set()
         self.library, self.extra_models, self.main_override, self.include = None, {}, None, None
 
     def fail(self, el, problem):
@@ -448,8 +441,6 @@ class _Importer:
 
     def inner(self, el, tag, path, scope, stack, prefix):
         key, attrs = (CONTROLS if tag in CONTROLS else DECORATORS)[tag]
-        if key not in NODE_TYPES:
-            raise self.fail(el, f"{tag} maps to btfsm {key}, which this version of btfsm does not have")
         name = self.unique(prefix + (el.attrs.get("name") or tag), el)
         out = {key: name}
         self.lines[path] = el.where()
@@ -462,7 +453,8 @@ class _Importer:
             fname, default = attrs[a]
             if _REF.match(v.strip()):
                 raise self.fail(el, f"{a}=\"{v}\" reads the blackboard: not modelled by btfsm (give a constant)")
-            if fname == "then_skip":
+            field = {f.name: f for f in file_fields(NODE_TYPES[key])}[fname]
+            if field.metadata["file"] in ("bool", "opt_bool"):
                 val = _bool(v)
                 if val is None:
                     raise self.fail(el, f"{a}=\"{v}\": expected true or false ({', '.join(BOOLS)}, as BT.CPP reads a bool)")
@@ -471,22 +463,19 @@ class _Importer:
                     val = int(v.strip())
                 except ValueError:
                     raise self.fail(el, f"{a}=\"{v}\": expected an integer") from None
-                if fname in ("attempts", "times") and val < 1:
-                    raise self.fail(el, f"{a}=\"{v}\": btfsm needs a bound of at least 1 (-1, forever, cannot be "
+                low = field.metadata["at_least"]
+                if low is not None and val < low:
+                    raise self.fail(el, f"{a}=\"{v}\": btfsm needs a bound of at least {low} (-1, forever, cannot be "
                                         "model-checked as a count; use a bound, or KeepRunningUntilFailure)")
-            if fname == "success_threshold" and val == -1:
-                continue  # BT.CPP's default: every child (btfsm's default)
-            if val != default or fname in ("then_skip",):
+            if val != default:
                 out[fname] = val
+        if tag in CONTROLS and not el.children:
+            raise self.fail(el, f"a {tag} needs children")  # BT.CPP's rule (btfsm runs an empty one)
+        if not arity_allows(NODE_TYPES[key], len(el.children)):
+            raise self.fail(el, f"a {tag} has {arity_text(NODE_TYPES[key])}, has {len(el.children)}")
         if tag in DECORATORS:
-            if len(el.children) != 1:
-                raise self.fail(el, f"a {tag} has exactly one child, has {len(el.children)}")
             out["child"] = self.node(el.children[0], f"{path}.child", scope, stack, prefix)
         else:
-            if not el.children:
-                raise self.fail(el, f"a {tag} needs children")
-            if tag in ("IfThenElse", "WhileDoElse") and len(el.children) not in (2, 3):
-                raise self.fail(el, f"a {tag} has 2 or 3 children, has {len(el.children)}")
             out["children"] = [self.node(c, f"{path}.children[{i}]", scope, stack, prefix)
                                for i, c in enumerate(el.children)]
         return out
@@ -678,17 +667,23 @@ class _Importer:
         when the node library says its type is not finite (False)."""
         if var in self.variables:
             return True
+        if var in self.bad_vars:  # reported at its first use
+            return False
         if not _IDENT.match(var):
-            raise self.fail(el, f"port {port}: blackboard entry '{var}' is not an identifier, so it cannot be "
-                                "a btfsm world variable")
+            self.bad_vars.add(var)
+            self.errors.append(self.fail(el, f"port {port}: blackboard entry '{var}' is not an identifier, so it "
+                                             "cannot be a btfsm world variable"))
+            return False
         if ptype in _BOOL_TYPES:
             self.variables[var] = "bool"
             return True
         if self.library is not None and ptype and self.library.opaque(ptype):
             return False
         why = f"has type {ptype}, which is not finite" if ptype else "has no declared type (no TreeNodesModel port type)"
-        raise self.fail(el, f"port {port}: blackboard entry {{{var}}} {why}: declare '{var}' under variables: in the "
-                            "side file (bool, enum or int range) to model it")
+        self.bad_vars.add(var)
+        self.errors.append(self.fail(el, f"port {port}: blackboard entry {{{var}}} {why}: declare '{var}' under "
+                                         "variables: in the side file (bool, enum or int range) to model it"))
+        return False
 
     def declared(self, el, name, ident, key, decl, args):
         if not isinstance(decl, dict):
@@ -756,7 +751,7 @@ class _Scope:
         return _Scope(self, remap, auto, prefix)
 
     def value(self, ref: str, port: str):
-        m = _REF.match(ref)
+        m = cast("re.Match[str]", _REF.match(ref))  # the callers matched it
         glob, key = m.group(1), m.group(2).strip()
         if key == "=":
             key = port
@@ -779,7 +774,7 @@ def _mark(el: El, file: str):
     stack = [el]
     while stack:
         e = stack.pop()
-        e.file = file
+        setattr(e, "file", file)  # (not a field: read with getattr)
         stack.extend(e.children)
 
 

@@ -50,6 +50,7 @@ from __future__ import annotations
 
 import re
 
+from ..bt import NODE_TYPES, Composite, arity_allows, arity_text, btcpp_tags
 from .groot import NodeModel
 
 __all__ = ["NodeLibrary", "CONTROLS", "GATES", "PASS_THROUGH", "SYNC_ACTIONS", "ACTION_SERVER_LEAVES", "ALWAYS_SUCCEED", "REFUSED", "COMMIT", "LIBRARY_NAME"]
@@ -57,12 +58,9 @@ __all__ = ["NodeLibrary", "CONTROLS", "GATES", "PASS_THROUGH", "SYNC_ACTIONS", "
 LIBRARY_NAME = "nav2"
 COMMIT = "a3a97043ee93d92fe8d70ec56d183933169beb1c"
 
-#: Nav2 control tag -> (btfsm node type, {XML port: (btfsm field, kind, default)})
-CONTROLS = {
-    "PipelineSequence": ("PipelineSequence", {}),
-    "RecoveryNode": ("RecoveryNode", {"number_of_retries": ("retries", "int", 1)}),
-    "RoundRobin": ("RoundRobin", {"wrap_around": ("wrap_around", "bool", False)}),
-}
+#: Nav2 control tag -> (btfsm node type, {XML port: (btfsm field, default)}): the node
+#: classes of ``btfsm.bt`` whose ``library`` is nav2
+CONTROLS = btcpp_tags(LIBRARY_NAME, Composite)
 #: Nav2 decorator tag -> (gate question, gate statuses, composition): see the module doc
 GATES = {
     "RateController": ("elapsed", ("running", "success"), "sequence"),
@@ -131,7 +129,7 @@ class NodeLibrary:
                                "(declare the node under nodes: with abstract: child, or rewrite it)")
         model = self.models.get(ident)
         fields = CONTROLS[ident][1] if ident in CONTROLS else {}
-        values = {}
+        values: dict = {}
         for a, v in el.attrs.items():
             if a in ("name", "ID", "_description", "_uid", "_fullpath"):
                 continue
@@ -139,7 +137,8 @@ class NodeLibrary:
                 raise imp.fail(el, f"port '{a}' is not declared for {ident} in the {self.name} node models "
                                    f"(ports: {', '.join(model.ports) or 'none'})")
             if a in fields:
-                fname, kind, _default = fields[a]
+                fname, _default = fields[a]
+                kind = "bool" if isinstance(_default, bool) else "int"
                 text = v.strip()
                 if _REF.match(text):
                     raise imp.fail(el, f"{a}=\"{v}\" reads the blackboard: not modelled by btfsm (give a constant)")
@@ -163,8 +162,8 @@ class NodeLibrary:
         if ident in CONTROLS:
             if not el.children:
                 raise imp.fail(el, f"a {ident} needs children")
-            if ident == "RecoveryNode" and len(el.children) != 2:
-                raise imp.fail(el, f"a RecoveryNode has exactly 2 children, has {len(el.children)}")
+            if not arity_allows(NODE_TYPES[CONTROLS[ident][0]], len(el.children)):
+                raise imp.fail(el, f"a {ident} has {arity_text(NODE_TYPES[CONTROLS[ident][0]])}, has {len(el.children)}")
             out = {CONTROLS[ident][0]: name, **{k: v for k, v in values.items()
                                                if v != _default_of(ident, k)}}
             out["children"] = [imp.node(c, f"{path}.children[{i}]", scope, stack, prefix)
@@ -223,5 +222,5 @@ class NodeLibrary:
 
 
 def _default_of(ident, fname):
-    return next(d for f, _k, d in CONTROLS[ident][1].values() if f == fname)
+    return next(d for f, d in CONTROLS[ident][1].values() if f == fname)
 

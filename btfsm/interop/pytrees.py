@@ -62,7 +62,7 @@ import re
 import unicodedata
 import warnings
 from collections.abc import Mapping
-from typing import Callable
+from typing import Any, Callable, cast
 
 try:
     import py_trees
@@ -70,9 +70,9 @@ except ImportError as exc:  # pragma: no cover - exercised only without py_trees
     raise ImportError("btfsm.interop.pytrees needs py_trees 2.x: pip install 'py_trees>=2.2' "
                       "(or the btfsm 'test' / 'bench' extras)") from exc
 
-from ..bt import (Action, Condition, Effects, FailureIsRunning, ForceFailure, ForceSuccess, Guard, Inverter,
-                  KeepRunningUntilFailure, MemoryFallback, MemorySequence, Node, Parallel, ReactiveFallback,
-                  ReactiveSequence, Repeat, Retry, RunningIsFailure, RunningIsSuccess, SkillRequest)
+from ..bt import (NODE_TYPES, Action, Condition, Decorator, Effects, Guard, KeepRunningUntilFailure, MemoryFallback,
+                  MemorySequence, Node, Parallel, ReactiveFallback, ReactiveSequence, Repeat, Retry, SkillRequest,
+                  file_fields)
 from ..errors import ModelError
 from ..expr import Const, as_expr
 from ..model import EnvChoice, EnvEvent, Model
@@ -87,6 +87,11 @@ Common = py_trees.common
 _TO_PT = {Status.RUNNING: Common.Status.RUNNING, Status.SUCCESS: Common.Status.SUCCESS,
           Status.FAILURE: Common.Status.FAILURE}
 _FROM_PT = {v: k for k, v in _TO_PT.items()}
+#: btfsm decorator -> the py_trees decorator of the same rule that takes only a name and a
+#: child (the node classes' ``pytrees`` names); KeepRunningUntilFailure is written as
+#: ``Repeat(num_success=-1)`` and read from ``SuccessIsRunning`` too
+_PLAIN_DECORATORS: dict[type, str] = {cls: cls.pytrees for cls in NODE_TYPES.values()
+                     if issubclass(cls, Decorator) and cls.pytrees and not file_fields(cls)}
 
 
 class PytreesImportWarning(UserWarning):
@@ -168,6 +173,7 @@ def to_pytrees(model: Model, behaviours: "Callable | dict | None" = None,
             count = len(kids)
             if n.failure_threshold != 1:
                 raise ModelError(where, f"py_trees' Parallel fails at the first failure; failure_threshold {n.failure_threshold} has no counterpart")
+            policy: Any
             if n.selected:
                 chosen = [k for k, c in zip(kids, n.children) if c.name in n.selected]
                 policy = Common.ParallelPolicy.SuccessOnSelected(chosen, synchronise=n.synchronise)
@@ -183,24 +189,16 @@ def to_pytrees(model: Model, behaviours: "Callable | dict | None" = None,
             if answer is None:
                 raise ModelError(where, "a Guard's condition needs answer= (asked with the guard's name)")
             name = n.name
-            return py_trees.decorators.EternalGuard(name=name, child=build(n.child),
+            return py_trees.decorators.EternalGuard(name=name, child=build(cast(Node, n.child)),
                                                     condition=lambda: _guard_open(answer(name), name))
-        simple = {Inverter: py_trees.decorators.Inverter, ForceSuccess: py_trees.decorators.FailureIsSuccess,
-                  ForceFailure: py_trees.decorators.SuccessIsFailure}
-        for cls, pt in simple.items():
-            if type(n) is cls:
-                return pt(name=n.name, child=build(n.child))
         if isinstance(n, Retry):
-            return py_trees.decorators.Retry(name=n.name, child=build(n.child), num_failures=n.attempts)
+            return py_trees.decorators.Retry(name=n.name, child=build(cast(Node, n.child)), num_failures=n.attempts)
         if isinstance(n, Repeat):
-            return py_trees.decorators.Repeat(name=n.name, child=build(n.child), num_success=n.times)
+            return py_trees.decorators.Repeat(name=n.name, child=build(cast(Node, n.child)), num_success=n.times)
         if type(n) is KeepRunningUntilFailure:
-            return py_trees.decorators.Repeat(name=n.name, child=build(n.child), num_success=-1)
-        remaps = {FailureIsRunning: py_trees.decorators.FailureIsRunning,
-                  RunningIsFailure: py_trees.decorators.RunningIsFailure,
-                  RunningIsSuccess: py_trees.decorators.RunningIsSuccess}
-        if type(n) in remaps:
-            return remaps[type(n)](name=n.name, child=build(n.child))
+            return py_trees.decorators.Repeat(name=n.name, child=build(cast(Node, n.child)), num_success=-1)
+        if type(n) in _PLAIN_DECORATORS:
+            return getattr(py_trees.decorators, _PLAIN_DECORATORS[type(n)])(name=n.name, child=build(cast(Node, getattr(n, "child"))))
         if isinstance(n, Effects):
             raise ModelError(where, "Effects has no py_trees counterpart (py_trees behaviours write the blackboard in code)")
         raise ModelError(where, f"{type(n).__name__} has no py_trees counterpart")
@@ -282,19 +280,30 @@ def node_names(root) -> list:
     ['Tür offen', 'a', 'a_2', 'a_3']
     """
     root = _root_of(root)
-    order = []
+    order: list = []
     _walk_behaviours(root, order)
-    labels = [_label(b.name) for b in order]
+    return list(zip(order, btfsm_names([b.name for b in order])))
+
+
+def btfsm_names(names) -> list:
+    """The btfsm node names of behaviours named ``names`` (in pre-order, PassThrough and
+    Count left out), by ``node_names``' rule; ``btfsm conform --log`` uses it to name the
+    nodes of a py_trees recording.
+
+    >>> btfsm_names(["a", "a_2", "a", "", "x\\ny"])
+    ['a', 'a_2', 'a_3', 'unnamed', 'x_y']
+    """
+    labels = [_label(n) for n in names]
     taken = set(labels)
     given: set = set()
     out = []
-    for b, lab in zip(order, labels):
+    for lab in labels:
         nm, k = lab, 1
         while nm in given or (k > 1 and nm in taken):
             k += 1
             nm = f"{lab[:240]}_{k}"
         given.add(nm)
-        out.append((b, nm))
+        out.append(nm)
     return out
 
 
@@ -385,7 +394,7 @@ def _count(x, what, where):
     return x
 
 
-_OPERATORS = {operator.eq: "==", operator.ne: "!=", operator.lt: "<", operator.le: "<=", operator.gt: ">",
+_OPERATORS: dict[Any, str] = {operator.eq: "==", operator.ne: "!=", operator.lt: "<", operator.le: "<=", operator.gt: ">",
               operator.ge: ">="}
 
 
@@ -549,18 +558,9 @@ def _import(root, names, leaves, guards, leaf_names, name, semantics, blackboard
                 environment.append(EnvChoice(var, (EnvEvent(f"{var}_true", effects={var: True}),
                                                    EnvEvent(f"{var}_false", effects={var: False}))))
                 return Guard(nm, child, var)
-            if type(b) is D.Inverter:
-                return Inverter(nm, child)
-            if type(b) is D.FailureIsSuccess:
-                return ForceSuccess(nm, child)
-            if type(b) is D.SuccessIsFailure:
-                return ForceFailure(nm, child)
-            if type(b) is D.SuccessIsRunning:  # SUCCESS -> RUNNING, the rest as is
-                return KeepRunningUntilFailure(nm, child)
-            remaps = {D.FailureIsRunning: FailureIsRunning, D.RunningIsFailure: RunningIsFailure,
-                      D.RunningIsSuccess: RunningIsSuccess}
-            if type(b) in remaps:
-                return remaps[type(b)](nm, child)
+            plain = {getattr(D, pt): cls for cls, pt in _PLAIN_DECORATORS.items()}
+            if type(b) in plain:  # Inverter, FailureIsSuccess, SuccessIsRunning...: the btfsm decorator of its rule
+                return plain[type(b)](nm, child)
             if type(b) is D.Retry:
                 # py_trees counts failures and fails when the count reaches num_failures (a
                 # "<" test): any count <= 1 fails at the first failure, as Retry(1) does
@@ -652,7 +652,7 @@ class RunRecorder(py_trees.visitors.VisitorBase):
             return
         if self._index is None:
             self._header(self._visited[-1][0])  # the root is visited last
-        index = self._index
+        index = cast(dict, self._index)  # set by _header
         try:
             visited = [[index[id(b)], status.name] for b, status in self._visited]
         except KeyError:

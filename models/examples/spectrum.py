@@ -109,9 +109,9 @@ def reaction(model) -> dict:
     ids = [s.id for s in model.fsm("arm").states]
     out = {}
     for w in WORK:
-        state = list(prog.initial)
-        state[tok] = ids.index(w)
-        state = tuple(state)
+        first = list(prog.initial)
+        first[tok] = ids.index(w)
+        state = tuple(first)
         for k in range(1, 4 * len(ids)):
             state = prog.fsm_step(state, "arm", "serve", (), SucceedOracle()).state
             if ids[state[tok]] == "go":

@@ -4,10 +4,18 @@ explores the model and each FSM once, and vectorised expression evaluation over 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any, Callable
 
 import numpy as np
 
 from ..explore import DEFAULT_MAX_STATES, Budget, explore, explore_fsm
+
+if TYPE_CHECKING:
+    from btfsm.expr import Expr
+    from btfsm.model import Model
+
+    from ..search import Progress
+    from ..system import TransitionSystem
 
 __all__ = ["Result", "Context", "evaluate", "columns_of", "budget_hit"]
 
@@ -18,9 +26,9 @@ class Result:
 
     name: str
     holds: "bool | None"
-    counterexample: object = None
-    notes: list = field(default_factory=list)
-    info: dict = field(default_factory=dict)
+    counterexample: Any = None  # a btfsm.verify.counterexample.Counterexample, or None
+    notes: list[str] = field(default_factory=list)
+    info: dict[str, Any] = field(default_factory=dict)
     seconds: float = 0.0
     not_applicable: "str | None" = None  # why the model gives this property nothing to check
 
@@ -31,7 +39,7 @@ class Result:
             return "not-applicable"
         return {True: "holds", False: "violated", None: "undecided"}[self.holds]
 
-    def to_json(self) -> dict:
+    def to_json(self) -> dict[str, Any]:
         out = {"name": self.name, "holds": self.holds, "verdict": self.verdict,
                "counterexample": self.counterexample.to_json() if self.counterexample is not None else None,
                "notes": list(self.notes), "info": self.info, "seconds": round(self.seconds, 6)}
@@ -43,8 +51,10 @@ class Result:
 class Context:
     """The model under check and its explorations (each done once, on demand)."""
 
-    def __init__(self, model, *, max_states: "int | None" = DEFAULT_MAX_STATES, progress=None, engine: str = "auto",
-                 max_transitions: "int | None" = None, max_seconds: "float | None" = None, goal_level: str = "open"):
+    def __init__(self, model: Model, *, max_states: "int | None" = DEFAULT_MAX_STATES,
+                 progress: "Callable[[str, int, int, float], Any] | None" = None, engine: str = "auto",
+                 max_transitions: "int | None" = None, max_seconds: "float | None" = None,
+                 goal_level: str = "open") -> None:
         self.model = model
         self.goal_level = goal_level  # goal-reachability: "open" (each FSM alone) or "tree"
         self.max_states = max_states
@@ -52,16 +62,16 @@ class Context:
         self.clock = Budget(max_seconds=max_seconds)  # one time budget for every exploration of the check
         self.engine = engine
         self.progress = progress
-        self._model_ts = None
-        self._fsm_ts: dict = {}
-        self.systems: list = []
+        self._model_ts: "TransitionSystem | None" = None
+        self._fsm_ts: dict[str, TransitionSystem] = {}
+        self.systems: "list[TransitionSystem | SystemSummary]" = []
         # set by ``btfsm.verify.report.check``: no property still to run reads the model-level
         # system, so ``done_with_model`` may let it go (the check's peak memory is then one
         # system, not two); a Context used directly keeps every system
         self.model_needed = True
-        self._model_summary = None  # (n_transitions, complete) of a released model system
+        self._model_summary: "tuple[int, bool] | None" = None  # (n_transitions, complete) of a released model system
 
-    def model_ts(self):
+    def model_ts(self) -> TransitionSystem:
         """The whole model's transition system."""
         if self._model_ts is None:
             if self._model_summary is not None:
@@ -72,7 +82,7 @@ class Context:
             self.systems.append(self._model_ts)
         return self._model_ts
 
-    def model_size(self) -> tuple:
+    def model_size(self) -> "tuple[int, bool]":
         """``(transitions, complete)`` of the model-level system (explored if needed), also
         after it was released."""
         if self._model_summary is not None:
@@ -90,7 +100,7 @@ class Context:
         self.systems[self.systems.index(ts)] = SystemSummary.of(ts)
         self._model_ts = None
 
-    def fsm_ts(self, name: str):
+    def fsm_ts(self, name: str) -> TransitionSystem:
         """FSM ``name`` as an open system."""
         ts = self._fsm_ts.get(name)
         if ts is None:
@@ -101,14 +111,15 @@ class Context:
             self.systems.append(ts)
         return ts
 
-    def _seconds_left(self):
+    def _seconds_left(self) -> "float | None":
         c = self.clock
         return None if c.max_seconds is None else max(c.max_seconds - c.elapsed(), 0.0)
 
-    def _progress(self, what):
-        if self.progress is None:
+    def _progress(self, what: str) -> "Progress | None":
+        progress = self.progress
+        if progress is None:
             return None
-        return lambda states, transitions, seconds: self.progress(what, states, transitions, seconds)
+        return lambda states, transitions, seconds: progress(what, states, transitions, seconds)
 
 
 @dataclass(frozen=True)
@@ -124,11 +135,11 @@ class SystemSummary:
     stopped: "str | None"
 
     @classmethod
-    def of(cls, ts) -> "SystemSummary":
+    def of(cls, ts: TransitionSystem) -> "SystemSummary":
         return cls(ts.kind, ts.fsm, ts.n_states, ts.n_transitions, ts.complete, ts.seconds, ts.stopped)
 
 
-def evaluate(ts, expr) -> np.ndarray:
+def evaluate(ts: TransitionSystem, expr: Expr) -> np.ndarray:
     """A boolean array: ``expr`` (a checked model expression) in every state of ``ts``,
     vectorised with numpy over int64 columns (only the columns it reads are built)."""
     from btfsm.expr import BOOL, compile_fn, to_numpy_source
@@ -153,7 +164,7 @@ def evaluate(ts, expr) -> np.ndarray:
 _SLICE = 1 << 21  # states per slice of ``evaluate``
 
 
-def _constant_not(expr) -> bool:
+def _constant_not(expr: Expr) -> bool:
     """Does ``expr`` negate a sub-expression that reads no variable (a Python bool in numpy)?"""
     from btfsm.expr import BinOp, BoolOp, Call, Compare, IfElse, Unary, names_in
 
@@ -172,18 +183,19 @@ class columns_of:
     """Lazy int64 state columns of a transition system, indexed by program slot (of the
     states ``a:b``, all by default)."""
 
-    def __init__(self, ts, a: int = 0, b: "int | None" = None):
-        self.ts, self.cache, self.a, self.b = ts, {}, a, b
+    def __init__(self, ts: TransitionSystem, a: int = 0, b: "int | None" = None) -> None:
+        self.ts, self.a, self.b = ts, a, b
+        self.cache: dict[int, np.ndarray] = {}
 
-    def __getitem__(self, slot):
+    def __getitem__(self, slot: int) -> np.ndarray:
         col = self.cache.get(slot)
         if col is None:
             col = self.cache[slot] = self.ts.column(slot)[self.a:self.b].astype(np.int64)
         return col
 
 
-def budget_hit(ts) -> str:
+def budget_hit(ts: TransitionSystem) -> str:
     """``"time budget hit"`` (or state, transition, ...) for an incomplete system."""
     from ..search import HIT_WORDS
 
-    return f"{HIT_WORDS.get(getattr(ts, 'stopped', None), 'state')} budget hit"
+    return f"{HIT_WORDS.get(getattr(ts, 'stopped', None) or '', 'state')} budget hit"

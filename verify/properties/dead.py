@@ -135,7 +135,8 @@ def _shortest_cycle(ts, c, sub) -> list:
 
 def check(ctx) -> Result:
     model = ctx.model
-    notes, info = [], {}
+    notes: list = []
+    info: dict = {}
     ts = ctx.model_ts()
     dead = dead_states(ts)
     info["dead_states"] = int(dead.size)
@@ -162,7 +163,7 @@ def check(ctx) -> Result:
     info["sinks"] = sorted(sinks)
     if ce is None and sinks:
         ce = sinks[min(sinks, key=lambda k: sinks[k][0])][1]
-    ts = sts = sinks = None  # nothing here holds the model's system any more
+    ts = sts = sinks = None  # type: ignore[assignment]  # nothing here holds the model's system any more
     ctx.done_with_model()  # the rest reads FSM systems only
     lassos = {}
     for f in model.fsms:

@@ -68,6 +68,8 @@ def _why(model, a: str, b: str) -> str:
         for n in walk(root):
             for c in n.children_of():
                 parent[c.name] = n
+    x: "str | None"
+    y: "str | None"
     chain, x = [], a
     while x is not None:
         chain.append(x)

@@ -65,7 +65,7 @@ def check(ctx) -> Result:
 
 def _check_tree(ctx) -> Result:
     ts = ctx.model_ts()
-    info = {"level": "tree", "states": ts.n_states}
+    info: dict = {"level": "tree", "states": ts.n_states}
     if not ts.complete or ts.n_transitions > TREE_LIMIT:
         why = budget_hit(ts) if not ts.complete else f"more than {TREE_LIMIT:,} transitions to re-run"
         return Result("goal-reachability", None, None,
@@ -88,6 +88,7 @@ def _check_tree(ctx) -> Result:
 
 def _check_open(ctx) -> Result:
     model = ctx.model
+    info: dict
     notes, info, undecided = [], {}, False
     worst = None  # (depth, fsm, goal, state)
     for f in model.fsms:

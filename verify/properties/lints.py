@@ -35,7 +35,7 @@ def _fired(ts, wanted: set, ticks: "dict | None" = None) -> set:
     with tree coverage: ``(node, status) -> (state, script)`` of the first tick (in
     breadth-first order, so after a shortest run) in which the node returned that status;
     the search then goes through every transition."""
-    out = set()
+    out: set = set()
     order = range(ts.expanded) if ticks is not None else _likely_first(ts, wanted, out)
     for i in order:
         for script, st, _o in successor_scripts(ts, ts.full_state(i)):

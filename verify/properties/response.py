@@ -33,6 +33,8 @@ both.
 """
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 
 from btfsm.errors import ModelError
@@ -176,7 +178,7 @@ class ResponseBound:
                 tmask = evaluate(ts, req.trigger)
             except ModelError as exc:
                 raise ModelError(f"responses.{req.name}.trigger", exc.problem) from None
-            self.trigger_edges = None
+            self.trigger_edges = None  # type: ignore[assignment]  # (no trigger edges: trigger states only)
             tstates = np.flatnonzero(tmask)
         self.triggers = tstates
         n = ts.n_states
@@ -237,11 +239,11 @@ class ResponseBound:
             u = int(ts.dst[t])
         return out
 
-    def worst_witness(self) -> tuple:
+    def worst_witness(self) -> "tuple | None":
         """(transitions, trigger step index, loop or None): a run reaching a trigger state with
         the worst case and following a longest response-free path; for an unbounded worst
         case, the lasso into a response-free cycle (or the path to a state without successors)."""
-        worst = self.worst
+        worst: Any = self.worst
         at = self.triggers[self.worst_at[self.triggers] == worst]
         prefix, t = self._entry(at)
         if worst != INF:
@@ -281,7 +283,81 @@ class ResponseBound:
             u = int(ts.dst[e])
         return prefix + walk, len(prefix), None
 
-    def _lasso(self, prefix, t) -> tuple:
+    # ---------------------------------------------------------------- the first late response
+    def first_late(self, bound: int) -> "tuple | None":
+        """``(worst ticks, transitions, trigger step)`` over the trigger occurrences whose
+        run so far answered every earlier occurrence within ``bound`` ticks (a "clean"
+        prefix), or None when this cannot be computed: the trigger is not an event whose
+        minimum interval exceeds ``bound`` (then at most one occurrence is pending, and the
+        event's interval timer says how long it has waited). When this worst case is at
+        most ``bound``, no occurrence is ever late (the first late one would have a clean
+        prefix), so the requirement holds; when it exceeds ``bound``, its run is a first
+        violation: every earlier occurrence was answered in time. The plain worst case can
+        be larger: it also counts occurrences after a late one, in runs that a deadline
+        (a part lost at the end of its window) would have cut."""
+        ts, ev = self.ts, self.req.trigger_event
+        if ev is None or self.trigger_edges is None or not ts.complete:
+            return None
+        prog = ts.model.program
+        slot = next((k for k, sl in enumerate(prog.slots) if sl.name == f"{ev}:since" and sl.kind == "timer"), None)
+        if slot is None or prog.slots[slot].size - 1 <= bound:
+            return None
+        since = ts.column(slot).astype(np.int64)
+        n, stop, offs = ts.n_states, self.stop, ts.offsets
+        trig = np.zeros(ts.n_transitions, bool)
+        trig[self.trigger_edges] = True
+        parent = np.full((2, n), -2, np.int64)  # the transition into (pending, state), -1 at the start
+        parent[0, 0] = -1
+        mode = np.zeros((2, n), np.int8)  # the pending flag before that transition
+        frontier = [np.array([0], np.int64), np.zeros(0, np.int64)]
+        while frontier[0].size or frontier[1].size:
+            nxt: list = [[], []]
+            for p in (0, 1):
+                u = frontier[p]
+                if not u.size:
+                    continue
+                lo, hi = offs[u], offs[u + 1]
+                cnt = hi - lo
+                if not cnt.sum():
+                    continue
+                t = np.repeat(lo - np.cumsum(np.r_[0, cnt[:-1]]), cnt) + np.arange(int(cnt.sum()))
+                d = ts.dst[t]
+                q = np.where(trig[t], 1, p)
+                q[stop[d]] = 0
+                ok = ~((q == 1) & (since[d] > bound))  # a late occurrence: the run is cut here
+                t, d, q = t[ok], d[ok], q[ok]
+                for r in (0, 1):
+                    sel = q == r
+                    dd, tt = d[sel], t[sel]
+                    new = parent[r, dd] == -2
+                    dd, tt = dd[new], tt[new]
+                    dd, first = np.unique(dd, return_index=True)
+                    parent[r, dd] = tt[first]
+                    mode[r, dd] = p
+                    nxt[r].append(dd)
+            frontier = [np.concatenate(x) if x else np.zeros(0, np.int64) for x in nxt]
+        src = ts.src[self.trigger_edges]
+        clean = (parent[0, src] != -2) | (parent[1, src] != -2)
+        edges = self.trigger_edges[clean]
+        if not edges.size:
+            return None
+        w = self.worst_at[ts.dst[edges]]
+        e = int(edges[int(np.argmax(w))])
+        worst = int(w.max())
+        # the clean prefix to the trigger, then a longest response-free walk
+        path, node = [e], int(ts.src[e])
+        r = 0 if parent[0, node] != -2 else 1
+        while parent[r, node] >= 0:
+            tr = int(parent[r, node])
+            path.append(tr)
+            r, node = int(mode[r, node]), int(ts.src[tr])
+        path.reverse()
+        if worst == INF:
+            lasso = self._lasso(path, int(ts.dst[e]))
+            return (worst,) + (lasso[0], lasso[1]) if lasso else None
+        return worst, path + self._longest_walk(int(ts.dst[e]), worst), len(path)
+
+    def _lasso(self, prefix, t) -> "tuple | None":
         ts, stop = self.ts, self.stop
         free = ~stop[ts.src]
         idx = np.flatnonzero(free)
@@ -344,11 +420,14 @@ def check(ctx) -> Result:
     if not reqs:
         return Result(NAME, True, None, [], not_applicable="no 'responses:' declared")
     ts = ctx.model_ts()
+    info: dict
+    verdict: "bool | None"
     notes, info, verdict, ce = [], {"responses": {}}, True, None
     for req in reqs:
         rb = ResponseBound(ts, req)
         bound = rb.bound_ticks()
-        worst, best = rb.worst, rb.best
+        worst: Any = rb.worst
+        best = rb.best
         entry = {"trigger": req.trigger if isinstance(req.trigger, str) else str(req.trigger),
                  "response": str(req.response), "within_seconds": req.within, "bound_ticks": bound,
                  "triggers": int(rb.triggers.size),
@@ -366,7 +445,13 @@ def check(ctx) -> Result:
             text += f"; bound {req.within:g} s = {bound} ticks"
         notes.append(text)
         if bound is not None and worst > bound:
-            witness = rb.violation_witness(bound) if ce is None else None
+            first = rb.first_late(bound)
+            if first is not None:
+                entry.update(first_late_ticks=None if first[0] == INF else first[0],
+                             first_late_seconds=None if first[0] == INF else rb.seconds(first[0]))
+                notes.append(f"{req.name}: the worst first late response (every earlier trigger answered "
+                             f"within the bound) {_fmt(rb, first[0])}")
+            witness: Any = rb.violation_witness(bound) if ce is None else None
             if ce is None and witness is None:  # a cut system: look for a run of `bound` ticks inside it
                 witness = rb.bounded_witness(bound)
             if ce is None and witness is None:  # ... and there is none

@@ -1,0 +1,600 @@
+"""Data to Model: the shape of expanded data checked element by element, and the Model built."""
+from __future__ import annotations
+
+import difflib
+import math
+import re
+
+from ..bt import NODE_TYPES, Action, Composite, Decorator, file_fields, walk
+from ..errors import ModelError
+from ..expr import Expr, as_expr
+from ..fsm import FSM, Edge, Marker, State
+from ..model import EnvChoice, EnvEvent, Model
+from ..primitives import Outcome, Primitive
+from ..profiles import PROFILES, TICKS
+from ..status import Status
+from ..timing import Response, duration_of
+from ..world import Bool, Enum, Int, Var
+
+from .templates import check_fields, expand_templates
+from .text import MAX_DEPTH, err, join_path, kind_of, loads_data, where_of
+
+
+_VAR_KINDS = ("bool", "enum", "int")
+_STATUS = ("success", "failure", "running")
+#: node field kinds whose null stands for the default (the others refuse null)
+_NULL_IS_DEFAULT = ("opt_int", "opt_bool", "names", "opt_expr", "outcomes", "args", "duration", "params")
+
+
+def node_keys(cls) -> tuple:
+    """The keys a model file's node of type ``cls`` may have besides its type key."""
+    own = tuple(f.name for f in file_fields(cls))
+    if issubclass(cls, Composite):
+        return own + ("children",)
+    return own + ("child",) if issubclass(cls, Decorator) else own
+
+
+def node_required(cls) -> tuple:
+    """The keys a model file's node of type ``cls`` must have: its required fields, the
+    child of a decorator, the children when its type needs some (``btfsm.bt`` arity)."""
+    own = tuple(f.name for f in file_fields(cls) if f.metadata["required"])
+    if issubclass(cls, Decorator):
+        return own + ("child",)
+    return own + ("children",) if issubclass(cls, Composite) and cls.arity[0] > 0 else own
+
+
+TRIGGER_KEYS = ("when", "on", True)  # "on" and True (YAML 1.1's reading of on:) are older spellings
+TOP_FIELDS = ("name", "description", "semantics", "tick", "tick_rate", "variables", "primitives", "fsms", "tree",
+              "environment", "invariants", "workable", "terminal", "resources", "responses")
+FSM_FIELDS = ("goals", "states", "initial", "edges", "markers", "params", "retarget", "withdraw_goal", "terminal")
+
+
+_FILE_FIELDS = {"source": "from", "target": "to"}  # Python field -> file field (edges)
+_FILE_FIELD = re.compile(r"^\.(source|target)\b")
+
+
+class _Reader:
+    """Checks the shape of expanded data and builds the Model objects."""
+
+    def __init__(self, file):
+        self.file = file
+        self.where: dict = {}  # element path used by the Model -> (path in the file, parent, key)
+
+    def fail(self, path, problem, obj=None, key=None):
+        return err(path, problem + where_of(obj, key), self.file)
+
+    def alias(self, model_path, path, parent, key):
+        self.where.setdefault(model_path, (path, parent, key))
+
+    def translate(self, exc: ModelError) -> ModelError:
+        """A Model error with its element path rewritten to the path in the file (+ line)."""
+        el = exc.element or ""
+        cut = len(el)
+        while cut > 0:
+            head = el[:cut]
+            if head in self.where:
+                path, parent, key = self.where[head]
+                rest = _FILE_FIELD.sub(lambda m: "." + _FILE_FIELDS[m.group(1)], el[cut:], count=1)
+                field = re.match(r"\.([^.\[]+)", rest)
+                try:
+                    elem = parent[key]
+                except (KeyError, IndexError, TypeError):
+                    elem = None
+                if field and isinstance(elem, dict) and field.group(1) in elem:
+                    line = where_of(elem, field.group(1))
+                else:
+                    line = where_of(parent, key)
+                return err(path + rest, exc.problem + line, self.file)
+            cut = max(el.rfind(".", 0, cut), el.rfind("[", 0, cut))
+        return err(el, exc.problem, self.file)
+
+    # ---------------------------------------------------------------- scalars
+    def fields(self, obj, path, allowed, required=(), what="a mapping"):
+        check_fields(self, obj, path, allowed, required, what)
+        return obj
+
+    def string(self, obj, path, parent=None, key=None, what="a string"):
+        if not isinstance(obj, str):
+            raise self.fail(path, f"expected {what}, got {kind_of(obj)}", parent, key)
+        return obj
+
+    def integer(self, obj, path, parent=None, key=None):
+        if isinstance(obj, bool) or not isinstance(obj, int):
+            raise self.fail(path, f"expected an integer, got {kind_of(obj)}", parent, key)
+        return obj
+
+    def expr(self, obj, path, parent=None, key=None) -> Expr:
+        if isinstance(obj, float) or obj is None or not isinstance(obj, (str, int, bool)):
+            raise self.fail(path, f"expected an expression (a string such as \"queue > 0\"), got {kind_of(obj)}", parent, key)
+        try:
+            return as_expr(obj)
+        except ModelError as exc:
+            raise err(path, exc.problem + where_of(parent, key), self.file) from None
+
+    def opt_expr(self, obj, key, path):
+        return self.expr(obj[key], join_path(path, key), obj, key) if obj.get(key) is not None else None
+
+    def effects(self, obj, path, parent=None, key=None) -> tuple:
+        if obj is None:
+            return ()
+        if not isinstance(obj, dict):
+            raise self.fail(path, f"expected effects as a mapping 'variable: expression', got {kind_of(obj)}", parent, key)
+        out = []
+        for var, e in obj.items():
+            self.string(var, path, obj, var, "a variable name")
+            out.append((var, self.expr(e, join_path(path, var), obj, var)))
+        return tuple(out)
+
+    def names(self, obj, path, parent, key, what, allow_all=False) -> tuple:
+        if isinstance(obj, str):
+            return (obj,)
+        if not isinstance(obj, list):
+            raise self.fail(path, f"expected a list of {what}, got {kind_of(obj)}", parent, key)
+        for i, x in enumerate(obj):
+            self.string(x, f"{path}[{i}]", obj, i, f"a {what[:-1]} name")
+        if not allow_all and "*" in obj:
+            raise self.fail(path, "'*' (all goals) is only allowed in edges and markers", parent, key)
+        return tuple(obj)
+
+    def constants(self, obj, path, parent, key) -> tuple:
+        """``args``: a mapping of names to constants, kept in file order."""
+        if not isinstance(obj, dict):
+            raise self.fail(path, f"expected a mapping of argument names to constants, got {kind_of(obj)}", parent, key)
+        out = []
+        for k, v in obj.items():
+            self.string(k, path, obj, k, "an argument name")
+            out.append((k, self.constant(v, join_path(path, k), obj, k)))
+        return tuple(out)
+
+    def constant(self, v, path, parent, key, depth=0):
+        if isinstance(v, float) and not math.isfinite(v):
+            raise self.fail(path, "numbers must be finite", parent, key)
+        if isinstance(v, str):
+            try:
+                v.encode("utf-8")
+            except UnicodeEncodeError:
+                raise self.fail(path, "holds a lone surrogate, which is not valid text", parent, key) from None
+        if v is None or isinstance(v, (str, int, float, bool)):
+            return v
+        if isinstance(v, list) and depth < 8:
+            return tuple(self.constant(x, f"{path}[{i}]", v, i, depth + 1) for i, x in enumerate(v))
+        raise self.fail(path, f"an argument is a constant (string, number, boolean) or a list of them, got {kind_of(v)}", parent, key)
+
+    # ---------------------------------------------------------------- declarations
+    def variables(self, obj, path, element_prefix) -> tuple:
+        if obj is None:
+            return ()
+        if not isinstance(obj, dict):
+            raise self.fail(path, f"expected a mapping of names to types, got {kind_of(obj)}", obj)
+        out = []
+        for name, spec in obj.items():
+            p = join_path(path, name)
+            self.string(name, path, obj, name, "a variable name")
+            self.alias(f"{element_prefix}.{name}", p, obj, name)
+            out.append(self.var(name, spec, p, obj))
+        return tuple(out)
+
+    def var(self, name, spec, path, parent) -> Var:
+        if spec == "bool":
+            return Bool(name)
+        if isinstance(spec, str):
+            raise self.fail(path, f"unknown type '{spec}' (write bool, {{bool: true}}, {{enum: [a, b]}} or {{int: [lo, hi]}})", parent, name)
+        kinds = [k for k in _VAR_KINDS if isinstance(spec, dict) and k in spec]
+        if not isinstance(spec, dict) or len(kinds) != 1:
+            raise self.fail(path, "a variable is bool, {bool: INIT}, {enum: [VALUES], init: V} or {int: [LO, HI], init: N}", parent, name)
+        kind = kinds[0]
+        self.fields(spec, path, (kind,) if kind == "bool" else (kind, "init"))
+        if kind == "bool":
+            init = spec["bool"]
+            if init is None:
+                return Bool(name)
+            if not isinstance(init, bool):
+                raise self.fail(f"{path}.bool", f"the initial value of a bool is true or false, got {kind_of(init)}", spec, "bool")
+            return Bool(name, init)
+        init = spec.get("init")
+        if isinstance(init, float) or isinstance(init, (list, dict)):
+            raise self.fail(f"{path}.init", f"expected {'a value name' if kind == 'enum' else 'an integer'}, got {kind_of(init)}", spec, "init")
+        if kind == "enum":
+            values = spec["enum"]
+            if not isinstance(values, list) or not values:
+                raise self.fail(f"{path}.enum", "expected a non-empty list of value names", spec, "enum")
+            for i, v in enumerate(values):
+                self.string(v, f"{path}.enum[{i}]", values, i, "a value name")
+            return Enum(name, values, init)
+        bounds = spec["int"]
+        if not isinstance(bounds, list) or len(bounds) != 2:
+            raise self.fail(f"{path}.int", "expected [lo, hi]", spec, "int")
+        lo, hi = (self.integer(b, f"{path}.int[{i}]", bounds, i) for i, b in enumerate(bounds))
+        if init is not None:
+            self.integer(init, f"{path}.init", spec, "init")
+        return Int(name, lo, hi, init)
+
+    def outcomes(self, obj, path, parent, key, element) -> tuple:
+        if not isinstance(obj, list):
+            raise self.fail(path, f"expected a list of outcomes such as [running, {{success: {{done: true}}}}], got {kind_of(obj)}", parent, key)
+        out = []
+        for i, o in enumerate(obj):
+            p = f"{path}[{i}]"
+            if isinstance(o, str):
+                if o not in _STATUS:
+                    raise self.fail(p, f"unknown status '{o}' (expected success, failure or running)", obj, i)
+                out.append(Outcome(Status.parse(o)))
+                continue
+            statuses = [k for k in _STATUS if isinstance(o, dict) and k in o]
+            if not isinstance(o, dict) or len(statuses) != 1:
+                raise self.fail(p, "an outcome is success, failure, running, or {STATUS: {effects}, name: NAME}", obj, i)
+            st = statuses[0]
+            self.fields(o, p, (st, "name"))
+            name = self.string(o["name"], f"{p}.name", o, "name") if "name" in o else ""
+            if "name" in o and not name:
+                raise self.fail(f"{p}.name", "an outcome name cannot be empty", o, "name")
+            oc = Outcome(Status.parse(st), self.effects(o[st], f"{p}.{st}", o, st), name)
+            self.alias(f"{element}.outcomes.{oc.name}", f"{p}.{st}", o, st)
+            out.append(oc)
+        return tuple(out)
+
+    def primitives(self, obj) -> tuple:
+        if obj is None:
+            return ()
+        if not isinstance(obj, dict):
+            raise self.fail("primitives", f"expected a mapping of primitive names to outcome lists, got {kind_of(obj)}", obj)
+        out = []
+        for name, outs in obj.items():
+            p = join_path("primitives", name)
+            self.string(name, "primitives", obj, name, "a primitive name")
+            self.alias(p, p, obj, name)
+            duration = None
+            if isinstance(outs, dict) and ("outcomes" in outs or "duration" in outs):  # {outcomes: [...], duration: ...}
+                self.fields(outs, p, ("outcomes", "duration"), ("outcomes",), "a list of outcomes, or {outcomes: [...], duration: [min, max]}")
+                duration = self.duration(outs.get("duration"), f"{p}.duration", outs, "duration")
+                outs = outs["outcomes"]
+            out.append(Primitive(name, self.outcomes(outs, p, obj, name, p), duration))
+        return tuple(out)
+
+    def duration(self, value, path, parent, key):
+        """``[min, max]`` seconds (max may be null), ``{min: , max: }`` or one number (btfsm.timing)."""
+        try:
+            return duration_of(value, path)
+        except ModelError as exc:
+            raise self.fail(path, exc.problem, parent, key) from None
+
+    # ---------------------------------------------------------------- tree
+    def node(self, obj, path, root, parent=None, key=None, depth=0):
+        if depth > MAX_DEPTH:
+            raise self.fail(path, f"the tree is nested more than {MAX_DEPTH} levels deep", parent, key)
+        if not isinstance(obj, dict):
+            raise self.fail(path, f"expected a tree node such as {{Condition: name, expr: ...}}, got {kind_of(obj)}", parent, key)
+        types = [k for k in obj if k in NODE_TYPES]
+        if len(types) != 1:
+            if types:
+                raise self.fail(path, f"a node has exactly one type, got {', '.join(types)}", obj)
+            keys = [k for k in obj if isinstance(k, str)]
+            close = [c for k in keys for c in difflib.get_close_matches(k, list(NODE_TYPES), 1)]
+            hint = f" (did you mean '{close[0]}'?)" if close else ""
+            raise self.fail(path, f"a node needs a type key{hint}: one of {', '.join(NODE_TYPES)}", obj)
+        t = types[0]
+        self.fields(obj, path, (t,) + node_keys(NODE_TYPES[t]), node_required(NODE_TYPES[t]))
+        name = obj[t]
+        if not isinstance(name, str) or not name:
+            raise self.fail(join_path(path, t), f"the node name (the value of '{t}') must be a non-empty string, got {kind_of(name)}", obj, t)
+        for prefix in ("tree", root):
+            self.alias(f"{prefix}.{name}", path, parent, key)
+        cls, kw = NODE_TYPES[t], {}
+        if "children" in obj:
+            kids = obj["children"]
+            if not isinstance(kids, list):
+                raise self.fail(f"{path}.children", f"expected a list of nodes, got {kind_of(kids)}", obj, "children")
+            kw["children"] = tuple(self.node(c, f"{path}.children[{i}]", root, kids, i, depth + 1) for i, c in enumerate(kids))
+        if "child" in obj:
+            kw["child"] = self.node(obj["child"], f"{path}.child", root, obj, "child", depth + 1)
+        for f in file_fields(cls):
+            kind = f.metadata["file"]
+            if f.name in obj and (obj[f.name] is not None or kind not in _NULL_IS_DEFAULT):
+                kw[f.name] = self.node_field(kind, obj[f.name], f"{path}.{f.name}", obj, f.name, f.metadata, name)
+        return cls(name, **kw)
+
+    def node_field(self, kind, value, path, obj, key, meta, name):
+        """One node field of file kind ``kind`` (``btfsm.bt.FILE_KINDS``)."""
+        if kind in ("int", "opt_int"):
+            return self.integer(value, path, obj, key)
+        if kind in ("bool", "opt_bool"):
+            if not isinstance(value, bool):
+                raise self.fail(path, f"expected true or false, got {kind_of(value)}", obj, key)
+            return value
+        if kind == "string":
+            return self.string(value, path, obj, key, meta["what"] or "a string")
+        if kind == "names":
+            return self.names(value, path, obj, key, meta["what"])
+        if kind in ("expr", "opt_expr"):
+            return self.expr(value, path, obj, key)
+        if kind == "effects":
+            return self.effects(value, path, obj, key)
+        if kind == "outcomes":
+            return self.outcomes(value, path, obj, key, f"tree.{name}")
+        if kind == "args":
+            return self.constants(value, path, obj, key)
+        if kind == "duration":
+            return self.duration(value, path, obj, key)
+        assert kind == "params", kind
+        if not isinstance(value, dict):
+            raise self.fail(path, f"expected a mapping of parameter names to expressions, got {kind_of(value)}", obj, key)
+        return tuple((self.string(k, path, value, k, "a parameter name"), self.expr(v, f"{path}.{k}", value, k))
+                     for k, v in value.items())
+
+    def alias_declared_outcomes(self, kw):
+        """Effects of a declared primitive are checked where it is used; point there at
+        the declaration instead."""
+        declared = {p.name: p for p in kw.get("primitives", ())}
+        uses = []
+        for f in kw.get("fsms", ()):
+            uses += [(f"fsms.{f.name}.states.{st.id}", st.primitive) for st in f.states if st.outcomes is None]
+            uses += [(f"tree.{n.name}", n.primitive) for st in f.states if st.subtree is not None for n in walk(st.subtree)
+                     if isinstance(n, Action) and n.outcomes is None]
+        tree = kw.get("tree")
+        uses += [(f"tree.{n.name}", n.primitive) for n in (walk(tree) if tree is not None else ())
+                 if isinstance(n, Action) and n.outcomes is None]
+        for element, prim in uses:
+            for o in declared[prim].outcomes if prim in declared else ():
+                target = self.where.get(f"primitives.{prim}.outcomes.{o.name}")
+                if target is not None:
+                    self.where[f"{element}.outcomes.{o.name}"] = target
+
+    # ---------------------------------------------------------------- FSMs
+    def fsm(self, name, spec, path, parent) -> FSM:
+        self.fields(spec, path, FSM_FIELDS, ("goals", "states"), "an FSM (a mapping with goals and states)")
+        self.alias(path, path, parent, name)
+        goals = self.names(spec["goals"], f"{path}.goals", spec, "goals", "goals")
+        states_data = spec["states"]
+        if not isinstance(states_data, list):
+            raise self.fail(f"{path}.states", f"expected a list of states, got {kind_of(states_data)}", spec, "states")
+        states = tuple(self.state(name, s, f"{path}.states[{i}]", states_data, i) for i, s in enumerate(states_data))
+        kw = {}
+        for k in ("initial", "retarget", "withdraw_goal"):
+            if k in spec:
+                kw[k] = self.string(spec[k], f"{path}.{k}", spec, k)
+        if "terminal" in spec:
+            kw["terminal"] = self.names(spec["terminal"], f"{path}.terminal", spec, "terminal", "states")
+        kw["params"] = self.variables(spec.get("params"), f"{path}.params", f"fsms.{name}.params")
+        edges: list
+        markers: list
+        edges, markers = [], []
+        for key, build, out in (("edges", self.edge, edges), ("markers", self.marker, markers)):
+            items = spec.get(key)
+            if items is None:
+                continue
+            if not isinstance(items, list):
+                raise self.fail(f"{path}.{key}", f"expected a list, got {kind_of(items)}", spec, key)
+            for i, x in enumerate(items):
+                built = build(x, f"{path}.{key}[{i}]", items, i)
+                out.extend(built if isinstance(built, list) else [built])
+        f = FSM(name, states=states, goals=goals, edges=tuple(e for e, _ in edges),
+                markers=tuple(m for m, _ in markers), **kw)
+        for built, (_, where) in zip(f.edges, edges):
+            self.alias(f"fsms.{name}.edges.{built.id}", *where)
+        for built, (_, where) in zip(f.markers, markers):
+            self.alias(f"fsms.{name}.markers.{built.id}", *where)
+        return f
+
+    def state(self, fsm, obj, path, parent, key) -> State:
+        if isinstance(obj, str):
+            self.alias(f"fsms.{fsm}.states.{obj}", path, parent, key)
+            return State(obj)
+        self.fields(obj, path, ("id", "primitive", "args", "outcomes", "subtree", "duration"), ("id",), "a state (an id, or a mapping with id)")
+        sid = self.string(obj["id"], f"{path}.id", obj, "id", "a state id")
+        element = f"fsms.{fsm}.states.{sid}"
+        self.alias(element, path, parent, key)
+        kw = {}
+        if "primitive" in obj:
+            kw["primitive"] = self.string(obj["primitive"], f"{path}.primitive", obj, "primitive", "a primitive name")
+        if obj.get("args") is not None:
+            kw["args"] = self.constants(obj["args"], f"{path}.args", obj, "args")
+        if obj.get("outcomes") is not None:
+            kw["outcomes"] = self.outcomes(obj["outcomes"], f"{path}.outcomes", obj, "outcomes", element)
+        if obj.get("subtree") is not None:
+            kw["subtree"] = self.node(obj["subtree"], f"{path}.subtree", f"{element}.subtree", obj, "subtree")
+        if obj.get("duration") is not None:
+            kw["duration"] = self.duration(obj["duration"], f"{path}.duration", obj, "duration")
+        return State(sid, **kw)
+
+    def trigger(self, obj, path):
+        """The trigger of an edge or marker: ``when:`` (or the older ``on:``, also as the
+        boolean key ``true`` that YAML 1.1 readers make of it)."""
+        given = [k for k in obj if k is True or (isinstance(k, str) and k in TRIGGER_KEYS)]
+        if len(given) > 1:
+            raise self.fail(path, f"give the trigger once (as 'when'; got {', '.join(str(k) for k in given)})", obj)
+        key = given[0] if given else None
+        on = obj[key] if given else "success"
+        if on not in _STATUS + ("direct",):
+            shown = "on" if key is True else key
+            raise self.fail(f"{path}.{shown}", f"expected success, failure, running or direct, got {on!r}", obj, key)
+        return {"direct": True} if on == "direct" else {"on": Status.parse(on)}
+
+    def trigger_fields(self, obj, path, allowed, required, what):
+        """Check the fields of an edge or marker, accepting the trigger's old spellings."""
+        if isinstance(obj, dict) and any(k is True for k in obj):
+            obj = {("on" if k is True else k): v for k, v in obj.items() if not (k is True and "on" in obj)}
+        self.fields(obj, path, allowed, required, what)
+
+    def edge(self, obj, path, parent, key):
+        self.trigger_fields(obj, path, ("from", "to", "goals", "when", "on", "guard", "effects", "id"), ("from", "to"), "an edge {from: A, to: B, ...}")
+        kw = self.trigger(obj, path)
+        if "goals" in obj:
+            kw["goals"] = self.names(obj["goals"], f"{path}.goals", obj, "goals", "goals", allow_all=True)
+        if "id" in obj:
+            kw["id"] = self.string(obj["id"], f"{path}.id", obj, "id")
+        target = self.string(obj["to"], f"{path}.to", obj, "to", "a state id")
+        guard, effects = self.opt_expr(obj, "guard", path), self.effects(obj.get("effects"), f"{path}.effects", obj, "effects")
+        sources = obj["from"]
+        if not isinstance(sources, list):
+            return Edge(self.string(sources, f"{path}.from", obj, "from", "a state id"), target, guard=guard,
+                        effects=effects, **kw), (path, parent, key)
+        # from: [a, b]: one edge per source, alike in everything else (ids: ID/SOURCE when given)
+        if not sources:
+            raise self.fail(f"{path}.from", "expected a state id or a non-empty list of state ids", obj, "from")
+        out = []
+        for k, src in enumerate(sources):
+            sid = self.string(src, f"{path}.from[{k}]", sources, k, "a state id")
+            if sid in sources[:k]:
+                raise self.fail(f"{path}.from[{k}]", f"state '{sid}' is listed twice", sources, k)
+            one = dict(kw, id=f"{kw['id']}/{sid}") if "id" in kw and len(sources) > 1 else kw
+            out.append((Edge(sid, target, guard=guard, effects=effects, **one), (path, parent, key)))
+        return out
+
+    def marker(self, obj, path, parent, key):
+        self.trigger_fields(obj, path, ("state", "goals", "when", "on", "outcome", "guard", "id"), ("state",), "a marker {state: S, ...}")
+        kw = self.trigger(obj, path)
+        if "goals" in obj:
+            kw["goals"] = self.names(obj["goals"], f"{path}.goals", obj, "goals", "goals", allow_all=True)
+        if "id" in obj:
+            kw["id"] = self.string(obj["id"], f"{path}.id", obj, "id")
+        if "outcome" in obj:
+            if obj["outcome"] not in ("success", "failure"):
+                raise self.fail(f"{path}.outcome", f"expected success or failure, got {obj['outcome']!r}", obj, "outcome")
+            kw["outcome"] = Status.parse(obj["outcome"])
+        m = Marker(self.string(obj["state"], f"{path}.state", obj, "state", "a state id"), guard=self.opt_expr(obj, "guard", path), **kw)
+        return m, (path, parent, key)
+
+    # ---------------------------------------------------------------- environment
+    def event(self, obj, path, parent, key, element):
+        self.fields(obj, path, ("event", "guard", "effects", "min_interval"), ("event",),
+                    "an event {event: NAME, guard: ..., effects: {...}, min_interval: SECONDS}")
+        name = self.string(obj["event"], f"{path}.event", obj, "event", "an event name")
+        self.alias(f"{element}.{name}", path, parent, key)
+        gap = obj.get("min_interval")
+        if gap is not None and (isinstance(gap, bool) or not isinstance(gap, (int, float)) or not 0 <= gap < math.inf):
+            raise self.fail(f"{path}.min_interval", f"expected a finite number of seconds >= 0, got {kind_of(gap)}", obj, "min_interval")
+        return EnvEvent(name, self.opt_expr(obj, "guard", path), self.effects(obj.get("effects"), f"{path}.effects", obj, "effects"),
+                        gap)
+
+    def environment(self, obj) -> tuple:
+        if obj is None:
+            return ()
+        if not isinstance(obj, list):
+            raise self.fail("environment", f"expected a list of events and choices, got {kind_of(obj)}", obj)
+        out = []
+        for i, ev in enumerate(obj):
+            p = f"environment[{i}]"
+            self.alias(p, p, obj, i)
+            if isinstance(ev, dict) and "choice" in ev:
+                self.fields(ev, p, ("choice", "options"), ("options",), "a choice {choice: NAME, options: [...]}")
+                name = self.string(ev["choice"], f"{p}.choice", ev, "choice", "a choice name")
+                self.alias(f"environment.{name}", p, obj, i)
+                opts = ev["options"]
+                if not isinstance(opts, list):
+                    raise self.fail(f"{p}.options", f"expected a list of events, got {kind_of(opts)}", ev, "options")
+                for k in range(len(opts)):
+                    self.alias(f"environment.{name}.options[{k}]", f"{p}.options[{k}]", opts, k)
+                out.append(EnvChoice(name, tuple(self.event(o, f"{p}.options[{k}]", opts, k, f"environment.{name}.options")
+                                                 for k, o in enumerate(opts))))
+            else:
+                out.append(self.event(ev, p, obj, i, "environment"))
+        return tuple(out)
+
+    def resources(self, obj, data) -> tuple:
+        """``resources: {arm: [pick_a, pick_b]}``: resource name -> node names."""
+        if not isinstance(obj, dict):
+            raise self.fail("resources", f"expected a mapping of resource names to lists of node names, got {kind_of(obj)}",
+                            data, "resources")
+        out = []
+        for name, members in obj.items():
+            self.string(name, "resources", obj, name, "a resource name")
+            path = join_path("resources", name)
+            self.alias(path, path, obj, name)
+            if isinstance(members, str):
+                members = [members]
+            if not isinstance(members, list):
+                raise self.fail(path, f"expected a list of node names, got {kind_of(members)}", obj, name)
+            for i, m in enumerate(members):
+                self.string(m, f"{path}[{i}]", members, i, "a node name")
+            out.append((name, tuple(members)))
+        return tuple(out)
+
+    def responses(self, obj, data) -> tuple:
+        """``responses: {NAME: {trigger: EXPR | event:NAME, response: EXPR, within: SECONDS}}``."""
+        if not isinstance(obj, dict):
+            raise self.fail("responses", f"expected a mapping of names to {{trigger, response, within}}, got {kind_of(obj)}",
+                            data, "responses")
+        out = []
+        for name, spec in obj.items():
+            self.string(name, "responses", obj, name, "a requirement name")
+            path = join_path("responses", name)
+            self.alias(path, path, obj, name)
+            if not isinstance(spec, dict):
+                raise self.fail(path, f"expected {{trigger: ..., response: ..., within: SECONDS}}, got {kind_of(spec)}", obj, name)
+            self.fields(spec, path, ("trigger", "response", "within"), ("trigger", "response"),
+                        "{trigger: EXPR or event:NAME, response: EXPR, within: SECONDS}")
+            trig = spec["trigger"]
+            if isinstance(trig, str) and trig.strip().startswith("event:"):
+                trig = trig.strip()
+            else:
+                trig = self.expr(trig, f"{path}.trigger", spec, "trigger")
+            resp = self.expr(spec["response"], f"{path}.response", spec, "response")
+            within = spec.get("within")
+            if within is not None and (isinstance(within, bool) or not isinstance(within, (int, float))
+                                       or not 0 <= within < math.inf):
+                raise self.fail(f"{path}.within", f"expected a finite number of seconds >= 0, got {kind_of(within)}", spec, "within")
+            out.append(Response(name, trig, resp, within))
+        return tuple(out)
+
+    # ---------------------------------------------------------------- the model
+    def model(self, data) -> Model:
+        self.fields(data, "", TOP_FIELDS, ("name",), "a mapping with the model")
+        kw = {"name": self.string(data["name"], "name", data, "name", "a model name")}
+        if "description" in data:
+            kw["description"] = self.string(data["description"], "description", data, "description")
+        if "semantics" in data:
+            sem = data["semantics"]
+            if not isinstance(sem, str) or sem not in PROFILES:
+                raise self.fail("semantics", f"expected one of {', '.join(PROFILES)}, got {sem!r}", data, "semantics")
+            kw["semantics"] = sem
+        if "tick" in data:
+            tick = data["tick"]
+            if not isinstance(tick, str) or tick not in TICKS:
+                raise self.fail("tick", f"expected one of {', '.join(TICKS)}, got {tick!r}", data, "tick")
+            kw["tick"] = tick
+        if "tick_rate" in data:
+            r = data["tick_rate"]
+            if isinstance(r, bool) or not isinstance(r, (int, float)) or not math.isfinite(r):
+                raise self.fail("tick_rate", f"expected a finite number of ticks per second, got {kind_of(r)}", data, "tick_rate")
+            kw["tick_rate"] = r
+        for key in TOP_FIELDS:
+            self.alias(key, key, data, key)
+        kw["variables"] = self.variables(data.get("variables"), "variables", "variables")
+        kw["primitives"] = self.primitives(data.get("primitives"))
+        fsms = data.get("fsms")
+        if fsms is not None:
+            if not isinstance(fsms, dict):
+                raise self.fail("fsms", f"expected a mapping of FSM names to FSMs, got {kind_of(fsms)}", data, "fsms")
+            kw["fsms"] = tuple(self.fsm(self.string(n, "fsms", fsms, n, "an FSM name"), spec, join_path("fsms", n), fsms) for n, spec in fsms.items())
+        if data.get("tree") is not None:
+            kw["tree"] = self.node(data["tree"], "tree", "tree", data, "tree")
+        kw["environment"] = self.environment(data.get("environment"))
+        inv = data.get("invariants")
+        if inv is not None:
+            if not isinstance(inv, dict):
+                raise self.fail("invariants", f"expected a mapping of names to expressions, got {kind_of(inv)}", data, "invariants")
+            kw["invariants"] = tuple((self.string(k, "invariants", inv, k, "an invariant name"), self.expr(v, join_path("invariants", k), inv, k))
+                                     for k, v in inv.items())
+        for key in ("workable", "terminal"):
+            if data.get(key) is not None:
+                kw[key] = self.expr(data[key], key, data, key)
+        if data.get("resources") is not None:
+            kw["resources"] = self.resources(data["resources"], data)
+        if data.get("responses") is not None:
+            kw["responses"] = self.responses(data["responses"], data)
+        self.alias_declared_outcomes(kw)
+        try:
+            return Model(**kw)
+        except ModelError as exc:
+            raise self.translate(exc) from None
+
+
+def model_from_data(data, file: "str | None" = None) -> Model:
+    """Build a Model from loaded data (templates are expanded first)."""
+    data = expand_templates(data, file)
+    return _Reader(file).model(data)
+
+
+def loads_model(text, fmt: str = "yaml", file_name: str = "<string>") -> Model:
+    """A Model from YAML or JSON text."""
+    return model_from_data(loads_data(text, fmt, file_name), file_name)

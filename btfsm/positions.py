@@ -1,0 +1,228 @@
+"""A position abstraction for timed FSMs: a state split by the state the token came from.
+
+A primitive's duration often depends on where the robot starts, and where it starts is
+where the state before left it. ``split_by_entry(model, fsm, table)`` gives each state of
+``table`` one copy per group of predecessor states that share a duration interval: the
+copy ``s@u`` is entered only from ``u`` (or from the states of its group), so its declared
+duration can be the interval of the moves that start where ``u`` leaves the arm. Edges
+and markers are copied for every copy of their source; expressions that name a split
+state (``arm.state == 's'``) name all its copies. The split model has the same runs as
+the original up to the renaming, with finer durations (docs/verification.md 2.1).
+
+``table``: ``{state: {entry: (min, max) seconds}}``; an entry is a predecessor state, or
+``""`` for the initial state's start. Every entry of a state in the table must be there.
+
+>>> from btfsm import FSM, Edge, Model, State, Primitive, Action, running, success
+>>> f = FSM("arm", states=[State("a", "move"), State("b", "move")], initial="a", goals=("g",),
+...         edges=[Edge("a", "b", "g"), Edge("b", "a", "g")])
+>>> m = Model("m", primitives=[Primitive("move", (running(), success()))], fsms=[f])
+>>> s = split_by_entry(m, "arm", {"a": {"": (0, 1), "b": (0, 2)}})
+>>> [st.id for st in s.fsms[0].states], s.fsms[0].initial
+(['a@start', 'a@b', 'b'], 'a@start')
+>>> sorted((e.source, e.target) for e in s.fsms[0].edges)
+[('a@b', 'b'), ('a@start', 'b'), ('b', 'a@b')]
+"""
+from __future__ import annotations
+
+import dataclasses
+from typing import Any, cast
+
+from .errors import ModelError
+from .fsm import Edge
+from .expr import BoolOp, Compare, Const, Expr, Name, Unary
+
+__all__ = ["split_by_entry", "split_by_goal", "base_state", "entries_of", "SEP", "GOAL_SEP"]
+
+SEP = "@"  # a copy by entry: "<state>@<predecessor>"
+GOAL_SEP = "#"  # a copy by goal: "<state>#<class>"
+
+
+def base_state(name: str) -> str:
+    """The state a copy was split from (the name itself for a state that was not split).
+
+    >>> base_state("approach_bins#hub@escape_bins+2"), base_state("grasp_bins")
+    ('approach_bins', 'grasp_bins')
+    """
+    return name.split(SEP, 1)[0].split(GOAL_SEP, 1)[0]
+
+
+def entries_of(fsm) -> dict:
+    """``{state: {predecessor: (direct, goals)}}``: how the token can enter each state;
+    ``""`` is the start of the initial state. ``direct``: entered by a direct edge only
+    (the predecessor's run was halted), False when some edge fires after it finished."""
+    out: dict = {s.id: {} for s in fsm.states}
+    out[fsm.initial][""] = (False, ())
+    for e in fsm.edges:
+        had = out[e.target].get(e.source)
+        goals = tuple(dict.fromkeys((had[1] if had else ()) + e.goals))
+        out[e.target][e.source] = ((had[0] if had else True) and e.direct, goals)
+    return out
+
+
+def _groups(table: dict, entries: dict) -> dict:
+    """{state: [(copy name, duration, predecessors)]} for the states of ``table``."""
+    out = {}
+    for s, by_entry in table.items():
+        if s not in entries:
+            raise ModelError(f"positions.{s}", "no such state")
+        missing = [u or "(start)" for u in entries[s] if u not in by_entry]
+        if missing:
+            raise ModelError(f"positions.{s}", f"no duration for the entry from {', '.join(missing)}")
+        groups: dict = {}
+        for u in entries[s]:
+            groups.setdefault(tuple(by_entry[u]), []).append(u)
+        if len(groups) == 1:
+            (dur, preds), = groups.items()
+            out[s] = [(s, dur, preds)]
+            continue
+        named = []
+        for dur, preds in groups.items():
+            tag = preds[0] or "start"
+            named.append((f"{s}{SEP}{tag}" + (f"+{len(preds) - 1}" if len(preds) > 1 else ""), dur, preds))
+        out[s] = named
+    return out
+
+
+def _rename_compare(e, field: str, copies: dict):
+    """``e`` (a comparison) with ``field == 's'`` (either side, ``==`` or ``!=``) widened to the copies of s."""
+    for a, b in ((e.left, e.right), (e.right, e.left)):
+        if isinstance(a, Name) and a.id == field and isinstance(b, Const) and b.value in copies:
+            names = copies[b.value]
+            if len(names) == 1:
+                return Compare(e.op, a, Const(names[0]))
+            any_of = BoolOp("or", tuple(Compare("==", a, Const(n)) for n in names))
+            return any_of if e.op == "==" else Unary("not", any_of)
+    return e
+
+
+def _rename_any(x, field: str, copies: dict):
+    if isinstance(x, Expr):
+        if isinstance(x, Compare) and x.op in ("==", "!="):
+            return _rename_compare(x, field, copies)
+        changes = {f.name: _rename_any(getattr(x, f.name), field, copies) for f in dataclasses.fields(cast(Any, x))}
+        return dataclasses.replace(cast(Any, x), **changes) if any(changes[k] is not getattr(x, k) for k in changes) else x
+    if isinstance(x, tuple):
+        new = tuple(_rename_any(v, field, copies) for v in x)
+        return x if all(a is b for a, b in zip(new, x)) else new
+    if dataclasses.is_dataclass(x) and not isinstance(x, type):
+        changes = {}
+        for f in dataclasses.fields(x):
+            if not f.init:
+                continue
+            old = getattr(x, f.name)
+            new = _rename_any(old, field, copies)
+            if new is not old:
+                changes[f.name] = new
+        return dataclasses.replace(x, **changes) if changes else x
+    return x
+
+
+def split_by_entry(model, fsm: str, table: dict):
+    """``model`` with FSM ``fsm``'s states of ``table`` split by entry (see the module text)."""
+    f = next((x for x in model.fsms if x.name == fsm), None)
+    if f is None:
+        raise ModelError("positions", f"no FSM named '{fsm}'")
+    entries = entries_of(f)
+    groups = _groups(table, entries)
+    copies = {s.id: [n for n, _, _ in groups[s.id]] if s.id in groups else [s.id] for s in f.states}
+    entered = {}  # (state, predecessor) -> copy name
+    for s, named in groups.items():
+        for name, _, preds in named:
+            for u in preds:
+                entered[(s, u)] = name
+    states = []
+    for st in f.states:
+        if st.id in groups:
+            states += [dataclasses.replace(st, id=name, duration=dur) for name, dur, _ in groups[st.id]]
+        else:
+            states.append(st)
+    field = f"{fsm}.state"
+    edges = [dataclasses.replace(_rename_any(e, field, copies), source=src, target=entered.get((e.target, e.source), e.target),
+                                 id="")
+             for e in f.edges for src in copies[e.source]]
+    markers = [dataclasses.replace(_rename_any(m, field, copies), state=src, id="") for m in f.markers for src in copies[m.state]]
+    initial = entered.get((f.initial, ""), f.initial)
+    new_f = dataclasses.replace(_rename_any(f, field, copies), states=tuple(states), edges=tuple(edges),
+                                markers=tuple(markers), initial=initial)
+    others = {k: _rename_any(getattr(model, k), field, copies)
+              for k in ("tree", "environment", "invariants", "workable", "terminal", "responses")}
+    fsms = tuple(new_f if x.name == fsm else _rename_any(x, field, copies) for x in model.fsms)
+    return dataclasses.replace(model, fsms=fsms, **others)
+
+
+def split_by_goal(model, fsm: str, classes: dict):
+    """``model`` with FSM ``fsm``'s states of ``classes`` split by the goal their run
+    serves: ``classes`` is ``{state: {class name: (goals...)}}`` (every goal the state
+    serves in exactly one class). The copy ``s#c`` runs only for the goals of class c:
+    the edges entering s for a goal of c enter ``s#c``; a request for a goal of another
+    class c' moves the token from ``s#c`` to ``s#c'`` by a direct edge (after s's own
+    direct edges for that goal), which halts the run and starts it afresh, as a
+    withdrawn request's next run of s does (docs/semantics.md 5). Replies are unchanged:
+    every copy has s's markers.
+
+    >>> from btfsm import FSM, Edge, Model, State, Primitive, running, success
+    >>> f = FSM("arm", states=[State("a", "move"), State("b")], initial="a", goals=("g", "h"),
+    ...         edges=[Edge("a", "b", ("g", "h")), Edge("b", "a", ("g", "h"))])
+    >>> m = Model("m", primitives=[Primitive("move", (running(), success()))], fsms=[f])
+    >>> s = split_by_goal(m, "arm", {"a": {"G": ("g",), "H": ("h",)}})
+    >>> [st.id for st in s.fsms[0].states]
+    ['a#G', 'a#H', 'b']
+    >>> sorted((e.source, e.target, e.goals, e.direct) for e in s.fsms[0].edges)[:3]
+    [('a#G', 'a#H', ('h',), True), ('a#G', 'b', ('g',), False), ('a#H', 'a#G', ('g',), True)]
+    """
+    f = next((x for x in model.fsms if x.name == fsm), None)
+    if f is None:
+        raise ModelError("positions", f"no FSM named '{fsm}'")
+    ids = {st.id for st in f.states}
+
+    def goals_of(e):
+        return tuple(f.goals) if "*" in e.goals else tuple(e.goals)
+
+    cls = {}  # state -> {goal: copy name}
+    for s, groups in classes.items():
+        if s not in ids:
+            raise ModelError(f"positions.{s}", "no such state")
+        cls[s] = {g: f"{s}{GOAL_SEP}{c}" for c, goals in groups.items() for g in goals}
+    copies = {st.id: list(dict.fromkeys(cls[st.id].values())) if st.id in cls else [st.id] for st in f.states}
+    states = []
+    for st in f.states:
+        states += [dataclasses.replace(st, id=n) for n in copies[st.id]] if st.id in cls else [st]
+    field = f"{fsm}.state"
+    edges = []
+    for st in f.states:
+        own = [e for e in f.edges if e.source == st.id]
+        for src in copies[st.id]:
+            out = []
+            mine = {g for g, n in cls.get(st.id, {}).items() if n == src}
+            for e in own:
+                goals = goals_of(e)
+                if st.id in cls:  # a copy keeps its class's goals; the others switch copies first
+                    goals = tuple(g for g in goals if g in mine or g not in cls[st.id])
+                    if not goals:
+                        continue
+                    e = dataclasses.replace(e, goals=goals)
+                if e.target in cls:  # one edge per copy of the target its goals enter
+                    by: dict = {}
+                    for g in goals:
+                        by.setdefault(cls[e.target].get(g, copies[e.target][0]), []).append(g)
+                    out += [dataclasses.replace(_rename_any(e, field, copies), source=src, target=t, goals=tuple(gs), id="")
+                            for t, gs in by.items()]
+                else:
+                    out.append(dataclasses.replace(_rename_any(e, field, copies), source=src, id=""))
+            if st.id in cls:  # a request of another class moves to its copy, after s's own direct edges
+                first = [x for x in out if x.direct]
+                switch: dict = {}
+                for g, n in cls[st.id].items():
+                    if n != src:
+                        switch.setdefault(n, []).append(g)
+                out = first + [Edge(src, n, tuple(gs), direct=True) for n, gs in switch.items()] + \
+                    [x for x in out if not x.direct]
+            edges += out
+    markers = [dataclasses.replace(_rename_any(m, field, copies), state=src, id="") for m in f.markers
+               for src in copies[m.state]]
+    new_f = dataclasses.replace(f, states=tuple(states), edges=tuple(edges), markers=tuple(markers),
+                                initial=copies[f.initial][0])
+    others = {k: _rename_any(getattr(model, k), field, copies)
+              for k in ("tree", "environment", "invariants", "workable", "terminal", "responses")}
+    fsms = tuple(new_f if x.name == fsm else _rename_any(x, field, copies) for x in model.fsms)
+    return dataclasses.replace(model, fsms=fsms, **others)

@@ -1,0 +1,165 @@
+"""The position abstraction of the timed ARIAC models (btfsm.positions, btfsm.sim.durations;
+docs/verification.md 2.1): the split FSM has the original's behaviour, and the derived
+durations come from the scene's own motions.
+"""
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import pytest
+
+from btfsm import FSM, Edge, Model, ModelError, Primitive, State, running, success
+from btfsm.models import ariac
+from btfsm.positions import base_state, entries_of, split_by_entry, split_by_goal
+from btfsm.verify.explore import explore
+
+
+def _untimed(model):
+    f = model.fsms[0]
+    return dataclasses.replace(model, fsms=(dataclasses.replace(f, states=tuple(
+        dataclasses.replace(s, duration=None) for s in f.states)),), responses=(),
+        environment=tuple(dataclasses.replace(e, min_interval=None) for e in model.environment))
+
+
+def _projected(ts) -> tuple:
+    """(states, transitions) of ``ts`` with every FSM copy named by the state it was split from."""
+    def one(i):
+        return tuple(sorted((k, base_state(v) if k.endswith(".state") else v) for k, v in ts.decode(i).items()))
+    def label(lab):  # an outcome's site is "fsm/state"
+        return tuple(tuple(f"{x.split('/')[0]}/{base_state(x.split('/', 1)[1])}" if isinstance(x, str) and "/" in x
+                           else x for x in item) for item in lab)
+    states = [one(i) for i in range(ts.n_states)]
+    return set(states), {(states[int(s)], states[int(d)], label(ts.labels[int(lab)]))
+                         for s, d, lab in zip(ts.src, ts.dst, ts.label)}
+
+
+@pytest.mark.parametrize("variant", ["preemptive", "baseline"])
+def test_the_split_fsm_behaves_as_the_original(variant):
+    """Without its durations, the split model's reachable states and transitions, each copy
+    named by its state, are exactly the original model's (1 tray part keeps it small)."""
+    m = getattr(ariac, variant)(n_tray=1)
+    split = _untimed(ariac.timed(m))
+    assert len(split.fsms[0].states) > len(m.fsms[0].states)
+    assert _projected(explore(split)) == _projected(explore(m))
+
+
+def test_expressions_name_every_copy():
+    m = ariac.timed(ariac.preemptive(n_tray=2))
+    hubs = [s.id for s in m.fsms[0].states if base_state(s.id) == "approach_agv"]
+    text = str(m.workable)
+    assert len(hubs) > 1 and all(f"'{h}'" in text for h in hubs)
+
+
+def test_split_errors_name_the_state():
+    f = FSM("arm", states=[State("a", "move"), State("b", "move")], initial="a", goals=("g",),
+            edges=[Edge("a", "b", "g"), Edge("b", "a", "g")])
+    m = Model("m", primitives=[Primitive("move", (running(), success()))], fsms=[f])
+    with pytest.raises(ModelError, match="no duration for the entry from b"):
+        split_by_entry(m, "arm", {"a": {"": (0, 1)}})
+    with pytest.raises(ModelError, match="positions.zz"):
+        split_by_goal(m, "arm", {"zz": {"c": ("g",)}})
+    assert entries_of(f) == {"a": {"": (False, ()), "b": (False, ("g",))}, "b": {"a": (False, ("g",))}}
+
+
+def test_the_rest_to_rest_time_is_the_worlds():
+    """``Derivation.rest_time`` is the time the scene's arm takes (``World.move_to`` at the
+    binding's speed scale), to the world step, for moves in x-y, in z and both."""
+    from btfsm.sim.durations import Derivation, _kitting
+
+    scene, binding = _kitting(ariac.preemptive(n_tray=2))
+    geo = Derivation(scene, binding)
+    from btfsm.sim.scene import World
+
+    for (x, y, z) in [(0.3, -1.0, 1.1), (0.3, -2.9, 0.77), (0.9, -0.5, 1.3), (0.6, -0.8, 0.8)]:
+        w = World(scene, 0)
+        r = w.robots[binding.robot]
+        x0, y0, z0 = r.x, r.y, r.z
+        s = binding.speed
+        w.move_to(binding.robot, (x, y), s, z=z, acceleration=s * s)
+        n = 0
+        while not r.arrived:
+            w.step()
+            n += 1
+        want = geo.rest_time(math.hypot(x - x0, y - y0), abs(z - z0))
+        assert want <= n * w.dt < want + w.dt + 1e-9
+
+
+def test_the_stored_table_is_the_derivation(tmp_path):
+    """models/ariac_timing.json is what ``derive`` gives for the moves that need no belt
+    tracking (the pursuit samples make the whole derivation take a minute: BTFSM_LONG=1)."""
+    import os
+
+    from btfsm.sim import durations
+
+    stored = ariac.derived_timing()
+    if os.environ.get("BTFSM_LONG") != "1":
+        pytest.skip("the derivation runs a minute of pursuits (BTFSM_LONG=1)")
+    got = durations.derive(ariac.preemptive()).to_data()
+    assert got["classes"] == stored["classes"] and got["table"] == stored["table"]
+
+
+def _first_late_oracle(ts, rb, bound: int):
+    """The worst first late response by an explicit product: (state, ticks the pending
+    trigger has waited or None), counted along the transitions (not read from the
+    event's interval counter), cut where a pending trigger waited longer than ``bound``."""
+    trig = set(int(t) for t in rb.trigger_edges)
+    seen, todo, worst = {(0, None)}, [(0, None)], None
+    while todo:
+        u, age = todo.pop()
+        for t in range(int(ts.offsets[u]), int(ts.offsets[u + 1])):
+            d = int(ts.dst[t])
+            a = 0 if t in trig else (None if age is None else age + 1)
+            if t in trig:
+                w = int(rb.worst_at[d])
+                worst = w if worst is None else max(worst, w)
+            if rb.stop[d]:
+                a = None
+            if a is not None and a > bound:
+                continue
+            if (d, a) not in seen:
+                seen.add((d, a))
+                todo.append((d, a))
+    return worst
+
+
+@pytest.mark.parametrize("work,bound", [((0.0, 0.3), 2), ((0.1, 0.4), 3), ((0.0, 0.6), 4), ((0.1, 0.75), 5)])
+def test_first_late_is_the_product_search(work, bound):
+    """``ResponseBound.first_late`` against an explicit product search on a small model:
+    parts arrive at least 0.8 s apart into a queue of two, a worker takes ``work`` seconds
+    per part (0.75 s: the queue may never empty, both figures unbounded); the response is
+    an empty queue."""
+    from btfsm import Action, Condition, EnvEvent, Int, ReactiveSequence
+    from btfsm.timing import Response
+    from btfsm.verify.properties.response import ResponseBound
+
+    m = Model("q", variables=[Int("q", 0, 2)],
+              primitives=[Primitive("work", (running(), success(q="q - 1")), duration=work)],
+              tree=ReactiveSequence("root", [Condition("has", "q > 0"), Action("w", primitive="work")]),
+              environment=[EnvEvent("arrive", "q < 2", {"q": "q + 1"}, min_interval=0.8)],
+              tick_rate=10.0)
+    ts = explore(m)
+    rb = ResponseBound(ts, Response("r", "event:arrive", "q == 0"))
+    worst, path, k = rb.first_late(bound)
+    assert worst == _first_late_oracle(ts, rb, bound) <= rb.worst
+    assert rb.first_late(8) is None  # the interval (8 ticks) must exceed the bound
+
+
+def test_a_user_scene_gets_derived_durations_and_a_response_verdict(capsys):
+    """``python -m btfsm.sim.durations --scene FILE --trigger T --response R --within S``:
+    the bind table's moves get their slowest rest-to-rest run (context-free), and the
+    requirement a verdict; the grasp (a grip that waits for a part) has no derived bound,
+    so the worst case is unbounded. Bad input: one line, exit 2."""
+    from btfsm.sim.durations import main as durations_main
+
+    from pathlib import Path
+
+    scene = str(Path(__file__).resolve().parents[1] / "models" / "scenes" / "two_area.yaml")
+    assert durations_main(["--scene", scene, "--trigger", "event:arrive", "--response", "arm.state == 'grasp_in'",
+                           "--within", "20"]) == 1
+    out = capsys.readouterr().out
+    assert "arm.at_in                    [0, 1.733] s" in out and "worst case unbounded" in out
+    assert "response: violated" in out
+    assert durations_main(["--scene", scene, "--trigger", "event:arrive", "--response", "arm.goal == 'x'"]) == 2
+    err = capsys.readouterr().err
+    assert "responses.requirement.response: 'x' is not one of" in err and "Traceback" not in err
