@@ -446,7 +446,7 @@ def _merged_choices(run, state):
 
 def script_of(ts, t: int) -> tuple:
     """The choice script of transition ``t`` (found by re-enumerating its source's successors)."""
-    i, j, li = int(ts.src[t]), int(ts.dst[t]), int(ts.label[t])
+    i, j, li = ts.source(t), int(ts.dst[t]), ts.label_of(t)
     want_state = ts.full_state(j)
     want_label = ts.labels[li]
     prog = ts.model.program

@@ -166,8 +166,48 @@ def check(model, properties=None, *, max_states: "int | None" = DEFAULT_MAX_STAT
     t0 = time.perf_counter()
     ctx = Context(model, max_states=max_states, max_transitions=max_transitions, max_seconds=max_seconds,
                   progress=progress, engine=engine, goal_level=goal_level)
-    results = [run_property(ctx, n) for n in names]
+    done = {}
+    for n, during, after in _schedule(ctx, names):
+        ctx.model_needed = during
+        done[n] = run_property(ctx, n)
+        ctx.model_needed = after
+        ctx.done_with_model()
+    results = [done[n] for n in names]
+    fsms = [f.name for f in model.fsms]
+    order = sorted(ctx.systems, key=lambda ts: -1 if ts.kind == "model" else fsms.index(ts.fsm))
     systems = [{"kind": ts.kind, "fsm": ts.fsm, "states": ts.n_states, "transitions": ts.n_transitions,
                 "complete": ts.complete, "seconds": round(ts.seconds, 6),
-                **({} if ts.complete else {"budget": ts.stopped})} for ts in ctx.systems]
+                **({} if ts.complete else {"budget": ts.stopped})} for ts in order]
     return Report(model.name, results, systems, time.perf_counter() - t0, model.semantics)
+
+
+# properties that read the model-level system (``lints`` and tree-level ``goal-reachability``: see ``_schedule``)
+_MODEL = ("workable-reachability", "invariants", "contracts", "domain", "exclusive-actions", "response")
+
+
+def _schedule(ctx, names):
+    """``(name, during, after)`` in the order to decide ``names`` (the report keeps the
+    given order): first what reads only the model-level system, then ``no-dead-states``
+    (its model part, then the FSMs), then what reads only FSM systems. ``during`` and
+    ``after`` say whether the model-level system is still needed while the property runs
+    and once it is done: ``Context.done_with_model`` lets the system go when it is not, so
+    the model's system is gone before the FSMs are explored and the check holds one large
+    system at a time (``no-dead-states`` lets it go between its two parts)."""
+    from .properties import lints, not_applicable
+
+    def reads_model(n):
+        if not_applicable(ctx.model, n) is not None:
+            return False
+        if n == "goal-reachability":
+            return ctx.goal_level == "tree" and ctx.model.tree is not None
+        if n == "lints":
+            return lints.uses_model(ctx)  # explores the model when it has a tree (lints needs its size)
+        return n in _MODEL or n == "no-dead-states"
+
+    first = [n for n in names if n == "determinism" or (n not in ("no-dead-states", "lints") and reads_model(n))]
+    rest = [n for n in names if n not in first]
+    order = first + [n for n in rest if n == "lints" and reads_model(n)] + [n for n in rest if n == "no-dead-states"]
+    order += [n for n in names if n not in order]
+    for k, n in enumerate(order):
+        after = any(reads_model(m) for m in order[k + 1:])
+        yield n, after or (reads_model(n) and n != "no-dead-states"), after

@@ -22,13 +22,17 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from functools import cached_property
+from typing import cast
 
 import numpy as np
 
-from .codec import codec, decode_codes
+from .codec import codec, decode_codes, dtype
+
+_SLICE = 1 << 22  # states or transitions per slice where a whole-system temporary would be large
 
 __all__ = ["TransitionSystem", "DomainViolation", "shortest_path", "reverse_reach", "forward_reach",
-           "strong_components", "bottom_sccs", "cyclic_states", "shortest_cycle"]
+           "strong_components", "bottom_sccs", "cyclic_states", "shortest_cycle", "forward_csr", "components",
+           "bottom_components", "cyclic_states_of"]
 
 
 @dataclass(frozen=True)
@@ -175,9 +179,17 @@ class TransitionSystem:
         return np.flatnonzero(counts == 0)
 
     # ------------------------------------------------------------------ states
+    def _row(self, i: int) -> np.ndarray:
+        """The kept slots' values of state ``i``: from ``states`` when it is held, else
+        decoded from its code alone (a counterexample decodes only its path)."""
+        if "states" in self.__dict__ or self.codes is None:
+            return self.states[i]
+        prog = self.model.program
+        return decode_codes(prog, tuple(self.slots), self.codes[i:i + 1], codec(prog, tuple(self.slots))[0])[0]
+
     def full_state(self, i: int) -> tuple:
         """The program state tuple of state ``i`` (slots sliced away hold their initial value)."""
-        row = self.states[i]
+        row = self._row(i)
         if self.kind == "model":
             return tuple(int(x) for x in row)
         base = list(self.model.program.initial)
@@ -188,19 +200,101 @@ class TransitionSystem:
     def decode(self, i: int) -> dict:
         """Readable values of the kept slots of state ``i``."""
         prog = self.model.program
-        row = self.states[i]
+        row = self._row(i)
         return {prog.slots[s].name: prog.decode_slot(s, int(row[k])) for k, s in enumerate(self.slots)}
 
     def column(self, slot: int) -> np.ndarray:
-        """The values of program slot ``slot`` in every state (its initial value if sliced away)."""
-        try:
+        """The values of program slot ``slot`` in every state (its initial value if sliced away).
+        A compact system decodes the one column from ``codes`` (in slices, kept for the next
+        call) and never builds ``states``."""
+        prog = self.model.program
+        dt = dtype(prog, tuple(self.slots))
+        if slot not in self.slots:
+            return np.full(self.n_states, prog.initial[slot], dtype=dt)
+        if "states" in self.__dict__ or self.codes is None:
             return self.states[:, self.slots.index(slot)]
-        except ValueError:
-            return np.full(self.n_states, self.model.program.initial[slot], dtype=self.states.dtype)
+        cols = self.__dict__.setdefault("_columns", {})
+        col = cols.get(slot)
+        if col is None:
+            info, mult = prog.slots[slot], codec(prog, tuple(self.slots))[0][slot]
+            col = np.empty(self.n_states, dt)
+            for a in range(0, self.n_states, _SLICE):
+                part = self.codes[a:a + _SLICE].astype(np.int64)
+                part //= mult
+                part %= max(info.size, 1)
+                part += info.lo
+                col[a:a + _SLICE] = part
+            cols[slot] = col
+        return col
 
     def columns(self) -> list:
         """One array per program slot (for vectorised predicates)."""
         return [self.column(k) for k in range(len(self.model.program.slots))]
+
+    def source(self, t: int) -> int:
+        """The source state of transition ``t`` (from ``offsets`` unless ``src`` is held)."""
+        if "src" in self.__dict__:
+            return int(self.src[t])
+        return int(np.searchsorted(self.offsets, t, side="right")) - 1
+
+    def label_of(self, t: int) -> int:
+        """The label index of transition ``t`` (without building ``label``)."""
+        if "label" in self.__dict__:
+            return int(self.label[t])
+        return int(self.edge_label[self.edge[t]])
+
+    def goal_of(self, t: int) -> int:
+        """The requested goal of transition ``t`` (FSM level), without building ``goal``."""
+        if "goal" in self.__dict__ or self.edge is None:
+            return int(cast(np.ndarray, self.goal)[t])
+        return int(cast(np.ndarray, self.label_goal)[self.label_of(t)])
+
+    def pick(self, tmask: np.ndarray) -> tuple:
+        """``(positions, src, dst)`` of the transitions selected by ``tmask`` (int64
+        positions; sources made a slice at a time)."""
+        parts, srcs = [np.zeros(0, np.int64)], [np.zeros(0, np.int64)]
+        for a, b, src in self.slices():
+            sel = np.flatnonzero(tmask[a:b])
+            parts.append(sel + a)
+            srcs.append(src[sel])
+        pos = np.concatenate(parts)
+        return pos, np.concatenate(srcs), self.dst[pos]
+
+    def where(self, fn) -> np.ndarray:
+        """A boolean per transition: ``fn(label, status, goal)`` over index arrays (``goal``:
+        the requested goal, FSM level, else None). A compact system evaluates ``fn`` once per
+        edge code and looks the answers up in ``edge``, so neither ``label``, ``status`` nor
+        ``goal`` is built (1 byte per transition for the answer)."""
+        if self.edge is not None and "label" not in self.__dict__:
+            lab = np.asarray(self.edge_label)
+            goal = self.label_goal[lab] if self.kind == "fsm" and self.label_goal is not None else None
+            table = np.broadcast_to(np.asarray(fn(lab, np.asarray(self.edge_status), goal), bool), lab.shape)
+            return table[self.edge]
+        return np.broadcast_to(np.asarray(fn(self.label, self.status, self.goal), bool), (self.n_transitions,)).copy()
+
+    def slices(self, size: int = 1 << 23):
+        """``(a, b, src)`` over the transitions in slices of about ``size``: the source of
+        each transition ``a..b-1`` (int32 below 2^31 states), made from ``offsets`` a slice
+        at a time (``src`` itself is never built)."""
+        m = self.n_transitions
+        if "src" in self.__dict__:
+            for a in range(0, m, size):
+                yield a, min(a + size, m), self.src[a:a + size]
+            return
+        dt = np.int32 if self.n_states < 1 << 31 else np.int64
+        offs = self.offsets
+        for a in range(0, m, size):
+            b = min(a + size, m)
+            s0, s1 = self.source(a), self.source(b - 1)
+            o = np.clip(offs[s0:s1 + 2].astype(np.int64), a, b)
+            yield a, b, np.repeat(np.arange(s0, s1 + 1, dtype=dt), np.diff(o))
+
+    def any_out(self, tmask: np.ndarray) -> np.ndarray:
+        """A boolean per state: does some transition selected by ``tmask`` leave it?"""
+        out = np.zeros(self.n_states, bool)
+        for a, b, src in self.slices():
+            out[src[tmask[a:b]]] = True
+        return out
 
     def path_to(self, i: int) -> list:
         """Transition indices of the shortest path from the initial state to ``i``."""
@@ -208,7 +302,7 @@ class TransitionSystem:
         t = int(self.parent[i])
         while t >= 0:
             path.append(t)
-            t = int(self.parent[int(self.src[t])])
+            t = int(self.parent[self.source(t)])
         path.reverse()
         return path
 
@@ -269,20 +363,115 @@ def _closure(seen: np.ndarray, offs: np.ndarray, targets: np.ndarray) -> np.ndar
     return seen
 
 
+def forward_csr(ts: TransitionSystem, mask: "np.ndarray | None" = None) -> tuple:
+    """``(offsets, targets)``: the CSR of the transitions selected by ``mask`` (all when
+    None: the system's own ``offsets`` and ``dst``, no copy). A selection is built a slice
+    of transitions at a time: 4 bytes per selected transition (int32 below 2^31 states)."""
+    if mask is None:
+        return ts.offsets, ts.dst
+    n = ts.n_states
+    counts = np.zeros(n + 1, np.int64)
+    parts = [np.zeros(0, ts.dst.dtype)]
+    for a, b, src in ts.slices():
+        sel = mask[a:b]
+        s = src[sel]
+        if s.size:
+            s0 = int(s[0])
+            counts[s0 + 1:int(s[-1]) + 2] += np.bincount(s - s0)
+            parts.append(ts.dst[a:b][sel])
+    np.cumsum(counts, out=counts)
+    return counts.astype(np.int32) if counts[-1] < 1 << 31 else counts, np.concatenate(parts)
+
+
+def _matrix(n: int, offs, targets):
+    """The CSR ``(offs, targets)`` as a scipy matrix for ``scipy.sparse.csgraph``, without
+    copying it: int32 indices stay int32, and the weights (csgraph converts them to float64)
+    are one broadcast 1.0, not an array."""
+    from scipy.sparse import csr_matrix
+
+    it = np.int32 if max(n, targets.size) < 1 << 31 else np.int64
+    ones = np.broadcast_to(np.float64(1.0), targets.shape)
+    return csr_matrix((ones, targets.astype(it, copy=False), offs.astype(it, copy=False)), shape=(n, n), copy=False)
+
+
+def components(ts: TransitionSystem, mask: "np.ndarray | None" = None) -> tuple:
+    """``(count, label)``: the strongly connected components of the transitions selected
+    by ``mask`` (all when None), scipy's linear-time algorithm straight on the system's CSR
+    (int32 label per state; no copy of the transitions)."""
+    from scipy.sparse.csgraph import connected_components
+
+    from scipy.sparse import csr_matrix
+
+    n = ts.n_states
+    offs, targets = forward_csr(ts, mask)
+    # scipy's strong components never return on a matrix with a repeated entry (two
+    # transitions between the same states, e.g. differing by label): when there is one,
+    # sort each row and merge repeats first, in C, on a copy of the targets (4 bytes and 1
+    # byte per transition)
+    it = np.int32 if max(n, targets.size) < 1 << 31 else np.int64
+    if mask is None and not _repeats(ts):  # the stored CSR as it is: no copy
+        return connected_components(_matrix(n, offs, targets), directed=True, connection="strong")
+    g = csr_matrix((np.ones(targets.size, bool), targets.astype(it, copy=mask is None),
+                    offs.astype(it, copy=mask is None)), shape=(n, n), copy=False)
+    del offs, targets
+    g.sum_duplicates()
+    return connected_components(_matrix(n, g.indptr, g.indices), directed=True, connection="strong")
+
+
+_MAX_LAGS = 16
+
+
+def _repeats(ts: TransitionSystem) -> bool:
+    """Whether some state has two transitions to one state (True, without looking, when a
+    state has more than ``_MAX_LAGS`` transitions). A pass over the transitions a slice
+    at a time, comparing each with the few before it in its row."""
+    offs = ts.offsets
+    widest = max((int(np.diff(offs[a:a + _SLICE + 1]).max(initial=0)) for a in range(0, ts.n_states, _SLICE)),
+                 default=0)
+    if widest > _MAX_LAGS:
+        return True
+    if widest < 2:
+        return False
+    prev_s = prev_d = None
+    for a, b, src in ts.slices():
+        s, d = src, ts.dst[a:b]
+        if prev_s is not None:
+            s, d = np.concatenate([prev_s, s]), np.concatenate([prev_d, d])
+        for lag in range(1, widest):
+            if ((s[lag:] == s[:-lag]) & (d[lag:] == d[:-lag])).any():
+                return True
+        prev_s, prev_d = s[-widest:], d[-widest:]
+    return False
+
+
+def bottom_components(ts: TransitionSystem, count: int, label: np.ndarray) -> np.ndarray:
+    """A boolean per component: no transition leaves it (one pass over the transitions,
+    a slice at a time)."""
+    left = np.zeros(count, bool)
+    if count > 1:
+        for a, b, src in ts.slices():
+            ls, ld = label[src], label[ts.dst[a:b]]
+            left[ls[ls != ld]] = True
+    return ~left
+
+
 def reverse_reach(ts: TransitionSystem, targets: np.ndarray, mask: "np.ndarray | None" = None) -> np.ndarray:
     """Boolean mask of states that can reach a ``targets`` state (a mask) using only the
-    transitions selected by ``mask`` (all when None). Linear in the transitions."""
+    transitions selected by ``mask`` (all when None). Linear in the transitions: the
+    reversed CSR is scipy's transpose of ``forward_csr`` (int32 indices, 5 bytes per
+    selected transition), dropped on return."""
+    seen = targets.astype(bool).copy()
+    offs, targets_ = forward_csr(ts, mask)
+    if targets_.size == 0:
+        return seen
+    from scipy.sparse import csr_matrix
+
     n = ts.n_states
-    if mask is None:
-        offs, order = ts.reverse
-        srcs = ts.src[order]
-    else:
-        sel = np.flatnonzero(mask)
-        d = ts.dst[sel]
-        order = np.argsort(d, kind="stable")
-        srcs = ts.src[sel][order]
-        offs = np.searchsorted(d[order], np.arange(n + 1, dtype=np.int64)).astype(np.int64)
-    return _closure(targets.astype(bool).copy(), offs, srcs)
+    it = np.int32 if max(n, targets_.size) < 1 << 31 else np.int64
+    rev = csr_matrix((np.ones(targets_.size, bool), targets_.astype(it, copy=False), offs.astype(it, copy=False)),
+                     shape=(n, n), copy=False).tocsc()
+    del offs, targets_
+    return _closure(seen, rev.indptr, rev.indices)
 
 
 def forward_reach(ts: TransitionSystem, start, mask: "np.ndarray | None" = None) -> np.ndarray:
@@ -294,13 +483,7 @@ def forward_reach(ts: TransitionSystem, start, mask: "np.ndarray | None" = None)
         seen |= start
     else:
         seen[np.asarray(start, dtype=np.int64)] = True
-    if mask is None:
-        offs, dsts = ts.offsets, ts.dst
-    else:
-        sel = np.flatnonzero(mask)
-        s = ts.src[sel]
-        dsts = ts.dst[sel]
-        offs = np.searchsorted(s, np.arange(n + 1, dtype=np.int64)).astype(np.int64)
+    offs, dsts = forward_csr(ts, mask)
     return _closure(seen, offs, dsts)
 
 
@@ -389,6 +572,20 @@ def cyclic_states(n: int, src, dst) -> np.ndarray:
     size = np.bincount(lab)
     on = size[lab] > 1
     on[src[src == dst]] = True
+    return np.flatnonzero(on)
+
+
+def cyclic_states_of(ts: TransitionSystem, mask: np.ndarray) -> np.ndarray:
+    """``cyclic_states`` of the transitions of ``ts`` selected by ``mask``, on their CSR
+    (no per-transition copies beyond the selection's targets)."""
+    if not mask.any():
+        return np.zeros(0, np.int64)
+    count, lab = components(ts, mask)
+    on = np.bincount(lab, minlength=count)[lab] > 1
+    for a, b, src in ts.slices():
+        sel = mask[a:b]
+        s = src[sel]
+        on[s[s == ts.dst[a:b][sel]]] = True
     return np.flatnonzero(on)
 
 

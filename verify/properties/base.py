@@ -64,16 +64,41 @@ class Context:
         self.progress = progress
         self._model_ts: "TransitionSystem | None" = None
         self._fsm_ts: dict[str, TransitionSystem] = {}
-        self.systems: list[TransitionSystem] = []
+        self.systems: "list[TransitionSystem | SystemSummary]" = []
+        # set by ``btfsm.verify.report.check``: no property still to run reads the model-level
+        # system, so ``done_with_model`` may let it go (the check's peak memory is then one
+        # system, not two); a Context used directly keeps every system
+        self.model_needed = True
+        self._model_summary: "tuple[int, bool] | None" = None  # (n_transitions, complete) of a released model system
 
     def model_ts(self) -> TransitionSystem:
         """The whole model's transition system."""
         if self._model_ts is None:
+            if self._model_summary is not None:
+                raise RuntimeError("the model-level system was released; a later property needs it (schedule bug)")
             self._model_ts = explore(self.model, max_states=self.max_states, max_transitions=self.max_transitions,
                                      max_seconds=self._seconds_left(), progress=self._progress("model"),
                                      engine=self.engine)
             self.systems.append(self._model_ts)
         return self._model_ts
+
+    def model_size(self) -> "tuple[int, bool]":
+        """``(transitions, complete)`` of the model-level system (explored if needed), also
+        after it was released."""
+        if self._model_summary is not None:
+            return self._model_summary
+        ts = self.model_ts()
+        return ts.n_transitions, ts.complete
+
+    def done_with_model(self) -> None:
+        """Let the model-level system go when no property still to run reads it (its
+        figures stay in ``systems``, as a ``SystemSummary``)."""
+        if self.model_needed or self._model_ts is None:
+            return
+        ts = self._model_ts
+        self._model_summary = (ts.n_transitions, ts.complete)
+        self.systems[self.systems.index(ts)] = SystemSummary.of(ts)
+        self._model_ts = None
 
     def fsm_ts(self, name: str) -> TransitionSystem:
         """FSM ``name`` as an open system."""
@@ -97,6 +122,23 @@ class Context:
         return lambda states, transitions, seconds: progress(what, states, transitions, seconds)
 
 
+@dataclass(frozen=True)
+class SystemSummary:
+    """What the report says of a system that was let go (``Context.done_with_model``)."""
+
+    kind: str
+    fsm: "str | None"
+    n_states: int
+    n_transitions: int
+    complete: bool
+    seconds: float
+    stopped: "str | None"
+
+    @classmethod
+    def of(cls, ts: TransitionSystem) -> "SystemSummary":
+        return cls(ts.kind, ts.fsm, ts.n_states, ts.n_transitions, ts.complete, ts.seconds, ts.stopped)
+
+
 def evaluate(ts: TransitionSystem, expr: Expr) -> np.ndarray:
     """A boolean array: ``expr`` (a checked model expression) in every state of ``ts``,
     vectorised with numpy over int64 columns (only the columns it reads are built)."""
@@ -106,12 +148,20 @@ def evaluate(ts: TransitionSystem, expr: Expr) -> np.ndarray:
     if _constant_not(expr):  # numpy evaluates ``~True`` to -2: use the compiled predicate
         fn = compile_fn(expr, prog.scope, "predicate", BOOL)
         return np.fromiter((bool(fn(list(ts.full_state(i)))) for i in range(ts.n_states)), bool, ts.n_states)
-    src = to_numpy_source(expr, prog.scope)
-    val = eval(src, {"__builtins__": {}, "np": np, "c": columns_of(ts)})  # noqa: S307 - generated from a checked AST
-    arr = np.asarray(val)
-    if arr.dtype != bool:
-        arr = arr != 0
-    return np.broadcast_to(arr, (ts.n_states,)).copy()
+    code = compile(to_numpy_source(expr, prog.scope), "<expression>", "eval")
+    n = ts.n_states
+    out = np.empty(n, bool)
+    for a in range(0, max(n, 1), _SLICE):  # int64 columns a slice at a time: memory bounded at any size
+        b = min(a + _SLICE, n)
+        val = eval(code, {"__builtins__": {}, "np": np, "c": columns_of(ts, a, b)})  # noqa: S307 - generated from a checked AST
+        arr = np.asarray(val)
+        if arr.dtype != bool:
+            arr = arr != 0
+        out[a:b] = np.broadcast_to(arr, (b - a,))
+    return out
+
+
+_SLICE = 1 << 21  # states per slice of ``evaluate``
 
 
 def _constant_not(expr: Expr) -> bool:
@@ -130,16 +180,17 @@ def _constant_not(expr: Expr) -> bool:
 
 
 class columns_of:
-    """Lazy int64 state columns of a transition system, indexed by program slot."""
+    """Lazy int64 state columns of a transition system, indexed by program slot (of the
+    states ``a:b``, all by default)."""
 
-    def __init__(self, ts: TransitionSystem) -> None:
-        self.ts = ts
+    def __init__(self, ts: TransitionSystem, a: int = 0, b: "int | None" = None) -> None:
+        self.ts, self.a, self.b = ts, a, b
         self.cache: dict[int, np.ndarray] = {}
 
     def __getitem__(self, slot: int) -> np.ndarray:
         col = self.cache.get(slot)
         if col is None:
-            col = self.cache[slot] = self.ts.column(slot).astype(np.int64)
+            col = self.cache[slot] = self.ts.column(slot)[self.a:self.b].astype(np.int64)
         return col
 
 

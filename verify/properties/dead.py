@@ -26,7 +26,7 @@ from btfsm.status import Status
 
 from ..counterexample import path_counterexample
 from ..explore import EnumOracle
-from ..system import cyclic_states, shortest_cycle
+from ..system import cyclic_states_of, shortest_cycle
 from .base import Result, evaluate, budget_hit
 
 __all__ = ["check", "dead_states", "terminal_mask", "non_progress", "progress_mask", "sink_states", "reachable_sinks"]
@@ -82,28 +82,33 @@ def reachable_sinks(ts, f) -> "tuple | None":
 
 
 def progress_mask(ts) -> np.ndarray:
-    """Per transition of an FSM-level system: does it make progress?"""
+    """Per transition of an FSM-level system: does it make progress? (Built a slice of
+    transitions at a time from the token's column: no per-transition array but the answer.)"""
     prog = ts.model.program
-    tok = ts.slots.index(prog.fsm_info[ts.open.index][2])
+    tok = prog.fsm_info[ts.open.index][2]
     runs = np.array([any(it[0] == "outcome" and it[3] == "RUNNING" for it in lab) for lab in ts.labels] or [False], bool)
-    moved = ts.states[ts.src, tok] != ts.states[ts.dst, tok]
-    return moved | (ts.status != RUNNING) | runs[ts.label]
+    out = ts.where(lambda label, status, goal: (status != RUNNING) | runs[label])
+    col = ts.column(tok)
+    for a, b, src in ts.slices():
+        out[a:b] |= col[src] != col[ts.dst[a:b]]
+    return out
 
 
 def non_progress(ts) -> "tuple | None":
     """(prefix transitions, cycle transitions) of the nearest non-progress lasso, or None."""
     still = ~progress_mask(ts)
     best = None
-    for g in ts.open.goals:
-        sub = still & (ts.goal == g)
-        if not sub.any():
-            continue
-        on_cycle = _cycle_states(ts, sub)
-        if on_cycle.size == 0:
-            continue
-        c = int(on_cycle[0])
-        if best is None or c < best[0]:
-            best = (c, sub)
+    if still.any():
+        for g in ts.open.goals:
+            sub = still & ts.where(lambda label, status, goal: goal == g)
+            if not sub.any():
+                continue
+            on_cycle = _cycle_states(ts, sub)
+            if on_cycle.size == 0:
+                continue
+            c = int(on_cycle[0])
+            if best is None or c < best[0]:
+                best = (c, sub)
     if best is None:
         return None
     c, sub = best
@@ -113,17 +118,16 @@ def non_progress(ts) -> "tuple | None":
 
 def _cycle_states(ts, sub) -> np.ndarray:
     """States lying on a cycle of the transitions selected by ``sub``, in BFS order;
-    exact at any size (scipy strong components)."""
-    t = np.flatnonzero(sub)
-    return cyclic_states(ts.n_states, ts.src[t], ts.dst[t])
+    exact at any size (scipy strong components over the selected transitions' CSR)."""
+    return cyclic_states_of(ts, sub)
 
 
 def _shortest_cycle(ts, c, sub) -> list:
     """Transitions of a shortest cycle from ``c`` back to ``c`` inside ``sub``: one BFS from
     ``c`` over the selected transitions and the nearest edge back (``shortest_cycle``);
     exact and linear at any size. ``c`` lies on a cycle (``_cycle_states``)."""
-    t = np.flatnonzero(sub)
-    found = shortest_cycle(ts.n_states, ts.src[t], ts.dst[t], c)
+    t, src, dst = ts.pick(sub)
+    found = shortest_cycle(ts.n_states, src, dst, c)
     if found is None:
         raise AssertionError(f"state {c} is on no cycle of the selected transitions")
     return t[np.asarray(found, np.int64)].tolist()
@@ -148,42 +152,37 @@ def check(ctx) -> Result:
         ce = path_counterexample(ts, ts.path_to(i), "no-dead-states",
                                  f"{dead.size} reachable state(s) have no successor and are not terminal", viol)
         notes.append(f"model: {dead.size} dead state(s)")
-    sinks = {}
+    hit = budget_hit(ts)  # the non-progress notes below name the model's budget, as they always did
+    sinks = {}  # FSM -> (path length, build the counterexample)
     for f in model.fsms:
         sts = ts if model.tree is not None else ctx.fsm_ts(f.name)
         found = reachable_sinks(sts, f)
         if found is not None:
-            sinks[f.name] = (sts, *found)
+            sinks[f.name] = (len(sts.path_to(found[0])), _sink_counterexample(sts, f.name, found) if ce is None else None)
             notes.append(f"FSM {f.name}: sink state '{found[1]}' is reachable (no edge, no marker, not terminal)")
     info["sinks"] = sorted(sinks)
     if ce is None and sinks:
-        name = min(sinks, key=lambda k: len(sinks[k][0].path_to(sinks[k][1])))
-        sts, i, sid, _count = sinks[name]
-        viol = {"kind": "sink", "fsm": name, "state": sid,
-                "text": (f"FSM {name} is now in state '{sid}', which has no edge and no marker: every request "
-                         f"gets FAILURE ('not applicable') and the token can never leave it, so {name} is frozen "
-                         f"for good (declare '{sid}' in the FSM's terminal states if stopping there is intended, "
-                         "or add an edge out of it)")}
-        ce = path_counterexample(sts, sts.path_to(i), "no-dead-states",
-                                 f"FSM {name}: sink state '{sid}' is reachable (every request fails there forever)", viol)
+        ce = sinks[min(sinks, key=lambda k: sinks[k][0])][1]
+    ts = sts = sinks = None  # type: ignore[assignment]  # nothing here holds the model's system any more
+    ctx.done_with_model()  # the rest reads FSM systems only
     lassos = {}
     for f in model.fsms:
         fts = ctx.fsm_ts(f.name)
         if not fts.complete:
             undecided = True
-            notes.append(f"FSM {f.name}: {budget_hit(ts)}; non-progress cycles not decided")
+            notes.append(f"FSM {f.name}: {hit}; non-progress cycles not decided")
             continue
         found = non_progress(fts)
         if found is not None:
             lassos[f.name] = (fts, *found)
             notes.append(f"FSM {f.name}: non-progress cycle requesting "
-                         f"'{f.goals[int(fts.goal[found[1][0]])]}' (prefix {len(found[0])}, cycle {len(found[1])})")
+                         f"'{f.goals[fts.goal_of(found[1][0])]}' (prefix {len(found[0])}, cycle {len(found[1])})")
     info["non_progress"] = sorted(lassos)
     if ce is None and lassos:
         name = min(lassos, key=lambda k: len(lassos[k][1]) + len(lassos[k][2]))
         fts, prefix, cycle = lassos[name]
         f = model.fsm(name)
-        gname = f.goals[int(fts.goal[cycle[0]])]
+        gname = f.goals[fts.goal_of(cycle[0])]
         viol = {"kind": "non-progress", "goal": gname}
         ce = path_counterexample(fts, prefix + cycle, "no-dead-states",
                                  f"FSM {name}: a non-progress cycle requesting '{gname}'", viol, loop=len(prefix))
@@ -191,6 +190,17 @@ def check(ctx) -> Result:
     if ce is not None:
         return Result("no-dead-states", False, ce, notes, info)
     return Result("no-dead-states", None if undecided else True, None, notes, info)
+
+
+def _sink_counterexample(sts, name, found):
+    i, sid = found[0], found[1]
+    viol = {"kind": "sink", "fsm": name, "state": sid,
+            "text": (f"FSM {name} is now in state '{sid}', which has no edge and no marker: every request "
+                     f"gets FAILURE ('not applicable') and the token can never leave it, so {name} is frozen "
+                     f"for good (declare '{sid}' in the FSM's terminal states if stopping there is intended, "
+                     "or add an edge out of it)")}
+    return path_counterexample(sts, sts.path_to(i), "no-dead-states",
+                               f"FSM {name}: sink state '{sid}' is reachable (every request fails there forever)", viol)
 
 
 def _non_progress_text(f, gname, cycle_steps) -> str:

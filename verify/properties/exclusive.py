@@ -41,7 +41,7 @@ def check(ctx) -> Result:
         if not ts.complete:
             notes.append(f"{budget_hit(ts)}: not decided")
         return Result(NAME, True if ts.complete else None, None, notes)
-    t, v = min(found, key=lambda p: (int(ts.src[p[0]]), p[0]))
+    t, v = min(found, key=lambda p: (ts.source(p[0]), p[0]))
     _, res, leaf, other, when = v
     n_ticks = len({t for t, _ in found})
     notes = [f"resources: {groups}",
@@ -55,7 +55,7 @@ def check(ctx) -> Result:
         text = f"at the end of the last tick '{leaf}' and '{other}' are both running; both use resource '{res}'. {why}"
         summary = f"'{leaf}' and '{other}' can both be running (both use '{res}')"
     viol = {"kind": "exclusive", "resource": res, "node": leaf, "other": other, "when": when, "text": text}
-    ce = path_counterexample(ts, ts.path_to(int(ts.src[t])) + [t], NAME, summary, viol)
+    ce = path_counterexample(ts, ts.path_to(ts.source(t)) + [t], NAME, summary, viol)
     return Result(NAME, False, ce, notes)
 
 

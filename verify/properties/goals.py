@@ -41,13 +41,10 @@ RUNNING, SUCCESS, FAILURE = int(Status.RUNNING), int(Status.SUCCESS), int(Status
 def goal_failures(ts) -> dict:
     """goal index -> indices of states where it can be requested but can never succeed."""
     out = {}
-    for g in ts.open.goals:
-        is_g = ts.goal == g
-        requestable = np.zeros(ts.n_states, bool)
-        requestable[ts.src[is_g]] = True
-        target = np.zeros(ts.n_states, bool)
-        target[ts.src[is_g & (ts.status == SUCCESS)]] = True
-        good = reverse_reach(ts, target, is_g & (ts.status == RUNNING))
+    for g in ts.open.goals:  # masks over the edge codes, one byte per transition (TransitionSystem.where)
+        requestable = ts.any_out(ts.where(lambda label, status, goal: goal == g))
+        target = ts.any_out(ts.where(lambda label, status, goal: (goal == g) & (status == SUCCESS)))
+        good = reverse_reach(ts, target, ts.where(lambda label, status, goal: (goal == g) & (status == RUNNING)))
         bad = np.flatnonzero(requestable & ~good)
         if bad.size:
             out[g] = bad

@@ -56,7 +56,7 @@ def check_contracts(ctx) -> Result:
     posts = [p for p in found if p[1][0] == "post"]
     busy = [p for p in found if p[1][0] == "busy"]
     loops = [p for p in found if p[1][0] == "tick-loop"]
-    t, v = min(found, key=lambda p: (int(ts.src[p[0]]), p[0]))
+    t, v = min(found, key=lambda p: (ts.source(p[0]), p[0]))
     notes = []
     if loops:
         notes.append(f"{len(loops)} transition(s) whose tickOnce() never returns (wake-up re-ticks in a loop)")
@@ -83,7 +83,7 @@ def check_contracts(ctx) -> Result:
                          "one FSM serves one request at a time (docs/semantics.md, rule 'Conflict'): "
                          "put the requests in sequence, or give each its own FSM")}
         summary = f"SkillRequest '{v[1]}' and another request use FSM '{v[2]}' at the same time"
-    ce = path_counterexample(ts, ts.path_to(int(ts.src[t])) + [t], "contracts", summary, viol)
+    ce = path_counterexample(ts, ts.path_to(ts.source(t)) + [t], "contracts", summary, viol)
     return Result("contracts", False, ce, notes)
 
 

@@ -12,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..counterexample import path_counterexample
-from ..system import bottom_sccs, forward_reach, reverse_reach
+from ..system import bottom_components, bottom_sccs, components, forward_reach, reverse_reach
 from .base import Result, evaluate, budget_hit
 
 __all__ = ["check", "workable_mask", "traps"]
@@ -32,8 +32,22 @@ def workable_mask(ts) -> np.ndarray:
 
 
 def traps(ts) -> np.ndarray:
-    """Indices of trap states (no workable state reachable), in BFS order."""
-    return np.flatnonzero(~reverse_reach(ts, workable_mask(ts)))
+    """Indices of trap states (no workable state reachable), in BFS order.
+
+    Every state reaches a bottom SCC (one that no transition leaves; a state without
+    successors is one), and from a bottom SCC only its own states are reachable: so there
+    is no trap exactly when every bottom SCC holds a workable state. That is decided first,
+    on the system's own CSR (scipy strong components: an int32 label per state, no copy of
+    the transitions); only when some bottom SCC has no workable state are the traps
+    counted by backward reachability."""
+    good = workable_mask(ts)
+    count, label = components(ts)
+    has_good = np.zeros(count, bool)
+    has_good[label[good]] = True
+    if has_good.all() or not (bottom_components(ts, count, label) & ~has_good).any():
+        return np.zeros(0, np.int64)
+    del label
+    return np.flatnonzero(~reverse_reach(ts, good))
 
 
 def check(ctx) -> Result:
