@@ -20,4 +20,5 @@ if [ ! -x .venv/bin/python ]; then "$PY" -m venv .venv; fi
 .venv/bin/python -m pip install -q --upgrade pip >/dev/null
 .venv/bin/python -m pip install -q -e ".[sim,test,bench]"
 bash scripts/typecheck.sh
-exec .venv/bin/python -m pytest "$@"
+# the suite on every core (pytest-xdist; BTFSM_TEST_WORKERS=0 runs it in this one process)
+exec .venv/bin/python -m pytest -n "${BTFSM_TEST_WORKERS:-auto}" "$@"
