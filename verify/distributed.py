@@ -201,6 +201,7 @@ class Partition:
         self._rank: tuple = ()
         self._mine: tuple = ()  # checks: this partition's own reversed transitions
         self._reversed = False
+        self._early: list = []  # reversed transitions that came before this partition's first reverse round
         self.pred = np.zeros(0, np.int64)  # checks: predecessor codes, CSR by local id
         self.pptr = np.zeros(1, np.int64)
         self.degree: list = []  # keep: out-degree of each expanded state, by batch
@@ -363,6 +364,9 @@ class Partition:
         codes by local state id, from what came in and this partition's own part."""
         if not self._reversed:
             self._reversed = True
+            # a peer's first call may run before this one and its reversed transitions be
+            # here already (each actor's round starts when its thread gets to it): keep them
+            self._early, got = got, []
             degree = np.concatenate(self.degree) if self.degree else np.zeros(0, np.int32)
             dst = np.concatenate(self.targets) if self.targets else np.zeros(0, np.int64)
             self.degree, self.targets = [], []  # the forward transitions go: the reverse ones replace them
@@ -380,6 +384,7 @@ class Partition:
             self._mine = (dst, src)
             if self.parts > 1:
                 return {"pending": 0}
+        got, self._early = self._early + got, []
         tgt = np.concatenate([self._mine[0]] + [p[:len(p) // 2] for p in got])
         src = np.concatenate([self._mine[1]] + [p[len(p) // 2:] for p in got])
         self._mine, got = (), []
