@@ -29,7 +29,7 @@ from .errors import DomainError, ModelError
 
 __all__ = [
     "Expr", "Const", "Name", "Unary", "BoolOp", "Compare", "BinOp", "Call", "IfElse",
-    "E", "v", "parse", "as_expr", "to_text", "names_in",
+    "E", "v", "flat", "parse", "as_expr", "to_text", "names_in",
     "Type", "BOOL", "INT", "Slot", "Scope", "check", "check_effects",
     "compile_fn", "compile_effects", "to_python_source", "to_numpy_source", "to_z3",
     "TRUE", "FALSE", "is_true", "MAX_DEPTH", "MAX_LENGTH", "INT_LIMIT", "depth", "int_range", "int_text",
@@ -151,22 +151,24 @@ class E:
     def __mod__(self, o): return self._bin(BinOp, "%", o)
     def __neg__(self): return E(Unary("-", self.node))
     def __invert__(self): return E(Unary("not", self.node))
-    def __and__(self, o): return E(_flat("and", self.node, as_expr(o)))
-    def __rand__(self, o): return E(_flat("and", as_expr(o), self.node))
-    def __or__(self, o): return E(_flat("or", self.node, as_expr(o)))
-    def __ror__(self, o): return E(_flat("or", as_expr(o), self.node))
+    def __and__(self, o): return E(flat("and", self.node, as_expr(o)))
+    def __rand__(self, o): return E(flat("and", as_expr(o), self.node))
+    def __or__(self, o): return E(flat("or", self.node, as_expr(o)))
+    def __ror__(self, o): return E(flat("or", as_expr(o), self.node))
     __hash__ = None  # type: ignore[assignment]
 
     def isin(self, *values) -> "E":
         """``x in (a, b)`` as ``x == a or x == b`` (strings are enum values)."""
-        return E(_flat("or", *(Compare("==", self.node, Const(x) if isinstance(x, str) else as_expr(x))
+        return E(flat("or", *(Compare("==", self.node, Const(x) if isinstance(x, str) else as_expr(x))
                                for x in values)))
 
     def __repr__(self) -> str:
         return f"E({to_text(self.node)!r})"
 
 
-def _flat(op: str, *args: Expr) -> Expr:
+def flat(op: str, *args: Expr) -> Expr:
+    """``args`` joined by ``op`` ("and" or "or"), an argument that is itself an ``op``
+    spliced in: the shape the parser gives the same text (``a or (b or c)`` is one "or")."""
     out: list = []
     for a in args:
         out.extend(a.args if isinstance(a, BoolOp) and a.op == op else (a,))
@@ -293,7 +295,7 @@ def _kids(e) -> tuple:
 
 def _from_py(n: ast.AST) -> Expr:
     if isinstance(n, ast.BoolOp):
-        return _flat("and" if isinstance(n.op, ast.And) else "or", *(_from_py(a) for a in n.values))
+        return flat("and" if isinstance(n.op, ast.And) else "or", *(_from_py(a) for a in n.values))
     if isinstance(n, ast.UnaryOp):
         if isinstance(n.op, ast.Not):
             return Unary("not", _from_py(n.operand))
@@ -316,7 +318,7 @@ def _from_py(n: ast.AST) -> Expr:
                 if left is None:
                     raise _SyntaxProblem("'in' cannot be chained")
                 alts = [Compare("==", left, _from_py(x)) for x in right_node.elts]
-                part = _flat("or", *alts)
+                part = flat("or", *alts)
                 parts.append(Unary("not", part) if isinstance(op, ast.NotIn) else part)
                 left = None
                 continue
@@ -327,7 +329,7 @@ def _from_py(n: ast.AST) -> Expr:
             right = _from_py(right_node)
             parts.append(Compare(_CMP[type(op)], left, right))
             left = right
-        return _flat("and", *parts)
+        return flat("and", *parts)
     if isinstance(n, ast.Name):
         low = n.id.lower()
         if low in ("true", "false"):

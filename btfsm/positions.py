@@ -29,7 +29,7 @@ from typing import Any, cast
 
 from .errors import ModelError
 from .fsm import Edge
-from .expr import BoolOp, Compare, Const, Expr, Name, Unary
+from .expr import BoolOp, Compare, Const, Expr, Name, Unary, flat
 
 __all__ = ["split_by_entry", "split_by_goal", "base_state", "entries_of", "SEP", "GOAL_SEP"]
 
@@ -103,8 +103,7 @@ def _rename_any(x, field: str, copies: dict):
         if not any(changes[k] is not getattr(x, k) for k in changes):
             return x
         if isinstance(x, BoolOp):  # an 'or' of copies inside an 'or' is one 'or', as the parser reads its text
-            changes["args"] = tuple(y for a in changes["args"]
-                                    for y in (a.args if isinstance(a, BoolOp) and a.op == x.op else (a,)))
+            return flat(x.op, *changes["args"])
         return dataclasses.replace(cast(Any, x), **changes)
     if isinstance(x, tuple):
         new = tuple(_rename_any(v, field, copies) for v in x)

@@ -112,6 +112,12 @@ class _Ctx:
         self.on_request = getattr(oracle, "request", None)  # optional: told which goal an FSM drives
         self.on_merge = getattr(oracle, "merge", None)  # optional: told where the tick's context is its state
 
+    def merge_point(self, key: Any) -> None:
+        """Tell the oracle (``oracle.merge``, when it has one) that the rest of the tick
+        depends only on the state list, the violations, FSM records and re-ticks so far."""
+        if self.on_merge is not None:
+            self.on_merge(key, self.s, self.violations, self.fsm_done, self.reticks)
+
 
 class _N:
     """Compile-time facts about one node."""
@@ -1236,10 +1242,9 @@ def _merging_reactive(name: str, pairs: "tuple[tuple[Tick, Halts], ...]", go_on:
     """A ReactiveSequence/ReactiveFallback that is a merge point (``Program._merge_points``):
     the same tick, telling the oracle before each child after the first."""
     def tick(ctx: _Ctx) -> int:
-        s = ctx.s
         for i, (child, hs) in enumerate(pairs):
-            if i and ctx.on_merge is not None:
-                ctx.on_merge((name, i), s, ctx.violations, ctx.fsm_done, ctx.reticks)
+            if i:
+                ctx.merge_point((name, i))
             st = child(ctx)
             if st != go_on:
                 _halt_running(ctx, hs)
@@ -1260,8 +1265,8 @@ def _memory(prog: Program, c: NodeRule) -> Tick:
         s = ctx.s
         i = s[mem]
         while i < count:
-            if merge and i and ctx.on_merge is not None:
-                ctx.on_merge((name, i), s, ctx.violations, ctx.fsm_done, ctx.reticks)
+            if merge and i:
+                ctx.merge_point((name, i))
             st = kids[i](ctx)
             if st != go_on:
                 s[mem] = i if st == RUNNING else 0
@@ -1676,8 +1681,8 @@ def _pipeline_sequence(prog: Program, c: NodeRule) -> Tick:
         s = ctx.s
         last = s[s_mem]
         for i in range(count):
-            if merge and i and ctx.on_merge is not None:
-                ctx.on_merge((name, i), s, ctx.violations, ctx.fsm_done, ctx.reticks)
+            if merge and i:
+                ctx.merge_point((name, i))
             st = kids[i](ctx)
             if st == FAILURE:
                 _halt_running(ctx, every)
@@ -1738,8 +1743,8 @@ def _recovery_node(prog: Program, c: NodeRule) -> Tick:
                 retry += 1
                 recovering = False
                 s[s_mem] = retry  # the count in the state, where an oracle can see it
-                if merge and ctx.on_merge is not None:
-                    ctx.on_merge(name, s, ctx.violations, ctx.fsm_done, ctx.reticks)
+                if merge:
+                    ctx.merge_point(name)
         return end(ctx, FAILURE)  # pragma: no cover - the count never passes the limit
     return tick
 
