@@ -162,16 +162,21 @@ RULES: "dict[type[Node], Callable[[Program, NodeRule], Tick]]" = {}
 SLOTS: "dict[type[Node], Callable[[Program, _N], None]]" = {}
 #: node type -> ``can_run(program, info)``: whether it can return RUNNING (default: a child can)
 CAN_RUN: "dict[type[Node], Callable[[Program, _N], bool]]" = {}
+#: node type -> its part in merging in-tick answers (rule 'in-tick retries', ``Program._merge_points``):
+#: "tells" (it tells the oracle where the rest of the tick depends on the state alone) or "keeps"
+#: (once a child returns, it reads only the state, that child's status and its position); absent: neither
+MERGE: "dict[type[Node], str]" = {}
 
 
 def rule(*types: "type[Node]", slots: "Optional[Callable[[Program, _N], None]]" = None,
-         can_run: "Optional[Callable[[Program, _N], bool]]" = None,
+         can_run: "Optional[Callable[[Program, _N], bool]]" = None, merge: str = "",
          ) -> "Callable[[Callable[[Program, NodeRule], Tick]], Callable[[Program, NodeRule], Tick]]":
     """Register the decorated function as the tick rule of the node ``types``: called once
     per node when a model compiles, it returns the node's tick function. ``slots`` lays
     out the node's memory (``program._slot(...)`` into ``info.mem``, ``info.keep``,
     ``info.mems``, ``info.stale``: a halt resets all but ``keep``); ``can_run`` says
-    whether the node can return RUNNING when that is not just "a child can".
+    whether the node can return RUNNING when that is not just "a child can"; ``merge``
+    its part in merging in-tick answers ("tells" or "keeps", ``MERGE``).
     docs/nodes.md shows a whole new node type."""
     def register(fn: "Callable[[Program, NodeRule], Tick]") -> "Callable[[Program, NodeRule], Tick]":
         for t in types:
@@ -180,6 +185,8 @@ def rule(*types: "type[Node]", slots: "Optional[Callable[[Program, _N], None]]" 
                 SLOTS[t] = slots
             if can_run is not None:
                 CAN_RUN[t] = can_run
+            if merge:
+                MERGE[t] = merge
         return fn
     return register
 
@@ -716,11 +723,11 @@ class Program:
         for info in self.nodes.values():  # parents before children
             p = info.parent
             clean[info.node.name] = info.root == main and (p is None or (
-                clean[p.node.name] and isinstance(p.node, _MERGE_SAFE)))
+                clean[p.node.name] and type(p.node) in MERGE))
         if not any(isinstance(i.node, RecoveryNode) and i.node.retries > 0 and clean[i.node.name]
                    for i in self.nodes.values()):
             return frozenset()
-        return frozenset(name for name, ok in clean.items() if ok and isinstance(self.nodes[name].node, _MERGING))
+        return frozenset(name for name, ok in clean.items() if ok and MERGE.get(type(self.nodes[name].node)) == "tells")
 
     def _signal(self, info: _N) -> Optional[int]:
         """The wake-up slot a loop node of the main tree sets (rule 'tickOnce'), or None
@@ -1014,14 +1021,6 @@ class Program:
         return ids[state[tok]], (f.goals[state[goal] - 1] if state[goal] else None)
 
 
-#: node types whose tick, after a child returns, reads only the state, that child's status and
-#: its position (``Program._merge_points``), and those of them that tell the oracle
-_MERGING = (RecoveryNode, ReactiveSequence, ReactiveFallback, MemorySequence, MemoryFallback, PipelineSequence)
-_MERGE_SAFE = (ReactiveSequence, ReactiveFallback, MemorySequence, MemoryFallback, PipelineSequence, RecoveryNode,
-               RoundRobin, Inverter, ForceSuccess, ForceFailure, SubTree, KeepRunningUntilFailure, FailureIsRunning,
-               RunningIsFailure, RunningIsSuccess, RunOnce, Guard, Effects)
-
-
 def _stateful(info: _N) -> bool:
     """A leaf that keeps a status between ticks in BehaviorTree.CPP (a StatefulActionNode).
     Only a leaf: every decorator, SubTree included, resets its child's status when the
@@ -1215,7 +1214,7 @@ def _round_robin_slots(prog: Program, info: _N) -> None:
     info.mems = (prog._slot(f"{info.node.name}:failed", "memory", count),)
 
 
-@rule(ReactiveSequence, ReactiveFallback)
+@rule(ReactiveSequence, ReactiveFallback, merge="tells")
 def _reactive(prog: Program, c: NodeRule) -> Tick:
     """Rules 'ReactiveSequence' and 'ReactiveFallback' (docs/semantics.md section 2)."""
     n, kids, finish = c.node, c.kids, c.finish
@@ -1253,7 +1252,7 @@ def _merging_reactive(name: str, pairs: "tuple[tuple[Tick, Halts], ...]", go_on:
     return tick
 
 
-@rule(MemorySequence, MemoryFallback, slots=_child_slot)
+@rule(MemorySequence, MemoryFallback, slots=_child_slot, merge="tells")
 def _memory(prog: Program, c: NodeRule) -> Tick:
     """Rules 'MemorySequence' and 'MemoryFallback' (section 2)."""
     n, info, kids, finish = c.node, c.info, c.kids, c.finish
@@ -1459,7 +1458,7 @@ _STATUS_TABLES = {
 }
 
 
-@rule(*_STATUS_TABLES)
+@rule(*_STATUS_TABLES, merge="keeps")
 def _status_map(prog: Program, c: NodeRule) -> Tick:
     """Rules 'Inverter', 'ForceSuccess', 'ForceFailure', 'KeepRunningUntilFailure' and
     'FailureIsRunning' (section 3): the child's status through the type's table."""
@@ -1520,7 +1519,7 @@ def _retry_repeat(prog: Program, c: NodeRule) -> Tick:
     return tick
 
 
-@rule(SubTree)
+@rule(SubTree, merge="keeps")
 def _subtree(prog: Program, c: NodeRule) -> Tick:
     """Rule 'SubTree' (section 3)."""
     kids, finish = c.kids, c.finish
@@ -1531,7 +1530,7 @@ def _subtree(prog: Program, c: NodeRule) -> Tick:
     return lambda ctx: finish(child(ctx), ctx)
 
 
-@rule(RunningIsFailure, RunningIsSuccess)
+@rule(RunningIsFailure, RunningIsSuccess, merge="keeps")
 def _running_is(prog: Program, c: NodeRule) -> Tick:
     """Rules 'RunningIsFailure' and 'RunningIsSuccess' (section 3)."""
     n, info, kids, finish = c.node, c.info, c.kids, c.finish
@@ -1547,7 +1546,7 @@ def _running_is(prog: Program, c: NodeRule) -> Tick:
     return tick
 
 
-@rule(RunOnce, slots=_run_once_slots)
+@rule(RunOnce, slots=_run_once_slots, merge="keeps")
 def _run_once(prog: Program, c: NodeRule) -> Tick:
     """Rule 'RunOnce' (section 3)."""
     n, info, kids, finish, where = c.node, c.info, c.kids, c.finish, c.where
@@ -1568,7 +1567,7 @@ def _run_once(prog: Program, c: NodeRule) -> Tick:
     return tick
 
 
-@rule(Guard)
+@rule(Guard, merge="keeps")
 def _guard(prog: Program, c: NodeRule) -> Tick:
     """Rule 'Guard' (section 3)."""
     n, info, kids, finish, where = c.node, c.info, c.kids, c.finish, c.where
@@ -1585,7 +1584,7 @@ def _guard(prog: Program, c: NodeRule) -> Tick:
     return tick
 
 
-@rule(Effects)
+@rule(Effects, merge="keeps")
 def _effects(prog: Program, c: NodeRule) -> Tick:
     """Rule 'Effects' (section 3)."""
     n, kids, finish, where, flag = c.node, c.kids, c.finish, c.where, c.flag
@@ -1669,7 +1668,7 @@ def _skill_request(prog: Program, c: NodeRule) -> Tick:
     return tick
 
 
-@rule(PipelineSequence, slots=_pipeline_slots)
+@rule(PipelineSequence, slots=_pipeline_slots, merge="tells")
 def _pipeline_sequence(prog: Program, c: NodeRule) -> Tick:
     """Rule 'PipelineSequence' (docs/semantics.md 8.3), ported from navigation2's
     nav2_behavior_tree/plugins/control/pipeline_sequence.cpp."""
@@ -1698,7 +1697,7 @@ def _pipeline_sequence(prog: Program, c: NodeRule) -> Tick:
     return tick
 
 
-@rule(RecoveryNode, slots=_recovery_slots)
+@rule(RecoveryNode, slots=_recovery_slots, merge="tells")
 def _recovery_node(prog: Program, c: NodeRule) -> Tick:
     """Rule 'RecoveryNode' (docs/semantics.md 8.3), ported from navigation2's recovery_node.cpp."""
     n, info, kids, finish = c.node, c.info, c.kids, c.finish
@@ -1749,7 +1748,7 @@ def _recovery_node(prog: Program, c: NodeRule) -> Tick:
     return tick
 
 
-@rule(RoundRobin, slots=_round_robin_slots)
+@rule(RoundRobin, slots=_round_robin_slots, merge="keeps")
 def _round_robin(prog: Program, c: NodeRule) -> Tick:
     """Rule 'RoundRobin' (docs/semantics.md 8.3), ported from navigation2's round_robin_node.cpp."""
     n, info, kids, finish = c.node, c.info, c.kids, c.finish
