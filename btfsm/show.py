@@ -32,7 +32,7 @@ from .escape import dot_string
 from .expr import Expr, to_text
 from .fsm import FSM
 
-__all__ = ["tree_to_dot", "fsm_to_dot", "pictures", "render", "GraphvizError", "cli_show"]
+__all__ = ["tree_to_dot", "fsm_to_dot", "pictures", "render", "GraphvizError", "args_show", "cli_show"]
 
 RENDER_TIMEOUT = 60  # seconds for one dot run
 
@@ -243,6 +243,20 @@ def render(dot_text: str, fmt: str, timeout: float = RENDER_TIMEOUT) -> bytes:
         msg = " ".join(proc.stderr.decode("utf-8", "replace").split())[:300]
         raise GraphvizError(f"Graphviz 'dot' failed (exit {proc.returncode}): {msg}")
     return proc.stdout
+
+
+def args_show(sp) -> None:
+    """The flags of ``btfsm show`` (``btfsm.cli.COMMANDS``)."""
+    from . import cliargs
+    from .validators import input_text
+
+    cliargs.model(sp)
+    sp.add_argument("--format", choices=("dot", "svg", "png"), default="dot")
+    sp.add_argument("--output", "-o", type=input_text,
+                    help="a name ending in .dot, .svg or .png is a file (one picture, matching --format); "
+                         "any other name is a folder, created if missing, with one file per picture "
+                         "(default: stdout for dot)")
+    sp.add_argument("--what", default="all", type=input_text, help="'tree', an FSM name, or 'all'")
 
 
 def cli_show(args) -> int:

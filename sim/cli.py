@@ -1,6 +1,9 @@
-"""``btfsm experiment``, ``btfsm sim`` and ``btfsm conform``.
+"""``btfsm experiment``, ``btfsm sweep``, ``btfsm sim`` and the scenarios of ``btfsm conform``.
 
-Flag values are checked by the parser in ``btfsm.cli`` (``btfsm.validators``); every file
+Each command's flags (``args_NAME``) sit beside its handler (``cli_NAME``), as listed in
+``btfsm.cli.COMMANDS`` (``btfsm conform``'s are in ``btfsm.commands``, which picks the
+scenarios here or a recorded run). Flag values are checked when parsed
+(``btfsm.validators``); every file
 is written atomically (``btfsm.outputs``). ``btfsm experiment`` saves each finished trial in
 ``--out/trials/`` and a re-run with the same ``--out`` reuses the finished trials whose
 spec matches (``--fresh`` ignores them), so an interrupted experiment (Ctrl-C: exit 130)
@@ -14,9 +17,13 @@ import sys
 import time
 from typing import Any, cast
 
+from btfsm import cliargs
+from btfsm.cliargs import MAX_FRAMES, MAX_SIM_TIME, MAX_WORKERS
 from btfsm.errors import UsageError
+from btfsm.validators import finite_float, input_text, int_range, output_dir, output_file, seed_int
 
-__all__ = ["cli_experiment", "cli_sim", "cli_conform", "select_ks"]
+__all__ = ["args_experiment", "cli_experiment", "args_sim", "cli_sim", "cli_conform", "args_sweep", "cli_sweep",
+           "select_ks"]
 
 
 def select_ks(ks, trials) -> list:
@@ -47,8 +54,23 @@ def needs(*modules) -> None:
 
 def picture_modules(args) -> tuple:
     """The packages ``--render`` (matplotlib) and ``--gif`` (matplotlib, PIL) draw with."""
-    return (("matplotlib",) if getattr(args, "render", None) or getattr(args, "gif", None) else ()) + \
-        (("PIL",) if getattr(args, "gif", None) else ())
+    return (("matplotlib",) if args.render or args.gif else ()) + (("PIL",) if args.gif else ())
+
+
+def args_experiment(sp) -> None:
+    sp.add_argument("--k", type=int_range(1, 40), action="append", default=[], help="run this k (1..40; repeatable)")
+    sp.add_argument("--trials", type=int_range(1, 40), help="run this many k values spread evenly over 1..40")
+    sp.add_argument("--variant", action="append", choices=("preemptive", "baseline"), help="default: both")
+    sp.add_argument("--workers", type=int_range(1, MAX_WORKERS), default=os.cpu_count() or 1,
+                    help="parallel processes (default: all cores)")
+    sp.add_argument("--time", type=finite_float(0, MAX_SIM_TIME, lo_open=True), default=1500.0,
+                    help="time limit per trial in simulated seconds (default 1500, the paper's protocol)")
+    sp.add_argument("--out", default="out/experiment", type=output_dir,
+                    help="folder for trials.csv, trials.json, the figure and the finished trials "
+                         "(trials/*.json); a re-run with the same --out reuses finished trials")
+    sp.add_argument("--fresh", action="store_true", help="ignore finished trials saved in --out")
+    sp.add_argument("--quiet", action="store_true", help="no progress bar")
+    cliargs.json(sp, "the summary")
 
 
 def cli_experiment(args) -> int:
@@ -61,10 +83,10 @@ def cli_experiment(args) -> int:
     needs("matplotlib")  # the figure, drawn after every trial ran
     ks = select_ks(args.k, args.trials)
     variants = tuple(dict.fromkeys(args.variant)) if args.variant else VARIANTS
-    time_limit = getattr(args, "time", 1500.0)
+    time_limit = args.time
     specs = trial_specs(ks, variants, time_limit=time_limit)
     ensure_output_dir(args.out)
-    finished = {} if getattr(args, "fresh", False) else load_finished(specs, args.out)
+    finished = {} if args.fresh else load_finished(specs, args.out)
     reused = f"; {len(finished)} finished trial(s) reused from {args.out}" if finished else ""
     print(f"experiment: {len(specs)} trials ({', '.join(variants)}; k = {_ks_text(ks)}) on {args.workers} "
           f"worker(s){reused}", file=sys.stderr)
@@ -77,7 +99,7 @@ def cli_experiment(args) -> int:
     summary = summarize(results)
     errors = [r for r in results if r.conformance_error]
     sim_time = sum(r.sim_time for r in results)
-    if getattr(args, "json", False):
+    if args.json:
         print(json.dumps({"trials": len(results), "reused": len(finished), "time_limit": time_limit,
                           "ks": ks, "variants": list(variants), "summary": summary, "simulated_s": sim_time,
                           "files": {"csv": csv_path, "json": json_path, "figure": png},
@@ -107,7 +129,7 @@ def _scene_of(args, model):
     from .scene import load_scene
     from .scene_trial import scene_for
 
-    path = getattr(args, "scene", None)
+    path = args.scene
     if path is None:
         if is_kitting_model(model):
             return None
@@ -156,6 +178,20 @@ def _sim_scene(args, model, scene) -> int:
             n = write_gif(scene, frames, tmp, fps=args.fps, title=f"{model.name} in {scene.name}")
         print(f"animation: {args.gif} ({n} frames)")
     return 1 if run.mismatch is not None else 0
+
+
+def args_sim(sp) -> None:
+    cliargs.model(sp)
+    sp.add_argument("--k", type=int_range(1, 40), default=1, help="belt parts every 30 + 0.2 k s (1..40, default 1)")
+    sp.add_argument("--time", type=finite_float(0, MAX_SIM_TIME, lo_open=True), default=1500.0,
+                    help="time limit in simulated seconds")
+    sp.add_argument("--render", metavar="PNG", type=output_file(".png"), help="draw the cell at the end of the run")
+    sp.add_argument("--gif", metavar="GIF", type=output_file(".gif"), help="write an animation of the run")
+    sp.add_argument("--fps", type=finite_float(0.01, 100.0), default=2.0,
+                    help="animation frames per simulated second (0.01..100)")
+    sp.add_argument("--max-frames", type=int_range(1, MAX_FRAMES), default=600)
+    cliargs.scene(sp)
+    sp.add_argument("--seed", type=seed_int, default=0, help="with a scene: the seed of its random arrivals and faults")
 
 
 def cli_sim(args) -> int:
@@ -223,13 +259,13 @@ def cli_conform(args) -> int:
 
     from .conformance import conform, variant_of
 
-    html = getattr(args, "html", None)
+    html = args.html
     if html:
         from btfsm.html import require_dot
 
         require_dot()
     model = load_cli_model(args)
-    as_json = getattr(args, "json", False)
+    as_json = args.json
     scene = _scene_of(args, model)
     if scene is None:
         variant_of(model)  # a model the cell cannot run is an error before anything is explored
@@ -291,6 +327,34 @@ def cli_conform(args) -> int:
         if not as_json:
             print(f"html: {html}")
     return 1 if failed else 0
+
+
+def args_sweep(sp) -> None:
+    sp.add_argument("--k", type=int_range(1, 40), action="append", default=[], help="trial index k (seed and dTa(k); repeatable)")
+    sp.add_argument("--trials", type=int_range(1, 40), help="this many k values spread evenly over 1..40 (default 1)")
+    sp.add_argument("--variant", action="append", choices=("preemptive", "baseline"), help="default: both")
+    pos = finite_float(0, 100, lo_open=True)
+    sp.add_argument("--belt-speed", type=pos, nargs="+", default=[0.2], metavar="M_S", help="belt speeds, m/s (default 0.2)")
+    sp.add_argument("--period", type=finite_float(1, MAX_SIM_TIME), nargs="+", default=None, metavar="S",
+                    help="seconds between belt parts (default dTa(k) = 30 + 0.2 k)")
+    sp.add_argument("--speed-scale", type=finite_float(0, 1, lo_open=True), nargs="+", default=[0.5], metavar="X",
+                    help="the arm's velocity scaling (default 0.5, the authors')")
+    sp.add_argument("--pick-window", type=finite_float(0, 1000, lo_open=True), nargs="+", default=None, metavar="S",
+                    help="dt*: seconds a detected part stays pickable (default: the time the belt takes to carry it "
+                         "through the arm's reach, 3.2 m / belt speed: 16 s at 0.2 m/s)")
+    sp.add_argument("--time", type=finite_float(0, MAX_SIM_TIME, lo_open=True), default=1500.0,
+                    help="time limit per trial in simulated seconds (default 1500)")
+    sp.add_argument("--engine", choices=("dask", "processes", "inline"), default="dask",
+                    help="dask (default: an embedded local cluster, or --scheduler), processes (a local pool), "
+                         "inline (this process)")
+    sp.add_argument("--scheduler", type=input_text, default=None, metavar="ADDRESS",
+                    help="a running Dask scheduler (tcp://HOST:PORT) instead of the embedded cluster")
+    sp.add_argument("--workers", type=int_range(1, MAX_WORKERS), default=os.cpu_count() or 1,
+                    help="worker processes of the embedded cluster or pool (default: all cores)")
+    sp.add_argument("--out", default="out/sweep", type=output_dir,
+                    help="folder for sweep.csv, sweep.parquet, the figure and the finished trials (cache/); "
+                         "a re-run with the same --out reuses finished trials")
+    sp.add_argument("--quiet", action="store_true", help="no progress bar")
 
 
 def cli_sweep(args) -> int:

@@ -448,7 +448,7 @@ def replay_for_cli(model, ce_json: dict, args, record: bool = False):
     from .scene import load_scene
     from .scene_trial import scene_for
 
-    path = getattr(args, "scene", None)
+    path = args.scene
     view: Any = None
     out: Any
     if path is None and dialect_of(model) is not None:

@@ -1,7 +1,8 @@
-"""``btfsm check`` and ``btfsm export`` (handlers named in ``btfsm.cli.COMMANDS``).
+"""``btfsm check``, ``btfsm bound`` and ``btfsm export``: each one's flags (``args_NAME``)
+beside its handler (``cli_NAME``), as listed in ``btfsm.cli.COMMANDS``.
 
 ``btfsm check MODEL [--property NAME]... [--json] [--max-states N] [--counterexample-dir DIR]``
-(flag values are checked by the parser in ``btfsm.cli``; files are written atomically by
+(flag values are checked when parsed, ``btfsm.validators``; files are written atomically by
 ``btfsm.outputs``)
 exits 0 when every property holds, 1 when one is violated (its counterexample is printed),
 2 on bad input or usage (an unknown property name lists the known ones), 3 when the state
@@ -16,9 +17,35 @@ import os
 import sys
 from typing import cast
 
-from btfsm import reserve
+from btfsm import cliargs, reserve
+from btfsm.validators import finite_float, input_text, output_dir, output_file
 
-__all__ = ["cli_check", "cli_export", "cli_bound"]
+__all__ = ["args_check", "cli_check", "args_export", "cli_export", "args_bound", "cli_bound"]
+
+
+def args_check(sp) -> None:
+    cliargs.model(sp)
+    sp.add_argument("--property", action="append", default=[], metavar="NAME", type=input_text)
+    cliargs.json(sp, "the report")
+    cliargs.max_states(sp)
+    cliargs.budgets(sp)
+    sp.add_argument("--counterexample-dir", type=output_dir, help="write each counterexample as JSON into this folder")
+    cliargs.html(sp, "the verdicts and each counterexample")
+    sp.add_argument("--quiet", "-q", action="store_true", help="no warnings and no information lines, only verdicts and failures")
+    sp.add_argument("--verbose", "-v", action="store_true", help="list every warning, determinism gap and note")
+    sp.add_argument("--goal-level", choices=("open", "tree"), default="open",
+                    help="goal-reachability: judge each FSM as an open system (open, default) or only the "
+                         "requests the tree can actually make (tree)")
+    sp.add_argument("--engine", choices=("auto", "traced", "scalar"), default="auto",
+                    help="model-level exploration engine (default auto: traced, scalar where it cannot trace); "
+                         "both give the same system")
+    sp.add_argument("--scheduler", type=input_text, default=None, metavar="ADDRESS",
+                    help="check workable-reachability and no-dead-states (model level) with the states partitioned "
+                         "across Dask workers: tcp://HOST:PORT (a running scheduler; the model file must be at the "
+                         "same path on its workers) or local:N (an embedded cluster of N worker processes)")
+    cliargs.response(sp, required=False)
+    sp.add_argument("--within", type=finite_float(0, None), metavar="S", default=None,
+                    help="with --trigger/--response: the bound in seconds (property 'response')")
 
 
 def cli_check(args) -> int:
@@ -32,26 +59,26 @@ def cli_check(args) -> int:
     unknown = [p for p in props if p not in PROPERTIES]
     if unknown:
         raise UsageError(f"unknown property {', '.join(repr(p) for p in unknown)}; known properties: {', '.join(PROPERTIES)}")
-    if getattr(args, "scheduler", None):
+    if args.scheduler:
         return _check_partitioned(args, props)
     max_states = DEFAULT_MAX_STATES if args.max_states is None else args.max_states
     max_transitions, max_seconds = _budgets(args, DEFAULT_MAX_TRANSITIONS)
     from btfsm.progress import ExplorationProgress
 
-    html = getattr(args, "html", None)
+    html = args.html
     if html:
         from btfsm.html import require_dot
 
         require_dot()
     model = _with_response(_load(args), args)
-    if getattr(args, "trigger", None) and props and "response" not in props:
+    if args.trigger and props and "response" not in props:
         props.append("response")
     progress = ExplorationProgress()
     report = None
     try:
         report = check(model, props or None, max_states=max_states, max_transitions=max_transitions,
                        max_seconds=max_seconds, progress=progress, engine=args.engine,
-                       goal_level=getattr(args, "goal_level", "open"))
+                       goal_level=args.goal_level)
     except MemoryError as exc:
         reserve.release(exc)  # the reserve, and the exploration's frames the traceback holds
     if report is None:  # reported outside the handler: nothing of the exploration is left
@@ -64,7 +91,7 @@ def cli_check(args) -> int:
     if args.json:
         print(json.dumps(report.to_json(), default=_plain))
     else:
-        print(report.format_text(quiet=getattr(args, "quiet", False), verbose=getattr(args, "verbose", False)))
+        print(report.format_text(quiet=args.quiet, verbose=args.verbose))
         if not report.complete:
             hit = sorted({describe_hit(s.get("budget"), max_states, max_transitions, max_seconds) or "budget"
                           for s in report.systems if not s["complete"]})
@@ -100,7 +127,7 @@ def _check_partitioned(args, props) -> int:
         raise UsageError(f"--scheduler: only {' and '.join(PARTITIONED)} run partitioned, not {', '.join(other)}")
     for flag in ("max_states", "max_transitions", "max_seconds", "trigger", "response", "within", "html",
                  "counterexample_dir"):
-        if getattr(args, flag, None) is not None:
+        if getattr(args, flag) is not None:
             raise UsageError(f"--{flag.replace('_', '-')} does not go with --scheduler (the partitioned check has no "
                              "budgets, no counterexample paths and no response properties)")
     local = re.fullmatch(r"local(?::([0-9]+))?", args.scheduler)
@@ -111,9 +138,8 @@ def _check_partitioned(args, props) -> int:
         raise UsageError(f"--scheduler local:N: N from 1 to 64, got {workers}")
     if importlib.util.find_spec("distributed") is None:
         raise ModuleNotFoundError("No module named 'distributed'", name="distributed")
-    opts = {"semantics": getattr(args, "semantics", None), "tick": getattr(args, "tick", None),
-            "node_library": getattr(args, "node_library", None), "nodes": tuple(getattr(args, "nodes", None) or ()),
-            "main_tree": getattr(args, "main_tree", None)}
+    opts = {"semantics": args.semantics, "tick": args.tick, "node_library": args.node_library,
+            "nodes": tuple(args.nodes or ()), "main_tree": args.main_tree}
     model = _load(args)  # bad input is reported here, before any cluster starts
     from .distributed import check_distributed, cluster
     from .properties import not_applicable
@@ -166,7 +192,7 @@ def _with_response(model, args):
     from btfsm.errors import ModelError, UsageError
     from btfsm.timing import Response
 
-    trig, resp, within = getattr(args, "trigger", None), getattr(args, "response", None), getattr(args, "within", None)
+    trig, resp, within = args.trigger, args.response, args.within
     if trig is None and resp is None:
         if within is not None:
             raise UsageError("--within needs --trigger and --response")
@@ -178,6 +204,19 @@ def _with_response(model, args):
         return dataclasses.replace(model, responses=tuple(model.responses) + (req,))
     except (ModelError, SyntaxError, ValueError) as exc:
         raise UsageError(f"--trigger/--response: {getattr(exc, 'problem', None) or exc}") from None
+
+
+def args_bound(sp) -> None:
+    cliargs.model(sp)
+    cliargs.response(sp, required=True)
+    sp.add_argument("--output", "-o", type=output_file(".json"), default=None,
+                    help="write the worst-case run as a counterexample file (replay it with btfsm replay)")
+    sp.add_argument("--within", type=finite_float(0, None), default=None, metavar="S",
+                    help="also the worst first late response: over runs that answered every earlier trigger within S "
+                         "seconds (an event trigger whose minimum interval exceeds S); -o then writes that run")
+    cliargs.json(sp, "the figures")
+    cliargs.max_states(sp)
+    cliargs.budgets(sp)
 
 
 def cli_bound(args) -> int:
@@ -227,7 +266,7 @@ def cli_bound(args) -> int:
            "triggers": int(rb.triggers.size), "unbounded": worst == INF,
            "worst_ticks": figure(worst), "worst_seconds": None if figure(worst) is None else rb.seconds(worst),
            "best_ticks": figure(best), "best_seconds": None if figure(best) is None else rb.seconds(best)}
-    within = getattr(args, "within", None)
+    within = args.within
     first = None
     if within is not None and worst is not None and ts.complete:
         first = rb.first_late(int(round(within * model.tick_rate)))
@@ -283,10 +322,9 @@ def cli_bound(args) -> int:
 
 def _budgets(args, default_transitions=None):
     """(max_transitions, max_seconds) from ``--max-transitions`` and ``--max-seconds``
-    (their ranges are checked by the parser in ``btfsm.cli``)."""
-    max_transitions = getattr(args, "max_transitions", None)
-    max_seconds = getattr(args, "max_seconds", None)
-    return (default_transitions if max_transitions is None else max_transitions), max_seconds
+    (``btfsm.cliargs.budgets``; their ranges are checked when parsed)."""
+    max_transitions = args.max_transitions
+    return (default_transitions if max_transitions is None else max_transitions), args.max_seconds
 
 
 def _plain(x):
@@ -322,6 +360,18 @@ def _write_counterexamples(report, folder) -> list:
     return written
 
 
+def args_export(sp) -> None:
+    cliargs.model(sp)
+    sp.add_argument("--format", choices=("promela", "smv", "dot", "btcpp"), required=True,
+                    help="btcpp: the tree as BehaviorTree.CPP XML v4 (docs/semantics.md 8.1)")
+    sp.add_argument("--fsm", type=input_text,
+                    help="FSM to export at FSM level (default: the whole model when its tree is one "
+                         "SkillRequest, the first FSM when there is no tree)")
+    sp.add_argument("--output", "-o", type=output_file())
+    cliargs.max_states(sp)
+    cliargs.budgets(sp)
+
+
 def cli_export(args) -> int:
     from btfsm.errors import UsageError
 
@@ -333,7 +383,7 @@ def cli_export(args) -> int:
 
     max_transitions, max_seconds = _budgets(args)
     try:
-        out = export(model, args.format, args.fsm, max_states=getattr(args, "max_states", None),
+        out = export(model, args.format, args.fsm, max_states=args.max_states,
                      max_transitions=max_transitions, max_seconds=max_seconds)
     except BudgetExceeded as exc:
         print(f"btfsm export: {exc}", file=sys.stderr)

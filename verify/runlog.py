@@ -636,7 +636,7 @@ def cli_conform_log(args) -> int:
         raise ModelError("", "not a BehaviorTree.CPP FileLogger2 log (.btlog) nor a py_trees run recorded by "
                              "btfsm.interop.pytrees.RunRecorder", path)
     model = load_model(args.model, semantics=semantics)
-    page = getattr(args, "html", None)
+    page = args.html
     if page:
         from btfsm.html import require_dot
 
@@ -663,8 +663,8 @@ def cli_conform_log(args) -> int:
         from btfsm.html import log_page, write_page
 
         written = write_page(page, model, **log_page(model, path, verdict, text))
-        print(f"html: {written}", file=sys.stderr if getattr(args, "json", False) else sys.stdout)
-    if getattr(args, "json", False):
+        print(f"html: {written}", file=sys.stderr if args.json else sys.stdout)
+    if args.json:
         print(json.dumps(dict(verdict.as_dict(), log=path, model=model.name)))
     elif verdict.incomplete:
         print(f"btfsm conform: {text}; raise it", file=sys.stderr)

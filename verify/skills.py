@@ -53,7 +53,7 @@ from btfsm.status import Status
 from .search import Budget, BudgetExceeded, describe_hit
 
 __all__ = ["Skill", "Pair", "Derivation", "Support", "skills_of", "derive", "check_support",
-           "counts", "format_text", "to_dot", "to_json", "cli_skills", "KINDS"]
+           "counts", "format_text", "to_dot", "to_json", "args_skills", "cli_skills", "KINDS"]
 
 KINDS = ("completion", "preemption", "failure", "concurrent", "first")
 _MARK = {"completion": "C", "preemption": "P", "failure": "F", "concurrent": "||"}
@@ -606,14 +606,24 @@ def _load(args):
     return load_cli_model(args)
 
 
+def args_skills(sp) -> None:
+    """The flags of ``btfsm skills`` (``btfsm.cli.COMMANDS``)."""
+    from btfsm import cliargs
+
+    cliargs.model(sp)
+    sp.add_argument("--format", choices=("text", "dot", "json"), default="text")
+    sp.add_argument("--json", dest="format", action="store_const", const="json", help="same as --format json")
+    cliargs.max_states(sp)
+    cliargs.budgets(sp)
+
+
 def cli_skills(args) -> int:
     """``btfsm skills MODEL [--format text|dot|json] [--max-states N] [--max-transitions N]
     [--max-seconds S]``: exit 0 when every derived transition is supported, 1 when one is
     not, 3 when a budget was hit."""
     import sys
 
-    max_transitions = getattr(args, "max_transitions", None)  # ranges checked by the parser (btfsm.cli)
-    max_seconds = getattr(args, "max_seconds", None)
+    max_transitions, max_seconds = args.max_transitions, args.max_seconds  # ranges checked by the parser
     model = _load(args)
     if model.tree is None:
         raise ModelError("tree", f"{model.name} has no tree: there are no skill requests to derive from")

@@ -60,10 +60,10 @@ def load_model(ref, *, file_name: "str | None" = None, semantics: "str | None" =
 
 def load_cli_model(args) -> Model:
     """The model a command's arguments name: ``args.model``, under ``args.semantics`` and
-    ``args.tick`` when given (and ``--node-library``, ``--nodes``, ``--main-tree`` for an XML tree)."""
-    return load_model(args.model, semantics=getattr(args, "semantics", None), tick=getattr(args, "tick", None),
-                      node_library=getattr(args, "node_library", None), nodes=getattr(args, "nodes", None) or (),
-                      main_tree=getattr(args, "main_tree", None))
+    ``args.tick`` when given (and ``--node-library``, ``--nodes``, ``--main-tree`` for an XML tree);
+    the flags of ``btfsm.cliargs.model``."""
+    return load_model(args.model, semantics=args.semantics, tick=args.tick, node_library=args.node_library,
+                      nodes=args.nodes or (), main_tree=args.main_tree)
 
 
 def _load_model(ref, file_name, xml=None) -> Model:

@@ -15,7 +15,7 @@ def cli_validate(args) -> int:
     warnings = list(model.warnings) + list(model.program.lints)
     for element, text in warnings:
         print(printable(f"warning: {element}: {text}"))
-    return 1 if warnings and getattr(args, "strict", False) else 0
+    return 1 if warnings and args.strict else 0
 
 
 def _count(n: int, word: str) -> str:
