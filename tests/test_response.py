@@ -280,3 +280,16 @@ def test_a_violation_inside_a_budget_cut_system_is_reported_and_replays(tmp_path
                  "--counterexample-dir", str(tmp_path), "--quiet"]) == 1
     (ce,) = tmp_path.glob("*.json")
     assert main(["replay", str(ce), "ariac-baseline-timed"]) == 0
+
+
+def test_bound_output_on_a_budget_cut_system_without_a_witness(timed_file, tmp_path, capsys):
+    # 3 states explored: the worst case is unbounded only through the unexpanded states, and
+    # the explored part holds no run that never responds: nothing to write, exit 3
+    w = tmp_path / "worst.json"
+    assert main(["bound", str(timed_file), "--trigger", "event:arrive", "--response", "q == 0",
+                 "--max-states", "3", "-o", str(w), "--json"]) == 3
+    captured = capsys.readouterr()
+    out = json.loads(captured.out)
+    assert (out["unbounded"], out["complete"], out["counterexample"]) == (True, False, None)
+    assert "no worst-case run written" in captured.err and "budget" in captured.err
+    assert not w.exists()

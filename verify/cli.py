@@ -286,8 +286,12 @@ def cli_bound(args) -> int:
 
         atomic_write_text(args.output, json.dumps(ce.to_json(), indent=1, default=_plain) + "\n")
         written = args.output
+    elif args.output and worst is not None and (witness := rb.worst_witness()) is None:
+        # only on a budget-cut system: the unbounded figure comes from states left unexpanded
+        print(f"btfsm bound: no worst-case run written to {args.output}: the explored part holds no run that never "
+              "responds (the unbounded figure comes from states the budget left unexplored)", file=sys.stderr)
     elif args.output and worst is not None:
-        path, k, loop = cast(tuple, rb.worst_witness())
+        path, k, loop = cast(tuple, witness)
         summary = (f"'{args.response}' may never come after '{args.trigger}'" if worst == INF else
                    f"the worst case: '{args.response}' {worst} tick(s) ({rb.seconds(worst):g} s) after '{args.trigger}'")
         ce = counterexample(rb, path, k, loop, summary, None)
