@@ -155,7 +155,11 @@ class Conformance:
         return None
 
 
-def conform(model, scenarios: int = 10, seed: int = 0, time_limit: "float | None" = 700.0, drops: bool = False,
+#: Simulated seconds of each kitting-cell scenario of ``conform`` (``btfsm conform --time``'s default).
+KITTING_TIME_LIMIT = 700.0
+
+
+def conform(model, scenarios: int = 10, seed: int = 0, time_limit: "float | None" = KITTING_TIME_LIMIT, drops: bool = False,
             path: bool = True, max_states: "int | None" = 2_000_000, on_explored=None, on_result=None,
             scene=None, views=None) -> Conformance:
     """Run ``scenarios`` seeded random scenarios of ``model`` in the cell under the
@@ -167,7 +171,7 @@ def conform(model, scenarios: int = 10, seed: int = 0, time_limit: "float | None
     kitting cell; a model the kitting cell cannot run uses its default scene
     (``scene_trial.scene_for``) when it has one. In a scene each scenario is a seed (the
     seed of the scene's random arrivals and faults); ``time_limit`` None means the
-    scene's ``time_limit``; ``drops`` adds, to about half the scenarios, a fault region
+    scene's ``time_limit`` (in the kitting cell, ``KITTING_TIME_LIMIT``); ``drops`` adds, to about half the scenarios, a fault region
     (10 cm square, drop probability 1) on the straight line between two of the scene's
     frames, where the robot is likely to carry parts. ``views(index)``: an ``on_tick(rt,
     world)`` callback for that scenario, or None (``cell_view.ConformViews``)."""
@@ -185,7 +189,8 @@ def conform(model, scenarios: int = 10, seed: int = 0, time_limit: "float | None
     from .binding import Dialect, dialect_of
 
     parts = model.var(cast(Dialect, dialect_of(model)).tray_var).hi
-    cases = random_scenarios(scenarios, seed, variant, parts=parts, time_limit=cast(float, time_limit), drops=drops)
+    limit = KITTING_TIME_LIMIT if time_limit is None else time_limit
+    cases = random_scenarios(scenarios, seed, variant, parts=parts, time_limit=limit, drops=drops)
     results = []
     for i, sc in enumerate(cases):
         res = run_scenario(sc, model, monitor, on_tick=views(i) if views is not None else None)

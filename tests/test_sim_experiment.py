@@ -140,3 +140,15 @@ def test_cli_experiment_bad_k():
     out = subprocess.run([sys.executable, "-m", "btfsm.cli", "experiment", "--k", "99"],
                          capture_output=True, text=True, timeout=60)
     assert out.returncode == 2 and "Traceback" not in out.stderr
+
+
+def test_conform_without_a_time_limit_uses_the_kitting_cells_default(monkeypatch):
+    # time_limit=None means the scene's own limit; in the kitting cell (no scene) the default
+    from btfsm.models import ariac
+    from btfsm.sim import conformance
+
+    ran = []
+    monkeypatch.setattr(conformance, "run_scenario", lambda sc, *a, **k: ran.append(sc) or sc)
+    out = conformance.conform(ariac.preemptive(), scenarios=2, seed=3, time_limit=None, path=False)
+    assert [sc.time_limit for sc in out.scenarios] == [conformance.KITTING_TIME_LIMIT] * 2 and ran == out.scenarios
+    assert out.scenarios == random_scenarios(2, 3, "preemptive", parts=ran[0].parts, time_limit=700.0)

@@ -83,7 +83,7 @@ def read_models(tnm, file: str) -> dict:
 def models_of_document(root, shown: str) -> dict:
     """``{ID: NodeModel}`` of every ``<TreeNodesModel>`` of a node model file (Groot2's
     palette export, Nav2's ``nav2_tree_nodes.xml``), given its parsed root element
-    (``btcpp_import.parse_xml``; ``btfsm.files.load_node_models`` reads one from a path).
+    (``btcpp_import.parse_xml``; ``btfsm.files.load_xml_model`` reads them from the paths its ``nodes`` name).
     BehaviorTrees in it are not read."""
     if root.tag != "root":
         raise ModelError(root.where(), "expected <root> as the document element of a node model file", shown)
