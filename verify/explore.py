@@ -29,7 +29,7 @@ from btfsm.oracles import all_choices
 
 from . import scalar, traced
 from .labels import readable
-from .search import DEFAULT_MAX_STATES, DEFAULT_MAX_TRANSITIONS, Budget, EnumOracle, run_environment
+from .search import DEFAULT_MAX_STATES, DEFAULT_MAX_TRANSITIONS, Budget, EnumOracle, SearchTask, run_environment
 from .system import TransitionSystem
 
 __all__ = ["AUTO_SCALAR_STATES", "AUTO_NARROW_LEVEL", "explore", "explore_fsm", "OpenFSM", "open_fsm", "requests_of", "EnumOracle", "run_environment",
@@ -314,7 +314,7 @@ def explore(model, *, max_states=None, max_transitions=None, max_seconds=None, p
     kept = tuple(range(len(prog.slots)))
     init = tuple(start) if start is not None else prog.initial
     budget = Budget(max_states, max_transitions, max_seconds)
-    return _explore_with(engine, model, "model", None, kept, prog.step, init, budget, progress, None)
+    return _explore_with(engine, SearchTask(model, "model", None, kept, prog.step, init, progress), budget)
 
 
 def explore_fsm(model, fsm, *, goals=None, max_states=None, max_transitions=None, max_seconds=None, progress=None,
@@ -326,7 +326,7 @@ def explore_fsm(model, fsm, *, goals=None, max_states=None, max_transitions=None
     init = tuple(start) if start is not None else prog.initial
     init = tuple(prog.initial[k] if k in dict(op.inputs) else v for k, v in enumerate(init))
     budget = Budget(max_states, max_transitions, max_seconds)
-    return _explore_with(engine, model, "fsm", op.fsm, op.kept, op.run, init, budget, progress, op)
+    return _explore_with(engine, SearchTask(model, "fsm", op.fsm, op.kept, op.run, init, progress, op), budget)
 
 
 #: ``engine="auto"``: systems up to this many states are explored by the scalar engine. The
@@ -354,7 +354,7 @@ def _long_timers(prog, kept) -> bool:
     return span > AUTO_SCALAR_STATES
 
 
-def _explore_with(engine, model, kind, fsm, kept, run, init, budget, progress, op) -> TransitionSystem:
+def _explore_with(engine, task: SearchTask, budget: Budget) -> TransitionSystem:
     """One system, explored by the engine asked for (see ``explore``). With ``auto``, the
     scalar engine first explores up to ``AUTO_SCALAR_STATES`` states (tracing does not pay
     off on small systems); a system that is larger is explored again, from the start, by
@@ -367,13 +367,14 @@ def _explore_with(engine, model, kind, fsm, kept, run, init, budget, progress, o
     at a "paths" budget."""
     if engine not in ("auto", "traced", "scalar"):
         raise ValueError(f"engine must be auto, traced or scalar, not {engine!r}")
+    model, kind = task.model, task.kind
     split = scalar.TreeCache(model) if kind == "model" and model.environment and model.tree is not None else None
     wide = kind == "model" and traced.env_width(model.program) >= traced.ENV_WIDE
-    if engine == "auto" and not wide and not _long_timers(model.program, kept):
+    if engine == "auto" and not wide and not _long_timers(model.program, task.kept):
         small = AUTO_SCALAR_STATES if budget.max_states is None else min(budget.max_states, AUTO_SCALAR_STATES)
         probe = Budget(small, budget.max_transitions, budget.max_seconds)
         probe.start = budget.start
-        ts = scalar.search(model, kind, fsm, kept, run, init, probe, progress, op, split)
+        ts = scalar.search(task, probe, split)
         if ts.complete or probe.hit != "states" or small == budget.max_states:
             budget.hit = probe.hit  # the whole system, or the cut the user's budget makes (the same in both engines)
             return ts
@@ -381,11 +382,11 @@ def _explore_with(engine, model, kind, fsm, kept, run, init, budget, progress, o
             engine = "scalar"  # narrow levels: tracing would not pay off
     if engine != "scalar":
         try:
-            return traced.search(model, kind, fsm, kept, run, init, budget, progress, op, fallback=engine == "auto")
+            return traced.search(task, budget, fallback=engine == "auto")
         except traced.Untraceable:
             if engine == "traced":
                 raise
-    return scalar.search(model, kind, fsm, kept, run, init, budget, progress, op, split)
+    return scalar.search(task, budget, split)
 
 
 # ---------------------------------------------------------------------- re-running transitions

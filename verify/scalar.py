@@ -24,7 +24,7 @@ from btfsm.errors import DomainError
 
 from .codec import codec, decode, rows
 from .labels import readable
-from .search import DEFAULT_MAX_STATES, Budget, EnumOracle, Search, run_environment
+from .search import DEFAULT_MAX_STATES, Budget, EnumOracle, Search, SearchTask, run_environment
 from .system import DomainViolation, TransitionSystem
 
 __all__ = ["search", "TreeCache", "OutOfTime"]
@@ -122,13 +122,15 @@ class TreeCache:
         self.cache[post] = res
 
 
-def search(model, kind, fsm, kept, run, initial, budget, progress, op, split=None) -> TransitionSystem:
-    """Explore one system breadth-first from ``initial``: ``run(state, oracle)`` is one
-    transition (``Program.step``, or ``OpenFSM.run`` with ``op`` at FSM level), states are
-    coded over the ``kept`` slots; ``split``: a ``TreeCache`` (model level with an
-    environment). ``budget``: a ``btfsm.verify.search.Budget`` (None: unbounded); the search
-    stops at the first bound hit and records which in ``budget.hit``."""
+def search(task: SearchTask, budget: "Budget | None", split: "TreeCache | None" = None) -> TransitionSystem:
+    """Explore the system of ``task`` breadth-first from ``task.initial``: ``run(state,
+    oracle)`` is one transition (``Program.step``, or ``OpenFSM.run`` with ``op`` at FSM
+    level), states are coded over the ``kept`` slots; ``split``: a ``TreeCache`` (model
+    level with an environment). ``budget``: a ``btfsm.verify.search.Budget`` (None:
+    unbounded); the search stops at the first bound hit and records which in ``budget.hit``."""
     t0 = time.perf_counter()
+    model, kind, fsm, kept, run = task.model, task.kind, task.fsm, task.kept, task.run
+    initial, progress, op = task.initial, task.progress, task.op
     prog = model.program
     mults, offset, total = codec(prog, kept)
     small = total < (1 << 62)

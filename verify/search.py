@@ -1,12 +1,13 @@
 """The pieces every exploration engine shares: the enumerating oracle (``EnumOracle``),
 the environment step (``run_environment``), the budgets (``Budget``) and the engines'
 interfaces (``Search``: what ``btfsm.verify.scalar.search`` and
-``btfsm.verify.traced.search`` are; ``Explorer``: a whole exploration with its budgets, what
+``btfsm.verify.traced.search`` are, each given a ``SearchTask``; ``Explorer``: a whole exploration with its budgets, what
 ``btfsm.verify.vector.explore`` is; tests/test_engines_shared.py runs one suite over them).
 """
 from __future__ import annotations
 
 import time
+from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, Callable, Protocol, Sequence
 
 from btfsm.oracles import ScriptOracle
@@ -19,7 +20,7 @@ if TYPE_CHECKING:
     from .system import TransitionSystem
 
 __all__ = ["EnumOracle", "run_environment", "DEFAULT_MAX_STATES", "DEFAULT_MAX_TRANSITIONS", "Budget", "BudgetExceeded",
-           "describe_hit", "HIT_WORDS", "Search", "Explorer", "Progress", "Run"]
+           "describe_hit", "HIT_WORDS", "Search", "SearchTask", "Explorer", "Progress", "Run"]
 
 DEFAULT_MAX_STATES = 5_000_000
 DEFAULT_MAX_TRANSITIONS = 50_000_000  # the command line's default: about 1.3 GB of transition arrays
@@ -149,7 +150,7 @@ class Budget:
         self.max_transitions = None if max_transitions is None else max(int(max_transitions), 0)
         self.max_seconds = None if max_seconds is None else float(max_seconds)
         self.start = clock()
-        self.hit = None
+        self.hit: "str | None" = None
 
     def states_left(self, n: int):
         return None if self.max_states is None else self.max_states - n
@@ -205,18 +206,32 @@ Progress = Callable[[int, int, float], Any]
 Run = Callable[..., "Step"]
 
 
+@dataclass(frozen=True)
+class SearchTask:
+    """One system for an engine to explore (``Search``): breadth-first from ``initial`` by
+    ``run``, states coded over the ``kept`` slots; ``kind`` is ``"model"``, or ``"fsm"``
+    with the FSM's name ``fsm`` and its ``OpenFSM`` ``op``; ``progress(states, transitions,
+    seconds)`` is called as the engine goes (None: not)."""
+
+    model: Model
+    kind: str
+    fsm: str | None
+    kept: tuple[int, ...]
+    run: Run
+    initial: tuple[int, ...]
+    progress: Progress | None = None
+    op: OpenFSM | None = None
+
+
 class Search(Protocol):
     """An exploration engine of ``btfsm.verify.explore`` (``scalar.search``,
-    ``traced.search``; ``explore._explore_with`` picks one): breadth-first from
-    ``initial`` by ``run``, states coded over the ``kept`` slots (``kind`` is ``"model"``,
-    or ``"fsm"`` with the FSM's name ``fsm`` and its ``OpenFSM`` ``op``); the search stops
-    at the first bound of ``budget`` hit and records which in ``budget.hit``. Engines
-    give the same system, numbering included. (An engine may take more arguments after
-    these, with defaults: the scalar engine's ``split``, the traced engine's ``fallback``.)"""
+    ``traced.search``; ``explore._explore_with`` picks one): the system of a
+    ``SearchTask``; the search stops at the first bound of ``budget`` (mutable: it records
+    which bound was hit in ``budget.hit``; None: unbounded). Engines give the same system,
+    numbering included. (An engine may take more arguments after these, with defaults: the
+    scalar engine's ``split``, the traced engine's ``fallback``.)"""
 
-    def __call__(self, model: Model, kind: str, fsm: str | None, kept: Sequence[int], run: Run,
-                 initial: tuple[int, ...], budget: Budget, progress: Progress | None, op: OpenFSM | None,
-                 /) -> TransitionSystem: ...
+    def __call__(self, task: SearchTask, budget: Budget | None, /) -> TransitionSystem: ...
 
 
 class Explorer(Protocol):

@@ -45,7 +45,7 @@ from btfsm.errors import DomainError
 
 from .codec import code_dtype, codec
 from .labels import readable
-from .search import DEFAULT_MAX_STATES, Budget, EnumOracle, Search
+from .search import DEFAULT_MAX_STATES, Budget, EnumOracle, Search, SearchTask
 from .system import DomainViolation, TransitionSystem
 
 if TYPE_CHECKING:
@@ -811,10 +811,11 @@ def _number(n_entries, e0, t_src, t_dst, order_key):
     return np.concatenate(states), id_of, pos, np.concatenate(parents)
 
 
-def _search_closure(model, kind, fsm, kept, eng, c0, smax, tmax, progress, t0, op):
-    """The system of a model with timers by ``_closure`` then ``_number``: the same system
+def _search_closure(task, eng, c0, smax, tmax, t0):
+    """The system of a ``SearchTask`` (a model with timers) by ``_closure`` then ``_number``: the same system
     as the ordinary search (states, numbering, transitions, labels, parents, violations,
     domain errors), or None when the first phase gives up or the state budget is hit."""
+    model, kind, fsm, kept, progress, op = task.model, task.kind, task.fsm, task.kept, task.progress, task.op
     prog = model.program
     timers = _timer_slots(prog, kept, eng.mults)
     got = _closure(eng, c0, timers, smax, tmax, progress, t0)
@@ -875,12 +876,12 @@ def _search_closure(model, kind, fsm, kept, eng, c0, smax, tmax, progress, t0, o
                             stopped=None)
 
 
-def search(model, kind, fsm, kept, run, s0, budget, progress, op, fallback: bool = True) -> TransitionSystem:
-    """Explore one system breadth-first from ``s0`` with path-compiled batches: ``run(state,
-    oracle)`` is one transition (``Program.step``, or ``OpenFSM.run`` with ``op`` at FSM
-    level) and states are coded over the ``kept`` slots. Called by
-    ``btfsm.verify.explore.explore``/``explore_fsm``, whose scalar engine takes the same
-    arguments and gives the same system. Raises ``Untraceable`` when the tracer cannot
+def search(task: SearchTask, budget: "Budget | None", fallback: bool = True) -> TransitionSystem:
+    """Explore the system of ``task`` breadth-first from ``task.initial`` with
+    path-compiled batches: ``run(state, oracle)`` is one transition (``Program.step``, or
+    ``OpenFSM.run`` with ``op`` at FSM level) and states are coded over the ``kept`` slots.
+    Called by ``btfsm.verify.explore.explore``/``explore_fsm``, whose scalar engine takes
+    the same task and gives the same system. Raises ``Untraceable`` when the tracer cannot
     follow ``run``.
 
     ``budget`` (a ``btfsm.verify.search.Budget``, None: unbounded) holds in time even when
@@ -891,6 +892,8 @@ def search(model, kind, fsm, kept, run, s0, budget, progress, op, fallback: bool
     scalar engine) or stops with ``budget.hit = "paths"``; the clock is read before every
     path traced and after every batch."""
     t0 = time.perf_counter()
+    model, kind, fsm, kept, run = task.model, task.kind, task.fsm, task.kept, task.run
+    s0, progress, op = task.initial, task.progress, task.op
     prog = model.program
     if kind == "model" and prog.merge_points:
         raise Untraceable("in-tick retries (RecoveryNode) are merged by the scalar engine only")
@@ -908,7 +911,7 @@ def search(model, kind, fsm, kept, run, s0, budget, progress, op, fallback: bool
         staged = _Staged(model, kept, s0)
         staged.budget = eng.budget
     elif budget.max_seconds is None and _timer_slots(prog, kept, mults):
-        ts = _search_closure(model, kind, fsm, kept, eng, c0, smax, tmax, progress, t0, op)
+        ts = _search_closure(task, eng, c0, smax, tmax, t0)
         if ts is not None:
             return ts
         eng = _Engine(model, run, kept, s0, op)  # the ordinary search, with a trie of its own
