@@ -166,17 +166,27 @@ CAN_RUN: "dict[type[Node], Callable[[Program, _N], bool]]" = {}
 #: "tells" (it tells the oracle where the rest of the tick depends on the state alone) or "keeps"
 #: (once a child returns, it reads only the state, that child's status and its position); absent: neither
 MERGE: "dict[type[Node], str]" = {}
+#: node type -> ``wakes(node)``: whether the node can emit BehaviorTree.CPP's wake-up signal
+#: (rule 'tickOnce', ``Program._wake_slot``); absent: it never does
+WAKES: "dict[type[Node], Callable[[Any], bool]]" = {}
+#: node type -> ``on_halt(program, info)``: what halting the node does instead of resetting its
+#: memory (a function of the tick context, or None: nothing); absent: the memory reset
+ON_HALT: "dict[type[Node], Callable[[Program, _N], Optional[Halt]]]" = {}
 
 
 def rule(*types: "type[Node]", slots: "Optional[Callable[[Program, _N], None]]" = None,
          can_run: "Optional[Callable[[Program, _N], bool]]" = None, merge: str = "",
+         wakes: "Optional[Callable[[Any], bool]]" = None,
+         on_halt: "Optional[Callable[[Program, _N], Optional[Halt]]]" = None,
          ) -> "Callable[[Callable[[Program, NodeRule], Tick]], Callable[[Program, NodeRule], Tick]]":
     """Register the decorated function as the tick rule of the node ``types``: called once
     per node when a model compiles, it returns the node's tick function. ``slots`` lays
     out the node's memory (``program._slot(...)`` into ``info.mem``, ``info.keep``,
     ``info.mems``, ``info.stale``: a halt resets all but ``keep``); ``can_run`` says
     whether the node can return RUNNING when that is not just "a child can"; ``merge``
-    its part in merging in-tick answers ("tells" or "keeps", ``MERGE``).
+    its part in merging in-tick answers ("tells" or "keeps", ``MERGE``); ``wakes(node)``
+    whether the node can emit BT.CPP's wake-up signal (``WAKES``); ``on_halt`` what a
+    halt does instead of the memory reset (``ON_HALT``).
     docs/nodes.md shows a whole new node type."""
     def register(fn: "Callable[[Program, NodeRule], Tick]") -> "Callable[[Program, NodeRule], Tick]":
         for t in types:
@@ -187,6 +197,10 @@ def rule(*types: "type[Node]", slots: "Optional[Callable[[Program, _N], None]]" 
                 CAN_RUN[t] = can_run
             if merge:
                 MERGE[t] = merge
+            if wakes is not None:
+                WAKES[t] = wakes
+            if on_halt is not None:
+                ON_HALT[t] = on_halt
         return fn
     return register
 
@@ -310,16 +324,15 @@ class Program:
     def _wake_slot(self) -> Optional[int]:
         """Rule 'tickOnce' (docs/semantics.md 8.1): under ``loop_wake_up`` with
         ``Model.tick == "once"``, a slot holding BT.CPP's pending wake-up signal, when a
-        node of the tree can emit one (Retry/Repeat with a bound above 1, a
-        SequenceWithMemory of several children); else None."""
+        node of the tree can emit one (its type's ``wakes``, ``rule``: Retry/Repeat with a
+        bound above 1, a SequenceWithMemory of several children); else None."""
         if not self.profile.loop_wake_up or self.model.tick != "once" or self.model.tree is None:
             return None
         for info in self.nodes.values():
-            n = info.node
             if info.root != self.model.tree.name:
                 continue
-            if ((isinstance(n, Retry) and n.attempts > 1) or (isinstance(n, Repeat) and n.times > 1)
-                    or (isinstance(n, SequenceWithMemory) and len(n.children) > 1)):
+            wakes = WAKES.get(type(info.node))
+            if wakes is not None and wakes(info.node):
                 return self._slot("tick:wake-up", "memory", 2)
         return None
 
@@ -671,19 +684,11 @@ class Program:
 
     # ------------------------------------------------------------------ nodes
     def _prepare_on_halt(self, info: _N) -> None:
-        n = info.node
-        if isinstance(n, Action):
-            site_holder = info  # the site is made in _compile_node; look it up lazily
-
-            def on_halt(ctx: _Ctx) -> None:
-                site: Any = site_holder.node_site
-                if site.timer is not None:
-                    ctx.s[site.timer] = 0  # a halted run starts afresh (rule 'Durations')
-                ctx.oracle.halt(site)
-            info.on_halt = on_halt
-        elif isinstance(n, SkillRequest):
-            fi, name = self.fsm_index[n.fsm], n.name
-            info.on_halt = lambda ctx: self.fsm_ticks[fi].withdraw(ctx, name)
+        """What halting the node does: its type's ``on_halt`` (``rule``), else resetting
+        the memory its rule keeps (all but ``keep``)."""
+        own = ON_HALT.get(type(info.node))
+        if own is not None:
+            info.on_halt = own(self, info)
         elif info.mem is not None or info.mems or info.stale is not None:
             resets = tuple(x for x in (info.mem, *info.mems, info.stale) if x is not None)
 
@@ -692,9 +697,6 @@ class Program:
                 for x in resets:
                     s[x] = 0
             info.on_halt = on_halt
-        elif isinstance(n, Effects) and n.on_halt:
-            eff = compile_effects(n.on_halt, self.scope, f"tree.{n.name}.on_halt")
-            info.on_halt = lambda ctx: _apply(ctx, eff)
 
     def _compile_node(self, info: _N) -> Tick:
         """The tick function of one node: its type's rule (``RULES``, one function per row
@@ -1353,7 +1355,8 @@ def _parallel_all(prog: Program, c: NodeRule) -> Tick:
     return tick
 
 
-@rule(SequenceWithMemory, slots=_sequence_with_memory_slots, can_run=_sequence_with_memory_can_run)
+@rule(SequenceWithMemory, slots=_sequence_with_memory_slots, can_run=_sequence_with_memory_can_run,
+      wakes=lambda n: len(n.children) > 1)
 def _sequence_with_memory(prog: Program, c: NodeRule) -> Tick:
     """Rule 'SequenceWithMemory' (section 2; the wake-up under ``loop_wake_up``: section 8.1)."""
     info, kids, finish = c.info, c.kids, c.finish
@@ -1469,7 +1472,8 @@ def _status_map(prog: Program, c: NodeRule) -> Tick:
 rule(KeepRunningUntilFailure, FailureIsRunning, can_run=_always)(_status_map)  # they make RUNNING themselves
 
 
-@rule(Retry, Repeat, slots=_loop_slots, can_run=_loop_can_run)
+@rule(Retry, Repeat, slots=_loop_slots, can_run=_loop_can_run,
+      wakes=lambda n: (n.attempts if isinstance(n, Retry) else n.times) > 1)
 def _retry_repeat(prog: Program, c: NodeRule) -> Tick:
     """Rules 'Retry' and 'Repeat' (section 3; under ``loop_wake_up``: section 8.1)."""
     n, info, kids, finish = c.node, c.info, c.kids, c.finish
@@ -1584,7 +1588,16 @@ def _guard(prog: Program, c: NodeRule) -> Tick:
     return tick
 
 
-@rule(Effects, merge="keeps")
+def _effects_on_halt(prog: Program, info: _N) -> Optional[Halt]:
+    """An Effects node's ``on_halt`` effects, applied when it is halted (rule 'Effects')."""
+    n: Any = info.node
+    if not n.on_halt:
+        return None
+    eff = compile_effects(n.on_halt, prog.scope, f"tree.{n.name}.on_halt")
+    return lambda ctx: _apply(ctx, eff)
+
+
+@rule(Effects, merge="keeps", on_halt=_effects_on_halt)
 def _effects(prog: Program, c: NodeRule) -> Tick:
     """Rule 'Effects' (section 3)."""
     n, kids, finish, where, flag = c.node, c.kids, c.finish, c.where, c.flag
@@ -1612,7 +1625,18 @@ def _condition_leaf(prog: Program, c: NodeRule) -> Tick:
     return lambda ctx: finish(SUCCESS if cond(ctx.s) else FAILURE, ctx)
 
 
-@rule(Action, can_run=_action_can_run)
+def _action_on_halt(prog: Program, info: _N) -> Halt:
+    """A halted Action: its run counter starts afresh (rule 'Durations') and the oracle is
+    told (section 4). The site is made when the rule compiles: looked up at halt time."""
+    def on_halt(ctx: _Ctx) -> None:
+        site: Any = info.node_site
+        if site.timer is not None:
+            ctx.s[site.timer] = 0  # a halted run starts afresh (rule 'Durations')
+        ctx.oracle.halt(site)
+    return on_halt
+
+
+@rule(Action, can_run=_action_can_run, on_halt=_action_on_halt)
 def _action(prog: Program, c: NodeRule) -> Tick:
     """Rule 'Action' (section 3; halt before start: section 4)."""
     n, info, finish, where, flag = c.node, c.info, c.finish, c.where, c.flag
@@ -1628,7 +1652,14 @@ def _action(prog: Program, c: NodeRule) -> Tick:
     return tick
 
 
-@rule(SkillRequest, can_run=_always)
+def _skill_request_on_halt(prog: Program, info: _N) -> Halt:
+    """A halted SkillRequest withdraws its goal from its FSM (rule 'SkillRequest', section 5)."""
+    n: Any = info.node
+    fi, name = prog.fsm_index[n.fsm], n.name
+    return lambda ctx: prog.fsm_ticks[fi].withdraw(ctx, name)
+
+
+@rule(SkillRequest, can_run=_always, on_halt=_skill_request_on_halt)
 def _skill_request(prog: Program, c: NodeRule) -> Tick:
     """Rule 'SkillRequest' (section 3; the FSM tick: section 5)."""
     n, info, finish, where, flag, name = c.node, c.info, c.finish, c.where, c.flag, c.name
