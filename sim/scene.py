@@ -36,6 +36,13 @@ verifies it. Time is ``steps * dt`` (no wall clock); randomness comes from one
 ``random.Random`` per world seeded from the seed, so the same seed and the same commands
 give the same ``World.digest()``.
 
+Why one module of more than 1,000 lines: ``World`` (most of it) is one physical world
+whose stepping, arrivals, gripper, incidents and bookkeeping of places share its bodies,
+joints and part records in the simulator's hot loop; the scene's validation (``Scene``,
+about 250 lines) uses the same geometry helpers as the world (``_inside``, ``_seg_dist``,
+``_nearest_on_segment``). Split apart, those helpers and the world's records would become
+public interfaces that only this module's two halves use.
+
 >>> w = World(scene_from_data({"robots": {"r": {"base": [0, 0], "reach": 1, "home": [0.5, 0]}},
 ...                            "areas": {"bin": {"region": [0.3, -0.2, 0.7, 0.2], "parts": 2}}}))
 >>> w.count("bin"), [str(p.place) for p in w.parts]

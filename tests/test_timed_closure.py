@@ -17,6 +17,7 @@ from hypothesis import HealthCheck, assume, given, settings
 from hypothesis import strategies as st
 
 import btfsm.verify.traced as traced
+import btfsm.verify.visited as visited
 from btfsm import Model, ModelError
 from btfsm.files import model_from_data
 from btfsm.verify.codec import codec, decode
@@ -198,7 +199,7 @@ def test_the_first_phase_numbers_codes_in_the_order_first_met(batches, hashed):
     """What ``_closure`` does with each batch's targets: the unseen ones, distinct, in the
     order first met, are numbered next; ``number`` gives every code its entry at the end."""
     c0 = 7
-    seen = (traced._Hashed if hashed else traced._Bitmap)(1 << 12, c0)
+    seen = (visited.Hashed if hashed else visited.Bitmap)(1 << 12, c0)
     ref = {c0: 0}
     for batch in batches:
         codes = np.array(batch, np.int64)

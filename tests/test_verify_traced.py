@@ -12,6 +12,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 import btfsm.verify.traced as traced
+import btfsm.verify.visited as visited
 from btfsm.models.registry import BUILTIN, HEAVY, load_builtin
 from strategies import random_models
 from test_spin_crosscheck import seeded_models
@@ -58,7 +59,7 @@ def test_budget_cut_is_the_generic_engines(budget):
 def test_small_batches_and_hashed_visited_set(monkeypatch):
     monkeypatch.setattr(traced, "CHUNK", 7)
     monkeypatch.setattr(traced, "DENSE_LIMIT", 0)  # a hash table, not a bitmap
-    monkeypatch.setattr(traced._Hashed, "FIRST", 4)  # grown many times
+    monkeypatch.setattr(visited.Hashed, "FIRST", 4)  # grown many times
     monkeypatch.setattr(traced, "STEP", 5)  # re-hashing and numbering in many slices
     monkeypatch.setattr(traced, "TERMS_LIMIT", 0)  # target codes summed leaf by leaf
     for name in ("pickplace3-dead", "defect-domain", "two-area", "original"):

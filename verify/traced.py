@@ -27,6 +27,14 @@ concrete states to report them exactly.
 Nothing here re-states the semantics: every decision, expression and constant comes from
 a run of ``Program.step``.
 
+Why one module of more than 1,000 lines: the tracer (``Sym``, the decision trie), the
+engine that walks the trie over batches (``_Engine``), the two phases of timed models
+(``_closure``, ``_number``) and the staged tries of wide environments (``_Staged``) all work
+on the same private structures (the trie's nodes and leaves, the engine's columns, codes
+and ordinals) inside the search's hot loop; split apart, each would become a public
+interface that only this engine uses. The visited set, which has an interface of its own,
+is ``btfsm.verify.visited``.
+
 >>> from btfsm.models.pickplace import pickplace
 >>> from btfsm.verify.explore import explore
 >>> ts = explore(pickplace(3), engine="traced")
@@ -37,7 +45,7 @@ from __future__ import annotations
 
 import time
 from array import array
-from typing import TYPE_CHECKING, Any, Callable, Sequence
+from typing import TYPE_CHECKING, Any, Sequence
 
 import numpy as np
 
@@ -47,6 +55,7 @@ from .codec import code_dtype, codec
 from .labels import readable
 from .search import DEFAULT_MAX_STATES, Budget, EnumOracle, Search, SearchTask
 from .system import DomainViolation, TransitionSystem
+from .visited import STEP, Bitmap, Hashed
 
 if TYPE_CHECKING:
     from btfsm.semantics import Site
@@ -56,7 +65,6 @@ __all__ = ["search", "BatchSuccessors", "Untraceable", "TooManyPaths", "CHUNK", 
 CHUNK = 1 << 15  # states expanded per batch
 DENSE_LIMIT = 1 << 31  # code space up to which the visited set is a bitmap (256 MB at most), else a hash table
 TERMS_LIMIT = 1 << 22  # values of (term tuple, state) sums a batch may hold, else leaf by leaf
-STEP = 1 << 20  # codes numbered, hashed or ranked at a time (bounds the temporaries)
 PATHS_MIN = 1 << 13  # paths traced before the trie must pay off (see ``search``)
 PATHS_RATIO = 4  # ... then at most one path per this many transitions found
 ROWS_LIMIT = 1 << 21  # (state, path) rows of one batch before it is split
@@ -225,178 +233,6 @@ class _Leaf:
         self.label, self.goal, self.violations, self.taken = label, goal, violations, tuple(taken)
         self.key = tuple(c and _LAST - c for c in taken)
         self.label_id = -1
-
-
-# ---------------------------------------------------------------------- visited states
-
-
-class _Visited:
-    """The states found so far: their codes in discovery order (``codes[i]`` is state i's
-    code, in the smallest type that holds the code space) and a set of codes. During the
-    search the set only answers "seen or not" (``seen``); transitions keep their targets'
-    codes, and ``number`` turns those into state ids once, at the end."""
-
-    def __init__(self, total, c0):
-        self.codes = np.zeros(1024, code_dtype(total))
-        self.codes[0] = c0
-        self.n = 1
-
-    # each subclass's set of codes
-    ids: Callable[[np.ndarray], np.ndarray]
-    index: Callable[[np.ndarray], Any]
-
-    def batch(self, head: int, k: int) -> np.ndarray:
-        return self.codes[head:head + k].astype(np.int64)
-
-    def add(self, codes):
-        """Number the new (distinct, unseen) ``codes`` ``n, n+1, ...``."""
-        m = len(codes)
-        if self.n + m > len(self.codes):
-            grown = np.zeros(max(2 * len(self.codes), self.n + m), self.codes.dtype)
-            grown[:self.n] = self.codes[:self.n]
-            self.codes = grown
-        self.codes[self.n:self.n + m] = codes
-        self.n += m
-        self.index(codes)
-
-    def number(self, targets: np.ndarray) -> np.ndarray:
-        """The state ids of the codes ``targets`` (all seen), converted in place when the
-        types allow (uint32 codes to int32 ids), in slices."""
-        dt = np.int32 if self.n < 1 << 31 else np.int64
-        out = targets.view(dt) if targets.dtype.itemsize == np.dtype(dt).itemsize else np.empty(len(targets), dt)
-        for a in range(0, len(targets), STEP):
-            out[a:a + STEP] = self.ids(targets[a:a + STEP])
-        return out
-
-
-def _popcount(words: np.ndarray) -> np.ndarray:
-    """Set bits of each uint64 (numpy >= 2: ``bitwise_count``; else a byte table)."""
-    count = getattr(np, "bitwise_count", None)
-    if count is not None:
-        return count(words)
-    return _BYTE_BITS[words.view(np.uint8)].reshape(-1, 8).sum(axis=1, dtype=np.uint8)
-
-
-_BYTE_BITS = np.array([bin(i).count("1") for i in range(256)], np.uint8)
-_BIT = np.left_shift(np.uint64(1), np.arange(64, dtype=np.uint64))  # bit b of a word
-_BELOW = _BIT - np.uint64(1)  # the bits below bit b
-
-
-class _Bitmap(_Visited):
-    """Visited codes as one bit per code of the code space (``total / 8`` bytes, pages
-    touched only where states are). Ids at the end: a code's rank among the visited codes
-    (a prefix count per 64-bit word plus a popcount) indexes a rank-to-id table."""
-
-    def __init__(self, total, c0):
-        super().__init__(total, c0)
-        self.bits = np.zeros((total + 63) // 64, np.uint64)
-        self.index(np.array([c0], np.int64))
-        self.ranked = None
-
-    def seen(self, codes):
-        return (self.bits[codes >> 6] & _BIT[codes & 63]) != 0
-
-    def index(self, codes):
-        if not len(codes):
-            return
-        codes = np.sort(codes)
-        word = codes >> 6
-        starts = np.flatnonzero(np.concatenate(([True], word[1:] != word[:-1])))
-        self.bits[word[starts]] |= np.bitwise_or.reduceat(_BIT[codes & 63], starts)
-
-    def _rank(self, codes, prefix):
-        word = codes >> 6
-        return prefix[word] + _popcount(self.bits[word] & _BELOW[codes & 63])
-
-    def ids(self, codes):
-        if self.ranked is None:
-            dt = np.int32 if self.n < 1 << 31 else np.int64
-            counts = np.zeros(len(self.bits), dt)
-            for a in range(0, len(self.bits), STEP):
-                counts[a:a + STEP] = _popcount(self.bits[a:a + STEP])
-            exclusive = np.zeros(len(self.bits), dt)  # visited codes in the words before
-            np.cumsum(counts[:-1], out=exclusive[1:])
-            del counts
-            by_rank = np.empty(self.n, dt)
-            for a in range(0, self.n, STEP):
-                b = min(a + STEP, self.n)
-                by_rank[self._rank(self.codes[a:b], exclusive)] = np.arange(a, b, dtype=dt)
-            self.ranked = (exclusive, by_rank)
-        exclusive, by_rank = self.ranked
-        return by_rank[self._rank(codes, exclusive)]
-
-
-_GOLDEN = np.uint64(0x9E3779B97F4A7C15)
-
-
-class _Hashed(_Visited):
-    """Visited codes as an open-addressing hash table of state ids (linear probing,
-    multiplicative hashing, at most ``LOAD`` full, doubled when fuller); a slot holds an id
-    and the code is read from ``codes``, so the table costs 4 bytes per slot (8 to 16
-    bytes per state). For code spaces too large for a bitmap. Lookups and insertions are
-    vectorised: each round settles every query whose probe hit its code or an empty slot,
-    the others move one slot on."""
-
-    LOAD = 0.5
-    FIRST = 1 << 16  # slots of the first table
-
-    def __init__(self, total, c0):
-        super().__init__(total, c0)
-        self.table = None
-        self._resize(self.FIRST)
-
-    def _resize(self, size):
-        self.bits = size.bit_length() - 1
-        self.mask = size - 1
-        self.table = None  # the old table goes before the new one is made
-        self.table = np.full(size, -1, np.int32 if size < 1 << 31 else np.int64)
-        for a in range(0, self.n, STEP):  # in slices: few temporaries
-            b = min(a + STEP, self.n)
-            self._insert(self.codes[a:b].astype(np.int64), np.arange(a, b, dtype=np.int64))
-
-    def _home(self, codes):
-        h = codes.astype(np.uint64) * _GOLDEN
-        return (h >> np.uint64(64 - self.bits)).astype(np.int64)
-
-    def seen(self, codes):
-        return self.ids(codes) >= 0
-
-    def ids(self, codes):
-        codes = codes.astype(np.int64)
-        out = np.full(len(codes), -1, np.int64)
-        idx = np.arange(len(codes), dtype=np.int64)
-        h = self._home(codes)
-        table, stored, mask = self.table, self.codes, self.mask
-        while idx.size:
-            got = table[h]
-            live = got >= 0
-            idx, h, got = idx[live], h[live], got[live]
-            hit = stored[got] == codes[idx]
-            out[idx[hit]] = got[hit]
-            miss = ~hit
-            idx, h = idx[miss], (h[miss] + 1) & mask
-        return out
-
-    def _insert(self, codes, ids):
-        h = self._home(codes)
-        idx = np.arange(len(codes), dtype=np.int64)
-        table, mask = self.table, self.mask
-        while idx.size:
-            free = table[h] < 0
-            fi, fh = idx[free], h[free]
-            table[fh] = ids[fi]  # rivals for one slot: one of them gets it
-            won = table[fh] == ids[fi]
-            idx = np.concatenate([idx[~free], fi[~won]])
-            h = (np.concatenate([h[~free], fh[~won]]) + 1) & mask
-
-    def index(self, codes):
-        if self.n > self.LOAD * len(self.table):
-            size = len(self.table)
-            while self.n > self.LOAD * size:
-                size *= 2
-            self._resize(size)  # re-inserts every stored code, the new ones included
-        else:
-            self._insert(codes.astype(np.int64), np.arange(self.n - len(codes), self.n, dtype=np.int64))
 
 
 class _Column:
@@ -723,10 +559,10 @@ def _closure(eng, c0, timers, smax, tmax, progress=None, t0=0.0):
     ``(codes, src, lid, dst, errors)``: the code of each entry, the transitions as
     (source entry, leaf id, target entry), ``errors`` as (entry, leaf) pairs. Entries are
     numbered in the order their codes are first met (the visited set of the ordinary
-    search: ``_Bitmap`` or ``_Hashed``; targets become entries once, at the end). None
+    search: ``visited.Bitmap`` or ``visited.Hashed``; targets become entries once, at the end). None
     when it does not pay off (far past a budget, more paths than ``PATHS_MIN``) or the
     tracer cannot follow: the caller then runs the ordinary search."""
-    seen = (_Bitmap if eng.total <= DENSE_LIMIT else _Hashed)(eng.total, c0)
+    seen = (Bitmap if eng.total <= DENSE_LIMIT else Hashed)(eng.total, c0)
     srcs, lids, dsts, errs = [], [], [], []
     # past 1.5 times a budget (the guesses included) the ordinary search takes over
     limit, nt = smax + smax // 2 + CLOSURE_BATCH, 0
@@ -916,7 +752,7 @@ def search(task: SearchTask, budget: "Budget | None", fallback: bool = True) -> 
             return ts
         eng = _Engine(model, run, kept, s0, op)  # the ordinary search, with a trie of its own
 
-    visited = (_Bitmap if total <= DENSE_LIMIT else _Hashed)(total, c0)
+    visited = (Bitmap if total <= DENSE_LIMIT else Hashed)(total, c0)
     n, head, nt, complete, expanded = 1, 0, 0, True, None
     # the system in compact columns (see TransitionSystem): CSR row pointer, targets (their
     # codes until the end, then ids), edge codes (one per distinct label and status), BFS parents
