@@ -16,7 +16,7 @@ from typing import Any, cast
 
 from .loop import Hooks, run_loop, start
 
-__all__ = ["CellReplay", "triggers_of", "replay_in_cell", "SceneReplay", "scene_triggers", "replay_in_scene",
+__all__ = ["CellReplay", "triggers_of", "phases_of", "replay_in_cell", "SceneReplay", "scene_triggers", "replay_in_scene",
            "replay_for_cli"]
 
 
@@ -48,6 +48,8 @@ class CellReplay:
     mismatch: "str | None" = None  # the runtime refused a tick of the cell: the replay stopped there
     reaches: list = field(default_factory=list)  # (part id, s from its detection to the arm starting its grasp)
     at_ticks: bool = False  # the parts were sent at the counterexample's ticks (the arm unpaced)
+    at_phase: bool = False  # the parts were sent at the counterexample's FSM phase (state, ticks into its visit)
+    too_soon: list = field(default_factory=list)  # (time, FSM state): a phase the cell reached before the spacing allowed
 
     def text(self) -> str:
         lines = [f"cell replay of a counterexample on {self.model}: {len(self.triggers)} environment event(s)"]
@@ -57,8 +59,13 @@ class CellReplay:
             if self.diverged:
                 t, want, got = self.diverged
                 lines.append(f"  pacing stopped at tick {t}: the counterexample is at '{want}', the cell at '{got}'")
+        for t, st in self.too_soon:
+            lines.append(f"  t = {t:6.1f} s: the arm FSM is at the counterexample's phase of '{st}' before the "
+                         "arrivals' minimum interval allows a part: not sent")
         for t, st, pid in self.injected:
-            how = "at the counterexample's tick" if self.at_ticks else "as in the counterexample"
+            how = ("at the counterexample's tick" if self.at_ticks else
+                   "at the counterexample's phase: its state, as many ticks into the visit" if self.at_phase else
+                   "as in the counterexample")
             lines.append(f"  t = {t:6.1f} s: belt part {pid} sent to the sensor (arm FSM at '{st}', {how})")
         for t, pid in self.lost:
             lines.append(f"  t = {t:6.1f} s: belt part {pid} reached the end of the belt: LOST")
@@ -84,6 +91,19 @@ class CellReplay:
             return False
         _, t0, t1 = self.frozen
         return any(t0 <= t <= t1 for t, _ in self.lost)
+
+
+def phases_of(ce: dict, fsm: str, event: str = "arrive") -> list:
+    """[(FSM state, ticks the FSM had been in it)] before each step of ``ce`` with ``event``."""
+    states = fsm_states_of(ce, fsm)
+    out = []
+    for i, step in enumerate(ce["steps"]):
+        if event in step.get("env", ()):
+            c = 0
+            while c < i and states[i - c - 1] == states[i]:
+                c += 1
+            out.append((states[i], c))
+    return out
 
 
 def fsm_states_of(ce: dict, fsm: str) -> list:
@@ -172,11 +192,15 @@ class _CellHooks(Hooks):
     the end ``settle`` seconds after the last injected part left the belt."""
 
     def __init__(self, fsm, beam, result, pending, pacer, arrive_at, frames, settle, on_tick=None, binding=None,
-                 arrive_ticks=None):
+                 arrive_ticks=None, phases=None, spacing=0.0):
         self.fsm, self.beam, self.result, self.pending, self.pacer = fsm, beam, result, pending, pacer
         self.arrive_at, self.frames, self.settle, self.on_tick = arrive_at, frames, settle, on_tick
         self.last, self.since, self.done_at = None, 0.0, None
         self.binding, self.arrive_ticks = binding, arrive_ticks
+        self.phases, self.spacing = phases, spacing  # [(state, ticks into its visit)], the arrivals' minimum interval
+        self.in_state = 0  # ticks the FSM has been in its current state (before this tick)
+        self.missed = False  # the cell left the phase's state before its tick: send on the next tick
+        self.refused: "float | None" = None  # the visit (its start time) whose phase came too soon
         self.reached: set = set()
         self.grasps: set = set()  # the arm FSM's states that grasp on the belt
         if binding is not None:
@@ -200,7 +224,9 @@ class _CellHooks(Hooks):
                     self._stay(self.last[0], world)
                 self.since = world.time
             self.last = (st, goal)
-        if self.arrive_ticks is not None:  # at the counterexample's ticks, the arm at its own speed
+        if self.phases is not None:  # at the counterexample's phase, the arm at its own speed
+            due = self._phase_due(st, world)
+        elif self.arrive_ticks is not None:  # at the counterexample's ticks, the arm at its own speed
             due = bool(pending) and rt.clock.tick >= self.arrive_ticks[len(result.injected)]
         else:
             due = (pending and (pacer.at(*self.arrive_at[len(result.injected)]) if pacer is not None and pacer.active()
@@ -212,7 +238,29 @@ class _CellHooks(Hooks):
         if pacer is not None:
             pacer.now = st
 
+    def _phase_due(self, st, world) -> bool:
+        """A part is due: the FSM is in the next phase's state, as many ticks into its visit
+        as in the counterexample (or it has just left that state before that tick), and
+        the arrivals' minimum interval since the last part sent has passed."""
+        result = self.result
+        if not self.pending:
+            return False
+        want, c = self.phases[len(result.injected)]
+        here = st == want and self.in_state >= c
+        left = self.missed and st != want
+        self.missed = st == want and self.in_state < c
+        if not (here or left):
+            return False
+        if result.injected and world.time - result.injected[-1][0] < self.spacing - 1e-9:
+            if self.refused != self.since:  # once per visit
+                self.refused = self.since
+                result.too_soon.append((round(world.time, 2), want))
+            return False
+        return True
+
     def after(self, rt, world, step, before) -> None:
+        st_now = rt.fsm_state(self.fsm)[0]
+        self.in_state = self.in_state + 1 if self.last is not None and st_now == self.last[0] else 0
         if self.pacer is not None:
             self.pacer.after(rt.fsm_state(self.fsm)[0])
         b = self.binding
@@ -243,13 +291,18 @@ class _CellHooks(Hooks):
 
 
 def replay_in_cell(model, ce, *, time_limit: float = 120.0, render: "str | None" = None, gif: "str | None" = None,
-                   settle: float = 20.0, pace: "bool | None" = None, on_tick=None) -> CellReplay:
+                   settle: float = 20.0, pace: "bool | str | None" = None, on_tick=None) -> CellReplay:
     """Run ``model`` in the ARIAC scene, raising the counterexample's events in its FSM states.
 
     ``pace`` (default: for a ``response`` counterexample, whose timing is the point): the
     events happen at the counterexample's ticks and a primitive the cell finishes before
     the counterexample does is held running until the counterexample's tick (the arm waits
-    where its move ended); the cell's arm cannot be made faster than it is. Stops
+    where its move ended); the cell's arm cannot be made faster than it is. ``pace="times"``:
+    the parts are sent at the counterexample's ticks, the arm unpaced; ``pace="phase"``: a
+    part is sent when the cell's FSM is in the state the counterexample had at that
+    arrival, as many ticks into the visit (on the next tick when the cell leaves the state
+    sooner), the arm unpaced; a phase reached before the arrivals' minimum interval allows
+    a part is listed in ``too_soon`` and the part waits for the phase's next visit. Stops
     ``settle`` seconds after the last injected part was lost or picked, at ``time_limit``,
     or when the runtime refuses a tick (``mismatch``). ``on_tick(rt, world)``: called after
     each tick (``cell_view.CellView``)."""
@@ -264,8 +317,12 @@ def replay_in_cell(model, ce, *, time_limit: float = 120.0, render: "str | None"
     kind = (ce.get("violation") or {}).get("kind", "")
     spec = TrialSpec("preemptive", 1, time_limit=time_limit)
     pacer = arrive_at = None
-    arrive_ticks = None
-    if pace == "times":  # the counterexample's arrival ticks, the arm unpaced
+    arrive_ticks = phases = None
+    if pace == "phase":  # the counterexample's FSM phase at each arrival, the arm unpaced
+        from .binding import Dialect, dialect_of
+
+        phases = phases_of(ce, cast(Dialect, dialect_of(model)).fsm)
+    elif pace == "times":  # the counterexample's arrival ticks, the arm unpaced
         arrive_ticks = [i - 1 for i, step in enumerate(ce["steps"], start=1) for ev in step.get("env", ()) if ev == "arrive"]
     elif pace if pace is not None else kind == "response":
         from .binding import Dialect, dialect_of
@@ -280,10 +337,12 @@ def replay_in_cell(model, ce, *, time_limit: float = 120.0, render: "str | None"
     d = binding.d
     pending = [t for t in triggers_of(ce, d.fsm) if t[1] == "arrive"]
     result = CellReplay(model.name, list(pending), kind=kind, paced=pacer.ticks if pacer else 0,
-                        at_ticks=arrive_ticks is not None)
+                        at_ticks=arrive_ticks is not None, at_phase=phases is not None)
     frames: "list | None" = [] if gif else None
+    spacing = max([e.min_interval or 0.0 for e in model.environment if getattr(e, "name", None) == "arrive"],
+                  default=0.0)
     hooks = _CellHooks(d.fsm, world.scene.sensors[binding.sensor]["region"], result, pending, pacer, arrive_at,
-                       frames, settle, on_tick, binding, arrive_ticks)
+                       frames, settle, on_tick, binding, arrive_ticks, phases, spacing)
     end = run_loop(rt, world, binding, time_limit, hooks, stop_at_mismatch=False)
     hooks.finish(world)
     if end.ended_by is not None:
