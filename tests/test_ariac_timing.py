@@ -142,6 +142,15 @@ def test_the_preemptive_first_late_scenario_is_not_a_run_of_the_cell():
     assert r.at_ticks and not r.lost and not r.mismatch, r.text()
     reach = dict(r.reaches)[r.injected[-1][2]]
     assert reach == pytest.approx(8.2, abs=0.3)  # the cell; the proof says 25.1 s
+    # the spacing lifted (a diagnosis): the cell in the counterexample's situation reacts in
+    # 10.8 s; the decomposition says where the 14.3 s between them went
+    r = replay_in_cell(m, ce, pace="phase", lift_spacing=True)
+    assert len(r.injected) == 2 and not r.too_soon and not r.lost and not r.mismatch, r.text()
+    assert dict(r.responses)[r.injected[-1][2]] == pytest.approx(10.8, abs=0.3)
+    parts = {st: (c, x) for st, c, x in r.decomposition}
+    assert sum(c for c, _ in parts.values()) == pytest.approx(25.1)
+    assert parts["approach_conveyor"] == pytest.approx((10.0, 4.0), abs=0.25)
+    assert parts["bins_to_conveyor"] == pytest.approx((4.0, 1.7), abs=0.25)
 
 
 def test_the_baseline_first_late_scenario_loses_the_part_in_the_cell():
@@ -150,8 +159,10 @@ def test_the_baseline_first_late_scenario_loses_the_part_in_the_cell():
     pick; the cell, sent the part at that phase with the arm at its own speed (unpaced,
     no outcome forced), finishes the bin pick, puts the part back to free the gripper,
     and reaches the belt only after the part rode past the end of the belt: lost, 16 s
-    after its detection. The paper's baseline claim (it loses belt parts) is refuted by
-    a run the checker found, not only by random trials."""
+    after its detection. The counterexample's missed grasp after the part's arrival is
+    forced on the cell (the gripper lets the bin part go). The baseline's loss (the
+    paper's point) is a run the checker found and the cell makes, not only a figure of
+    random trials."""
     from btfsm.sim.replay import replay_in_cell
 
     m, worst, ce = _first_late("ariac-baseline-timed")
@@ -160,6 +171,14 @@ def test_the_baseline_first_late_scenario_loses_the_part_in_the_cell():
     assert r.at_phase and not r.too_soon and not r.mismatch, r.text()
     assert [pid for _, pid in r.lost] == [pid for _, _, pid in r.injected], r.text()
     assert 15.9 <= r.lost[0][0] - r.injected[0][0] <= 16.3 and "the cell shows the late response" in r.text()
+    assert [site for _, site, out in r.forced] == ["arm/grasp_bins"]  # the counterexample's missed grasp
+    # the cell's response (its next belt grasp starts) 23.4 s after the detection: the proof
+    # (31.4 s) is 1.34 times it; where the 8 s went, per FSM state
+    assert dict(r.responses)[r.injected[0][2]] == pytest.approx(23.4, abs=0.3)
+    parts = {st: (c, x) for st, c, x in r.decomposition}
+    assert sum(c for c, _ in parts.values()) == pytest.approx(31.4)
+    assert parts["approach_conveyor"] == pytest.approx((4.0, 0.2), abs=0.15)
+    assert parts["agv_to_bins"] == pytest.approx((6.3, 6.3), abs=0.15)
 
 
 def test_the_cell_replay_paced_to_the_counterexample_loses_the_part():
