@@ -648,7 +648,9 @@ def replay_for_cli(model, ce_json: dict, args, record: bool = False):
             from .cell_view import CellView
 
             view = CellView(model, f"{model.name} in the kitting cell")
-        out = replay_in_cell(model, ce_json, time_limit=args.time, render=args.render, gif=args.gif, on_tick=view)
+        pace = {None: None, "paced": True, "ticks": "times", "phase": "phase"}[getattr(args, "pace", None)]
+        out = replay_in_cell(model, ce_json, time_limit=args.time, render=args.render, gif=args.gif, on_tick=view,
+                             pace=pace)
     else:
         path = path or scene_for(model, args.model)
         if path is None:
@@ -657,6 +659,8 @@ def replay_for_cli(model, ce_json: dict, args, record: bool = False):
                              "give --scene FILE (docs/cell.md)")
         if args.gif:
             raise UsageError("--gif is not available for a scene replay yet (use --render)")
+        if getattr(args, "pace", None):
+            raise UsageError("--pace is for the kitting cell (a scene replay raises each event in its FSM state)")
         scene = load_scene(path)
         if record:
             from .cell_view import CellView

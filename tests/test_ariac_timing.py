@@ -81,6 +81,9 @@ def test_cli_prints_the_proved_worst_case(capsys, tmp_path):
     assert json.loads(out.read_text())["violation"]["kind"] == "response"
     assert main(["replay", str(out), "ariac-preemptive-timed"]) == 0  # a run of the model, as it says
     assert "first holds 251 tick(s)" in capsys.readouterr().out
+    assert main(["replay", str(out), "ariac-preemptive-timed", "--cell", "--pace", "phase", "--time", "60"]) == 0
+    text = capsys.readouterr().out
+    assert "before the arrivals' minimum interval allows a part: not sent" in text  # not a run of the cell
 
 
 def _trial(args):
