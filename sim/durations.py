@@ -3,7 +3,7 @@ and measured in trials as a check.
 
 ``derive(model)`` derives, for every state of the arm FSM that moves the arm, the slowest
 run from the scene's geometry and the arm's motion profiles, per goal class and per
-entry (the position abstraction of ``btfsm.positions``; ``Timing``, docs/verification.md
+entry, two states deep (the position abstraction of ``btfsm.positions``; ``Timing``, docs/verification.md
 2.1); ``btfsm.models.ariac.timed`` declares them (``models/ariac_timing.json``).
 
 ``measure(specs)`` runs trials of the experiment (``btfsm.sim.trial.run_trial``) and records,
@@ -249,9 +249,11 @@ class Timing:
     """The derived position abstraction of a kitting model's arm FSM.
 
     ``classes``: ``{state: {class: goals}}``, the states whose runs go to different
-    targets for different goals (``btfsm.positions.split_by_goal``); ``table``: ``{copy:
-    {entry: (min, max)}}`` for the copies of the states that move the arm
-    (``split_by_entry``); ``where``: ``{copy: sorted poses}``, where the arm can be when
+    targets for different goals (``btfsm.positions.split_by_goal``); ``history``: the
+    states that move the arm, each split into one copy per entry (``split_history``);
+    ``table``: ``{copy s@u: {entry copy u@w: (min, max)}}`` for those copies, split again
+    by the copy they are entered from (``split_by_entry``: two states of history);
+    ``where``: ``{state: sorted poses}``, where the arm can be when
     a run of the copy starts (the fixed point). Poses: ``home``, ``hub:A`` (area A's
     approach pose), ``above:A:G`` / ``contact:A:G`` / ``lifted:A:G`` (above, at, or lifted
     from the target of goal G at A; G ``*``: any target there, after the gripper let go)."""
@@ -286,7 +288,9 @@ class Timing:
 
 def derive(model, scene=None) -> Timing:
     """The position abstraction of a kitting model's arm FSM with each state's duration
-    derived from the scene, per goal class and per entry (docs/verification.md 2.1).
+    derived from the scene, per goal class and per entry, two states deep: a copy's
+    duration depends on the copy it was entered from, and on the state that one was
+    entered from (docs/verification.md 2.1).
 
     A pose is symbolic and relational: ``above:bins:pick_bins`` is above *the* part the
     pick goes for, so the grasp from there descends ``clearance`` and nothing else, while
