@@ -187,7 +187,9 @@ class Runtime:
     outcome indices) while running and writes the full records by re-running the pure
     step function every ``flush_every`` ticks and on ``close()``: the same file as
     ``"live"``, which builds and writes each record during the tick. ``record=True``
-    makes every step keep its events (``runtime.last.events``, ``runtime.last_record``).
+    makes every step keep its events (``runtime.last.events``); ``runtime.last_record``
+    is the trace record of the last tick when the trace is written live (else None: a
+    record costs a tenth of a cell trial's runtime, and the cell loops read the events).
     """
 
     FLUSH_EVERY = 4096
@@ -250,10 +252,9 @@ class Runtime:
             if unknown:
                 raise ConformanceError(f"tick {self.clock.tick}: observed event(s) {sorted(unknown)} not enabled by the model in this state")
         record = None
-        if self.record:
+        if self.record and self.trace is not None and not self.deferred:  # only a live trace needs the record
             record = tick_record(self.program, self.clock, step, self._last_status)
-            if self.trace is not None and not self.deferred:
-                self.trace.write(record)
+            self.trace.write(record)
         if self.deferred:
             self._answers.append((events, oracle.log))
             if len(self._answers) >= self.FLUSH_EVERY:

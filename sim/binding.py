@@ -188,6 +188,9 @@ class KittingBinding(Binding):
         self.n_tray = model.var(self.d.tray_var).hi
         prog = model.program
         self._q_slot = prog.scope["queue"].index
+        # the three variables the abstraction check reads after every tick: (slot, variable)
+        self._checked = tuple((prog.scope[v].index, model.var(v)) for v in (self.d.gripper_var, self.d.tray_var, "queue"))
+        self._answers: dict = {}  # (site index, status) -> the site's outcome name
         self._check_reach()
 
     def _check_reach(self) -> None:
@@ -216,10 +219,16 @@ class KittingBinding(Binding):
         return impls
 
     def _answer(self, call, status: str) -> str:
-        """The name of the site's declared outcome with ``status``."""
-        for _, _, name in (o for o in call.site.outcomes if o[0] == _STATUS[status]):
-            return name
-        raise KeyError(f"{call.site.primitive} declares no {status} outcome")
+        """The name of the site's declared outcome with ``status`` (looked up once per site)."""
+        key = (call.site.index, status)
+        name = self._answers.get(key)
+        if name is None:
+            for _, _, name in (o for o in call.site.outcomes if o[0] == _STATUS[status]):
+                break
+            else:
+                raise KeyError(f"{call.site.primitive} declares no {status} outcome")
+            self._answers[key] = name
+        return name
 
     def _collect(self) -> None:
         ev = self.world.events
@@ -247,7 +256,15 @@ class KittingBinding(Binding):
             pid = self.delivered.pop(0)
             if self.targets.get(self.belt) == pid:
                 del self.targets[self.belt]
-        return self.abstraction_errors(rt.vars, *rt.fsm_state(self.d.fsm))
+        # the usual case first: the three variables agree with the world outright (the full
+        # check below, which reads every variable and the arm's state, says so too)
+        state, d = rt.state, self.d
+        (gs, gv), (ts, tv), (qs, qv) = self._checked
+        g = gv.decode(state[gs])
+        if ((g if d.gripper_var_means_full else not g) == (self.r.holding is not None)
+                and tv.decode(state[ts]) == self.tray_count() and qv.decode(state[qs]) == len(self.delivered)):
+            return []
+        return self.abstraction_errors(rt.vars, *rt.fsm_state(d.fsm))
 
     # ------------------------------------------------------------------ world queries
     def place_of(self, pid: int) -> Place:

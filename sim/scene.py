@@ -978,7 +978,7 @@ class World:
         its support can only fall, and after ``j`` steps it lies within
         ``j * dt * (|v - v_support| + 1 mm/s)`` of where its support carries it
         (``_belt_horizon``, ``_rest_horizon``). A robot that carries a part at a constant
-        velocity (at rest or in the cruise phase of a move, the part settled under the
+        velocity (at rest, in a vertical move or in the cruise phase of a move, the part settled under the
         tool) needs nothing at all (``_steady``). A contact or a change of place (a part
         slips) ends a batch (``_coast``). When it finds no batch, ``self._wait`` says how
         many steps to take one at a time before looking again (only a matter of speed:
@@ -1039,17 +1039,18 @@ class World:
 
     def _steady(self, r: _Robot, m: int) -> int:
         """``m`` or fewer steps (0 or 1: none) in which ``r``'s tool carries its part at a
-        constant velocity (at rest, or in the cruise phase of its move) with the part
-        settled under it: the part cannot slip, and Chipmunk moves the tool body alone."""
+        constant velocity (at rest, in a vertical move, or in the cruise phase of its move)
+        with the part settled under it: the part cannot slip, and Chipmunk moves the tool
+        body alone."""
         if self.scene.faults:
             return 0
         dt, prof = self.dt, r.prof
-        if r.moving:
+        if r.moving and (r.x0 != r.x1 or r.y0 != r.y1):
             if not r.coasting:
                 return 0
             while m > 1 and (r.k + m) * dt > prof.total - prof.t_acc:  # the batch ends in the cruise phase
                 m = min(m - 1, int((prof.total - prof.t_acc) / dt) - r.k + 1)
-        elif r.last_v != (0.0, 0.0):
+        elif r.last_v != (0.0, 0.0):  # at rest, or a vertical move (x-y stays put), since the last step
             return 0
         part = self.parts[r.holding]  # it sits well within the cup and moves with the tool
         ax, ay = r.anchor
@@ -1199,8 +1200,8 @@ class World:
             if r.moving and r not in carriers:
                 prof = r.prof
                 end = r.k + k
-                if r.holding is None:  # the step at which the move ends, if it ends within the batch
-                    last = max(r.k + 1, math.ceil(prof.total / dt) - 1)
+                if r.holding is None or r.x0 == r.x1 and r.y0 == r.y1:  # the step at which the move ends, if it
+                    last = max(r.k + 1, math.ceil(prof.total / dt) - 1)  # ends within the batch (not in a cruise)
                     while last * dt < prof.total:
                         last += 1
                     while last - 1 > r.k and (last - 1) * dt >= prof.total:
