@@ -1166,8 +1166,11 @@ class World:
                 self._cp_activate(self.parts[r.holding].cb)
         self._contact = False
         k = 0
-        if len(carriers) == 1 and carriers[0].tracking is None and not self.doors and not self.scene.faults:
-            k = self._carry(carriers[0], m)
+        one = carriers[0] if len(carriers) == 1 and not self.doors and not self.scene.faults else None
+        if one is not None and one.tracking is None:
+            k = self._carry(one, m)
+        elif one is not None and one.holding is None and self.parts[one.tracking].place.kind not in ("GRIPPER", "LOST"):
+            k = self._chase(one, m)
         elif carriers:
             log, n_log, parts, get_pos = self.log, len(self.log), self.parts, self._cp_pos
             while k < m:
@@ -1290,6 +1293,88 @@ class World:
         part.x, part.y = px, py
         if slipped:
             self._slip(r, part)
+        return k
+
+    def _chase(self, r: _Robot, m: int) -> int:
+        """The steps of a batch with one carrier that tracks a part and holds none, and no
+        doors or faults: ``_drive`` of the carrier (``_track``, ``_velocity``, ``_pursuit``,
+        ``Scene.clamp_to_reach``, ``Profile.at``) inlined on local variables, the same
+        arithmetic in the same order (``tests/test_physics.py`` compares a trial in batches
+        with one stepped one step at a time). Within a batch the tracked part keeps its
+        place (a change of place ends the batch) and the fingers do not finish closing
+        (``_quiet``)."""
+        cp_step, cp_space, dt, hypot, sqrt = self._cp_step, self.space._space, self.dt, math.hypot, math.sqrt
+        log, n_log, get_pos = self.log, len(self.log), self._cp_pos
+        part = self.parts[r.tracking]
+        on_belt, pb = part.place.kind == "BELT", part.cb
+        pvx, pvy = self._velocity(part)
+        spec, prof = r.spec, r.prof
+        vmax, acc, tol = spec["speed"], spec["acceleration"], spec["track_tolerance"]
+        dv_max = 2.0 * acc * dt
+        (rax, ray), (rbx, rby) = self.scene.robots[r.name]["rail"]
+        rdx, rdy = rbx - rax, rby - ray
+        rl2, reach = rdx * rdx + rdy * rdy, self.scene.robots[r.name]["reach"]
+        pdist, ptotal, pt_acc, pa, pv = prof.dist, prof.total, prof.t_acc, prof.a, prof.v
+        z0, dz = r.z0, r.z1 - r.z0
+        x, y, z, (wx, wy), rk, closing = r.x, r.y, r.z, r.vel, r.k, r.closing
+        px, py, arrived = part.x, part.y, r.arrived
+        steps, k = self.steps, 0
+        r.faults_in.clear()
+        while k < m:
+            k += 1
+            self.steps = steps + k  # a contact callback reads the time
+            if on_belt:  # the tracked part where the last step left it (``_belts``)
+                pos = get_pos(pb)
+                px, py = pos.x, pos.y
+            rk += 1  # _track
+            t = rk * dt
+            if pdist > 0.0:
+                if t >= ptotal:
+                    f = pdist
+                elif t <= pt_acc:
+                    f = 0.5 * pa * t * t
+                elif t <= ptotal - pt_acc:
+                    f = 0.5 * pa * pt_acc * pt_acc + pv * (t - pt_acc)
+                else:
+                    rt = ptotal - t
+                    f = pdist - 0.5 * pa * rt * rt
+                z = z0 + dz * f / pdist
+            qx, qy = px + pvx * dt, py + pvy * dt
+            if rl2 == 0.0:  # _pursuit: the reachable point nearest the target
+                u = 0.0
+            else:
+                u = ((qx - rax) * rdx + (qy - ray) * rdy) / rl2
+                u = u if u < 1.0 else 1.0
+                u = u if u > 0.0 else 0.0
+            cx, cy = rax + u * rdx, ray + u * rdy
+            ex, ey = qx - cx, qy - cy
+            d = hypot(ex, ey)
+            if d <= reach:
+                cx, cy, fx, fy = qx, qy, pvx, pvy
+            else:
+                cx, cy = cx + ex * reach / d, cy + ey * reach / d
+                fx, fy = (pvx, pvy) if (cx, cy) == (qx, qy) else (0.0, 0.0)
+            ex, ey = cx - x, cy - y
+            dist = hypot(ex, ey)
+            if dist == 0.0:
+                vx, vy = fx, fy
+            else:
+                speed = min(vmax, sqrt(2.0 * acc * dist), dist / dt)
+                vx, vy = fx + ex / dist * speed, fy + ey / dist * speed
+            dvx, dvy = vx - wx, vy - wy
+            dv = hypot(dvx, dvy)
+            if dv > dv_max:  # acceleration limit
+                vx, vy = wx + dvx * dv_max / dv, wy + dvy * dv_max / dv
+            wx, wy = vx, vy
+            x, y = x + vx * dt, y + vy * dt
+            arrived = hypot(qx - x, qy - y) <= tol and t >= ptotal
+            if closing is not None and closing > 0:  # fingers closing (they close after the batch)
+                closing -= 1
+            cp_step(cp_space, dt)
+            if self._contact or len(log) != n_log:
+                break
+        r.x, r.y, r.z, r.vel, r.k, r.closing, r.arrived = x, y, z, (wx, wy), rk, closing, arrived
+        part.x, part.y = px, py
         return k
 
     def _arrive(self) -> None:
