@@ -1006,10 +1006,10 @@ class World:
                 self._wait = n
                 return 0
             if r.tracking is not None:  # the tool follows its part step by step
-                if r.closing == 0 and r.armed:
-                    return 0
                 carriers.append(r)
-                if r.closing is not None:
+                if r.closing == 0 and r.armed:  # a waiting cup: batched while it stays above every part
+                    m = self._above_parts(r, m)
+                elif r.closing is not None:
                     m = min(m, r.closing - 1)
             elif r.holding is not None:
                 steady = self._steady(r, m)
@@ -1030,7 +1030,7 @@ class World:
         if m < 2:
             return 0
         for r in robots:  # an armed vacuum cup attaches the first part that comes within its radius
-            if r.holding is None and r.closing == 0 and r.armed:
+            if r.holding is None and r.closing == 0 and r.armed and r.tracking is None:
                 m = self._out_of_grip(r, m, movers)
                 if m < 2:
                     self._wait = 4
@@ -1115,6 +1115,30 @@ class World:
             if m < 2:
                 return 0
         return m
+
+    def _above_parts(self, r: _Robot, m: int) -> int:
+        """``m`` or fewer steps (0 or 1: none) in which the armed cup of ``r``, which tracks a
+        part, stays more than its grasp tolerance above the top of every part it could take
+        (``part_under`` finds none, wherever the tool goes in x-y): its height follows its
+        own profile, monotone towards its target."""
+        zs = r.spec["z"]
+        if zs is None:
+            return 0
+        tops = [self.top(pid) for place, ids in self.members.items() if place.kind not in ("GRIPPER", "LOST")
+                for pid in ids]
+        if not tops:
+            return m
+        floor = max(tops) + r.spec["grasp_tolerance"] + 1e-9  # the cup must stay above this
+        prof, dt = r.prof, self.dt
+        if r.z <= floor:
+            return 0
+        if r.z1 >= r.z0 or prof.dist <= 0.0:  # rising or level: never lower than now
+            return m
+        while m > 1:  # sinking: the height at the batch's last step bounds the ones before it
+            if r.z0 + (r.z1 - r.z0) * prof.at((r.k + m) * dt) / prof.dist > floor:
+                return m
+            m //= 2
+        return 0
 
     def _out_of_grip(self, r: _Robot, m: int, movers: dict) -> int:
         """``m`` or fewer steps in which no part comes under ``r``'s cup (``part_under``:
