@@ -475,6 +475,9 @@ class World:
         self._wait = 1  # steps to take one at a time before ``_quiet`` looks again
         self._carriers: list = []  # robots whose tool and part a batch of steps drives every step
         self._calm_until = -1  # until this step no belt part can cross a sensor's or sink's edge (``_belt_horizon``)
+        self._version = 0  # counts the commands and changes of place (``_quiet`` keeps a horizon while it stands)
+        self._quiet_end, self._quiet_version = -1, -1  # the steps up to which the last horizon holds, and when found
+        self._lookahead = max(2, int(round(1.0 / self.dt)))  # steps ``_quiet`` looks ahead (one second)
         sc = self.scene
         space = self.space = pymunk.Space()
         space.iterations = 10
@@ -528,7 +531,7 @@ class World:
     def _pressed(self, arbiter, space, data) -> None:
         """A part in contact (with a part or a wall) may move: watch it until it rests
         (every step of the contact: a sleeping group of touching parts wakes as a whole)."""
-        self._contact, self._calm_until = True, -1
+        self._contact, self._calm_until, self._quiet_end = True, -1, -1
         for s in arbiter.shapes:
             p = getattr(s.body, "part", None)
             if p is not None and p.place.kind != "BELT":
@@ -536,7 +539,7 @@ class World:
 
     def _touch(self, arbiter, space, data) -> None:
         """Two parts touched: both may now move (they are watched until they rest)."""
-        self._contact, self._calm_until = True, -1
+        self._contact, self._calm_until, self._quiet_end = True, -1, -1
         a, b = (s.body.part for s in arbiter.shapes)
         for p, q in ((a, b), (b, a)):
             p.pushed_by = q.id
@@ -664,6 +667,7 @@ class World:
     def _move(self, part: _Part, place: Place) -> None:
         old = part.place
         self._calm_until = -1
+        self._version += 1
         if old is not None:
             self.members[old].remove(part.id)
             if old.kind == "BELT":  # the parts queued behind it may move on
@@ -775,6 +779,7 @@ class World:
         target is behind a closed door."""
         r = self.robots[robot]
         r.tracking, r.arrived = None, False
+        self._version += 1
         if self.door_at(p) is not None:
             r.moving, r.blocked = False, True
             return False
@@ -806,6 +811,7 @@ class World:
         acceleration), the height moved to ``z`` on its own profile. ``arrived`` holds while
         the part is within ``track_tolerance`` under the tool and the height is reached."""
         r = self.robots[robot]
+        self._version += 1
         if r.tracking is None:
             r.vel = (0.0, 0.0)
         r.tracking, r.moving, r.blocked, r.arrived, r.k, r.coasting = part_id, True, False, False, 0, False
@@ -816,6 +822,7 @@ class World:
     def stop(self, robot: str) -> None:
         r = self.robots[robot]
         r.moving, r.tracking, r.vel, r.arrived = False, None, (0.0, 0.0), False
+        self._version += 1
 
     def door_at(self, p) -> "str | None":
         """The door (not fully open) whose region contains p, or None."""
@@ -830,6 +837,7 @@ class World:
         if r.holding is None and r.closing is None:
             r.closing = max(1, round(r.spec["close_time"] / self.dt)) if r.spec["close_time"] > 0 else 0
             r.armed = True
+            self._version += 1
 
     def attach(self, robot: str) -> bool:
         """Attach the part under the tool now (a vacuum cup); False when there is none."""
@@ -844,6 +852,7 @@ class World:
     def release(self, robot: str) -> None:
         r = self.robots[robot]
         r.closing, r.armed = None, True
+        self._version += 1
         if r.holding is not None:
             part = self.parts[r.holding]
             r.holding = None
@@ -889,7 +898,10 @@ class World:
         return best
 
     def set_door(self, door: str, open_: bool) -> None:
-        self.door_goal[door] = 1.0 if open_ else 0.0
+        goal = 1.0 if open_ else 0.0
+        if self.door_goal[door] != goal:
+            self.door_goal[door] = goal
+            self._version += 1
 
     def tool_in(self, region) -> bool:
         return any(_inside(region, (r.x, r.y)) for r in self.robots.values())
@@ -982,7 +994,18 @@ class World:
         tool) needs nothing at all (``_steady``). A contact or a change of place (a part
         slips) ends a batch (``_coast``). When it finds no batch, ``self._wait`` says how
         many steps to take one at a time before looking again (only a matter of speed:
-        stepping one at a time is always right)."""
+        stepping one at a time is always right). It looks a second ahead (``_lookahead``
+        steps, or ``n``): the horizon it finds holds for the calls that follow until a
+        command or a change of place (``_version``) or a contact (``_coast``) ends it."""
+        if self._quiet_version == self._version and self._quiet_end - self.steps > 1:
+            return min(n, self._quiet_end - self.steps)  # the last horizon (and its carriers) still holds
+        m = self._horizon_ahead(max(n, self._lookahead))
+        if m > 1:
+            self._quiet_end, self._quiet_version = self.steps + m, self._version
+        return min(n, m)
+
+    def _horizon_ahead(self, n: int) -> int:
+        """``_quiet`` worked out afresh."""
         self._wait = 1
         self._carriers = carriers = []
         if self._added or (self._sensor_regions and len(self.log) != self._sensed_log):
@@ -1244,6 +1267,8 @@ class World:
                     r.moving, r.arrived = False, True
             if r.holding is None and r.closing is not None and r.closing > 0 and r not in carriers:
                 r.closing -= k  # fingers closing (``_quiet``: they close after the batch)
+        if self._contact or k < m:  # what touched may move: the horizon is to be found anew
+            self._quiet_end = -1
         self._after_step()
         return k
 
@@ -1253,7 +1278,7 @@ class World:
         variables (the same arithmetic in the same order: ``tests/test_physics.py``
         compares batches with steps one at a time)."""
         cp_step, cp_space, dt, hypot = self._cp_step, self.space._space, self.dt, math.hypot
-        set_pos, set_vel, activate, get_pos = self._cp_set_pos, self._cp_set_vel, self._cp_activate, self._cp_pos
+        set_pos, set_vel, get_pos = self._cp_set_pos, self._cp_set_vel, self._cp_pos
         part = self.parts[r.holding]
         tb, pb, radius, (ax, ay) = r.body._body, part.cb, r.spec["radius"], r.anchor
         prof, zs = r.prof, r.spec["z"] is not None
@@ -1302,8 +1327,7 @@ class World:
                 if acc > peak:
                     peak = acc
             lv = (vx, vy)
-            activate(pb)
-            cp_step(cp_space, dt)
+            cp_step(cp_space, dt)  # (Chipmunk keeps a body joined to a kinematic one awake)
             pos = get_pos(pb)  # _held
             px, py = pos.x, pos.y
             if hypot(px - x - ax, py - y - ay) > radius:
