@@ -169,6 +169,7 @@ class KittingBinding(Binding):
         if not scene.areas[tray]["slots"]:
             raise ModelError(f"areas.{tray}", "the kitting binding needs a tray with slots", scene.file)
         self.robot, self.bins, self.tray, self.belt, self.sensor = robot, tuple(bins), tray, belt, sensor
+        self._tray_place = Place("AREA", tray)
         self.belt_area = "conveyor"  # the model's name for the belt's area
         self.speed = float(speed_scale)  # the authors' move_to default velocity scaling is 0.5
         self.clearance = float(clearance)
@@ -280,7 +281,7 @@ class KittingBinding(Binding):
         return kind == "BELT" or (kind == "AREA" and name in self.bins)
 
     def tray_count(self) -> int:
-        return self.world.count(self.tray)
+        return len(self.world.members.get(self._tray_place, ()))
 
     def free_slots(self) -> list:
         w = self.world

@@ -478,6 +478,8 @@ class World:
         self._version = 0  # counts the commands and changes of place (``_quiet`` keeps a horizon while it stands)
         self._quiet_end, self._quiet_version = -1, -1  # the steps up to which the last horizon holds, and when found
         self._lookahead = max(2, int(round(1.0 / self.dt)))  # steps ``_quiet`` looks ahead (one second)
+        self._top: "float | None" = None  # the highest top of a part that a cup could take (``_above_parts``)
+        self._top_version = -1
         sc = self.scene
         space = self.space = pymunk.Space()
         space.iterations = 10
@@ -1147,11 +1149,13 @@ class World:
         zs = r.spec["z"]
         if zs is None:
             return 0
-        tops = [self.top(pid) for place, ids in self.members.items() if place.kind not in ("GRIPPER", "LOST")
-                for pid in ids]
-        if not tops:
+        if self._top_version != self._version:  # the highest top changes only with a change of place
+            self._top_version = self._version
+            self._top = max((self.top(pid) for place, ids in self.members.items()
+                             if place.kind not in ("GRIPPER", "LOST") for pid in ids), default=None)
+        if self._top is None:
             return m
-        floor = max(tops) + r.spec["grasp_tolerance"] + 1e-9  # the cup must stay above this
+        floor = self._top + r.spec["grasp_tolerance"] + 1e-9  # the cup must stay above this
         prof, dt = r.prof, self.dt
         if r.z <= floor:
             return 0
