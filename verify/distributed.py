@@ -84,13 +84,14 @@ def owner(codes: np.ndarray, parts: int, key: tuple = ()) -> np.ndarray:
     """Partition of each state code: Fibonacci hashing of its *key* (the digits of the
     slots in ``key``, pairs ``(mult, size)``; ``()``: the whole code) mod ``parts``."""
     c = np.asarray(codes, np.int64)
-    if key:
+    if key:  # x - x // m * m, not x % m: numpy divides by a scalar fast, its remainder of int64 is slower
         d = np.zeros(len(c), np.int64)
         for mult, size in key:
-            d = d * size + (c // mult) % size
+            q = c // mult
+            d = d * size + (q - q // size * size)
         c = d
-    h = (c.astype(np.uint64) * _GOLDEN) >> np.uint64(40)
-    return (h % np.uint64(parts)).astype(np.int64)
+    h = ((c.astype(np.uint64) * _GOLDEN) >> np.uint64(40)).astype(np.int64)  # 24 bits
+    return h % parts
 
 
 def partition_key(model, parts: int, beam: int = 64, steps: int = 32, seed: int = 0, succ=None) -> tuple:
@@ -158,7 +159,8 @@ class _Seen:
     copies it: slower, for code spaces a bitmap cannot cover)."""
 
     def __init__(self, total: int):
-        self.bits = np.zeros((total + 63) // 64, np.uint64) if total <= DENSE_LIMIT else None
+        self.total = total
+        self.bits = np.zeros((total + 7) // 8, np.uint8) if total <= DENSE_LIMIT else None  # bit c % 8 of byte c // 8
         self.sorted = np.zeros(0, np.int64)
 
     def fresh(self, codes: np.ndarray) -> np.ndarray:
@@ -173,12 +175,14 @@ class _Seen:
             new = codes[~seen]
             self.sorted = np.insert(self.sorted, pos[~seen], new)
             return new
-        unseen = (self.bits[codes >> 6] & _bit(codes)) == 0
-        new = _distinct(codes[unseen])  # fewer: the seen ones go first
+        bytes_ = self.bits  # a byte at a time: 3x faster than 64-bit words (fewer bytes moved)
+        unseen = ((bytes_[codes >> 3] >> (codes & 7).astype(np.uint8)) & 1) == 0
+        # fewer: the seen ones go first; sorted as uint32 (codes under DENSE_LIMIT fit): twice as fast
+        new = _distinct(codes[unseen].astype(np.uint32)).astype(np.int64)
         if len(new):
-            word = new >> 6
-            starts = np.flatnonzero(np.concatenate(([True], word[1:] != word[:-1])))
-            self.bits[word[starts]] |= np.bitwise_or.reduceat(_bit(new), starts)
+            byte = new >> 3
+            starts = np.flatnonzero(np.concatenate(([True], byte[1:] != byte[:-1])))
+            bytes_[byte[starts]] |= np.bitwise_or.reduceat(np.left_shift(1, new & 7).astype(np.uint8), starts)
         return new
 
 
@@ -235,7 +239,7 @@ class Partition:
             self._take(codes)
             return 0
         own = owner(codes, self.parts, self.key)
-        order = np.argsort(own, kind="stable")
+        order = np.argsort(own.astype(np.uint16) if self.parts <= 1 << 16 else own, kind="stable")  # a radix sort
         ends = np.cumsum(np.bincount(own, minlength=self.parts))
         starts = ends - np.bincount(own, minlength=self.parts)
         for j in range(self.parts):
@@ -316,7 +320,7 @@ class Partition:
             self._order = np.argsort(own, kind="stable")
             self._sorted = None
             if self.seen.bits is not None:
-                bits = np.zeros_like(self.seen.bits)
+                bits = np.zeros((self.seen.total + 63) // 64, np.uint64)
                 s = own[self._order]
                 word = s >> 6
                 starts = np.flatnonzero(np.concatenate(([True], word[1:] != word[:-1]))) if len(s) else s
