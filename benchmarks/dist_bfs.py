@@ -2,18 +2,24 @@
 same run (issue 13, point 5; issue 24, point 2; docs/verification.md, section 6).
 
 Usage: ``python3 benchmarks/dist_bfs.py [--size N] [--workers 1 2] [--scheduler ADDRESS]
-[--check] [--simulate 2 16 64] [--capacity]``
+[--check] [--simulate 2 16 64] [--free-cores 2] [--capacity]``
 
 Explores ``btfsm.models.pickplace.pickplace(N)`` (default 12: 1,305,694 states):
 
 * once with ``btfsm.verify.explore.explore`` (one process, the traced engine, the whole
-  system stored) in a child process, for its wall time and peak memory;
+  system stored) in a child process, for its wall time, CPU time and peak memory;
+* once with the partitions' own search with one partition (``simulate(model, 1)``: the
+  same engine's batches and seen set, counts only, no Dask) in a child process: the
+  like-for-like one-process figure;
 * then with ``btfsm.verify.distributed.explore_distributed`` on a fresh ``LocalCluster``
   of W worker processes (one thread each) for each W of ``--workers`` (default 1 and 2),
   or on the running cluster at ``--scheduler``: the counts, whether they equal the
   one-process ones, the wall time (from the client's call to the counts; the cluster's
-  start-up not included, the partition key's pilot and the workers' model building
-  included), the speed-up over one process, and each worker's peak RSS;
+  start-up and the workers' imports not included, the partition key's pilot and the
+  workers' model building included), the speed-up over both one-process runs, the CPU
+  seconds of each worker process during the search (all its threads: a measure of the
+  overheads that the machine's load hardly changes, unlike the wall time), and each
+  worker's peak RSS; the load average beside each line;
 * ``--check``: also ``check_distributed`` (transitions kept, no-dead-states at model
   level and workable-reachability over the partitions) next to the one-process verdicts;
 * ``--capacity`` (first): one single-partition search alone, then two at once, in child
@@ -21,7 +27,11 @@ Explores ``btfsm.models.pickplace.pickplace(N)`` (default 12: 1,305,694 states):
   is free), the ceiling of any 2-worker speed-up in the same run;
 * ``--simulate P...``: the same partitions run one after the other in this process
   (``btfsm.verify.distributed.simulate``, no Dask) for P partitions: rounds, messages,
-  states sent and states per partition (the message volume for 16 and 64 workers).
+  states sent and states per partition (the message volume for 16 and 64 workers);
+* ``--free-cores P...``: the search without rounds of P partitions in this process, each
+  step on a clock of its CPU seconds (``simulate(rounds=False)``): the partitions' work on
+  P free cores (the makespan), next to one partition's CPU seconds in the same process,
+  a figure that a loaded machine does not ruin.
 
 Needs the ``dist`` extra (``dask[distributed]``). Exit 1 when a count differs.
 """
@@ -111,6 +121,9 @@ def main() -> int:
     ap.add_argument("--check", action="store_true", help="also the partitioned checks")
     ap.add_argument("--simulate", type=int, nargs="*", default=[], metavar="P",
                     help="simulate P partitions in this process (message volume)")
+    ap.add_argument("--free-cores", type=int, nargs="*", default=[], metavar="P",
+                    help="the search without rounds of P partitions on a clock of CPU seconds, in this process: "
+                         "their work on P free cores, against one partition's CPU seconds")
     ap.add_argument("--capacity", action="store_true",
                     help="first measure what a second core gives now: one single-partition search alone, then two at once")
     a = ap.parse_args()
@@ -191,6 +204,20 @@ def main() -> int:
                   f"{r.critical_path:,} states (ideal speed-up {r.ideal_speedup:.2f}); states per partition "
                   f"min {min(sizes):,} max {max(sizes):,} (mean {r.states / p:,.0f}); counts {'equal' if same else 'DIFFERENT'}; "
                   f"{time.perf_counter() - t:.1f} s in one process")
+    if a.free_cores:
+        model = pickplace(a.size)
+        solo = dist.simulate(model, 1, key=())
+        ok &= (solo.states, solo.transitions) == want
+        print(f"one partition in this process: {solo.cpu_seconds:.2f} CPU s; {_load()}")
+        for p in a.free_cores:
+            r = dist.simulate(model, p, **kw, rounds=False)
+            same = (r.states, r.transitions) == want
+            ok &= same
+            print(f"{p} partitions without rounds on {p} free cores: {r.makespan:.2f} s of the partitions' work "
+                  f"(x{solo.cpu_seconds / r.makespan:.2f} one partition; Dask and its messages aside), CPU "
+                  f"{r.cpu_seconds:.2f} s in all (x{r.cpu_seconds / solo.cpu_seconds:.2f} one partition's), the busiest "
+                  f"{r.cpu_path:.2f} s; {r.levels} steps in the busiest partition, {r.messages} messages; counts "
+                  f"{'equal' if same else 'DIFFERENT'}; {_load()}")
     print("exact counts: " + ("equal" if ok else "DIFFERENT"))
     return 0 if ok else 1
 

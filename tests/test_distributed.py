@@ -80,14 +80,17 @@ def test_a_running_scheduler_by_address(local):
 
 def test_any_number_of_partitions():
     """The same counts and verdicts with 1, 3 and 8 partitions (simulated in this process),
-    rounds ending early (``message_min`` of 50 states) or not."""
+    rounds ending early (``message_min`` of 50 states) or not, and without rounds."""
     model = pickplace(2, dead=True)
     want = _one(model)
     assert want["traps"] and want["dead"]
-    for parts, message_min in ((1, dist.MESSAGE_MIN), (3, 50), (8, dist.MESSAGE_MIN)):
-        r = dist.simulate(model, parts, keep=True, message_min=message_min)
+    for parts, message_min, rounds in ((1, dist.MESSAGE_MIN, True), (3, 50, True), (8, dist.MESSAGE_MIN, True),
+                                       (3, 50, False), (8, dist.MESSAGE_MIN, False)):
+        r = dist.simulate(model, parts, keep=True, message_min=message_min, rounds=rounds)
         assert _mine(r) == want
         assert len(r.counts.per_partition) == parts and sum(r.counts.per_partition) == want["states"]
+        if not rounds:  # the search as on Dask, on a clock of CPU seconds: the busiest partition's
+            assert r.counts.cpu_path <= r.counts.makespan <= r.counts.cpu_seconds + 1e-9
 
 
 def test_partition_key_takes_the_slots_transitions_change_least():

@@ -444,7 +444,8 @@ class DistributedCounts:
     critical_path: int = 0  # sum over rounds of the most states a partition expanded in it
     work_seconds: float = 0.0  # on Dask: sum over rounds of the longest partition's work
     cpu_seconds: float = 0.0  # CPU seconds of the partitions' rounds, all together
-    cpu_path: float = 0.0  # sum over rounds of the most CPU seconds a partition took in it
+    cpu_path: float = 0.0  # sum over rounds of the most CPU seconds a partition took in it (no rounds: the most in all)
+    makespan: float = 0.0  # ``simulate(rounds=False)``: the partitions' work on free cores, in CPU seconds
 
     @property
     def ideal_speedup(self) -> float:
@@ -510,18 +511,61 @@ def _rounds(parts, phase, counts=None) -> tuple:
             return rounds, res
 
 
+def _free_cores(parts, phase, counts) -> int:
+    """The search without rounds, as the actors run it on Dask, scheduled in this process
+    on a clock of CPU seconds: each partition's clock advances by the CPU seconds of its
+    steps (``time.thread_time``, which the machine's other jobs do not inflate much); a
+    bucket arrives at its owner at the sender's clock after the step that made it; the
+    next step is the one whose partition is ready first (its own queue, or its earliest
+    bucket). The largest clock at the end (``counts.makespan``) is the time the
+    partitions' work takes on ``len(parts)`` free cores, messages and Dask aside; returns
+    the most steps a partition took."""
+    clock = [0.0] * len(parts)
+    mail: list = [[] for _ in parts]  # (arrival, codes)
+    steps = [0] * len(parts)
+    sizes: list = []  # states in each bucket
+    res = [{"transitions": 0, "expanded": 0, "cpu": 0.0, "sent": [0] * len(parts)} for _ in parts]
+    while True:
+        ready = [(clock[j] if p.head < p.n else max(clock[j], min(t for t, _ in mail[j])), j)
+                 for j, p in enumerate(parts) if p.head < p.n or mail[j]]
+        if not ready:
+            break
+        t, j = min(ready)
+        clock[j] = t
+        for _, b in [m for m in mail[j] if m[0] <= t]:
+            parts[j].receive(b)
+        mail[j] = [m for m in mail[j] if m[0] > t]
+        buckets, stats = parts[j].step(phase)
+        clock[j] += stats["cpu"]
+        steps[j] += 1
+        for k in ("transitions", "expanded", "cpu"):
+            res[j][k] += stats[k]
+        for k, b in enumerate(buckets):
+            if len(b):
+                mail[k].append((clock[j], b))
+                res[j]["sent"][k] += len(b)
+                sizes.append(len(b))
+    _tally(counts, res)
+    counts.messages, counts.largest_message = len(sizes), max(sizes, default=0)
+    counts.critical_path = max(r["expanded"] for r in res)
+    counts.cpu_path = max(r["cpu"] for r in res)
+    counts.makespan = max(clock)
+    return max(steps)
+
+
 def simulate(model, parts: int, keep: bool = False, message_min: int = MESSAGE_MIN, key=None,
-             round_states: int = ROUND_STATES):
+             round_states: int = ROUND_STATES, rounds: bool = True):
     """The partitioned search (and with ``keep`` the checks) with ``parts`` partitions run
     one after the other in this process: the same ``Partition`` code and rounds as on
     Dask, so the same counts, rounds and message volume, without the cluster. Returns
-    ``DistributedCounts`` (``keep``: ``DistributedCheck``)."""
+    ``DistributedCounts`` (``keep``: ``DistributedCheck``). ``rounds=False``: the search
+    without rounds, as on Dask, on a clock of CPU seconds (``_free_cores``: its makespan)."""
     t0 = time.perf_counter()
     succ = BatchSuccessors(model)  # one trie for all: the partitions run one after the other
     key = partition_key(model, parts, succ=succ) if key is None else key
     ps = [Partition(model, j, parts, keep, message_min, key, succ, round_states) for j in range(parts)]
     counts = DistributedCounts(0, 0, 0, 0.0)
-    counts.levels = _rounds(ps, "explore", counts)[0]
+    counts.levels = _rounds(ps, "explore", counts)[0] if rounds or parts == 1 else _free_cores(ps, "explore", counts)
     counts.per_partition = [p.n for p in ps]
     counts.states = sum(counts.per_partition)
     counts.seconds = time.perf_counter() - t0
