@@ -524,7 +524,7 @@ def _free_cores(parts, phase, counts) -> int:
     mail: list = [[] for _ in parts]  # (arrival, codes)
     steps = [0] * len(parts)
     sizes: list = []  # states in each bucket
-    res = [{"transitions": 0, "expanded": 0, "cpu": 0.0, "sent": [0] * len(parts)} for _ in parts]
+    res: list = [{"transitions": 0, "expanded": 0, "cpu": 0.0, "sent": [0] * len(parts)} for _ in parts]
     while True:
         ready = [(clock[j] if p.head < p.n else max(clock[j], min(t for t, _ in mail[j])), j)
                  for j, p in enumerate(parts) if p.head < p.n or mail[j]]
@@ -538,8 +538,8 @@ def _free_cores(parts, phase, counts) -> int:
         buckets, stats = parts[j].step(phase)
         clock[j] += stats["cpu"]
         steps[j] += 1
-        for k in ("transitions", "expanded", "cpu"):
-            res[j][k] += stats[k]
+        for name in ("transitions", "expanded", "cpu"):
+            res[j][name] += stats[name]
         for k, b in enumerate(buckets):
             if len(b):
                 mail[k].append((clock[j], b))
