@@ -70,6 +70,17 @@ def test_checks_give_the_one_process_verdicts(client):
     assert want["traps"] == 0 and r.verdicts["workable-reachability"]
 
 
+def test_a_failing_partition_ends_the_search(client, monkeypatch):
+    """A partition's error reaches the caller (the workers run in this process here, so
+    the patch reaches them); the search does not wait for buckets that never come."""
+    def boom(self, out):
+        raise RuntimeError("boom")
+
+    monkeypatch.setattr(dist.Partition, "_explore", boom)
+    with pytest.raises(RuntimeError, match="boom"):
+        dist.explore_distributed(client, pickplace, (2,), {"bug": True})
+
+
 def test_a_running_scheduler_by_address(local):
     """``cluster(address)`` is how a user's own cluster is reached (``--scheduler``)."""
     with dist.cluster(local.scheduler_address) as c:

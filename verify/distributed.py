@@ -618,6 +618,7 @@ class _Actor:
         self.wake = asyncio.Event()  # ``run``: set by a delivery or ``stop``
         self.quiet = asyncio.Event()  # ``settled``: set by ``run`` when it goes idle
         self.busy = self.stopped = self.failed = False
+        self.error: "BaseException | None" = None
         self.sent = self.received = 0  # buckets, for the client's termination test
 
     def connect(self, peers) -> None:
@@ -665,37 +666,49 @@ class _Actor:
         by ``status`` (``_remote_run``). Returns the sums of the steps' stats."""
         loop = asyncio.get_running_loop()
         total: dict = {"transitions": 0, "expanded": 0, "cpu": 0.0, "work": 0.0, "steps": 0, "messages": 0,
-                 "largest": 0, "sent": [0] * self.p.parts}
+                       "largest": 0, "sent": [0] * self.p.parts}
         deliveries: list = []
-        while not self.stopped:
-            if self._idle():
-                self.quiet.set()
-                self.wake.clear()
-                await self.wake.wait()
-                continue
-            self.busy = True
-            t0 = time.perf_counter()
-            try:
-                buckets, stats = await loop.run_in_executor(None, self.p.step, phase)
-            except BaseException:
-                self.failed = True  # ``run`` ends with the error, which the client raises (``_remote_run``)
-                self.quiet.set()
-                raise
-            finally:
-                self.busy = False
-            total["work"] += time.perf_counter() - t0
-            total["steps"] += 1
-            for k in ("transitions", "expanded", "cpu"):
-                total[k] += stats.get(k, 0)
-            for j, b in enumerate(buckets):
-                if len(b):
-                    self.sent += 1  # counted before it can arrive
-                    total["messages"] += 1
-                    total["sent"][j] += len(b)
-                    total["largest"] = max(total["largest"], len(b))
-                    deliveries.append(self.peers[j].receive_async(b))
-        await asyncio.gather(*deliveries)  # all delivered already (the client saw sent == received)
+        try:
+            while not self.stopped:
+                if self.error is not None:  # a delivery failed (its peer's worker is gone)
+                    raise self.error
+                if self._idle():
+                    self.quiet.set()
+                    self.wake.clear()
+                    await self.wake.wait()
+                    continue
+                self.busy = True
+                t0 = time.perf_counter()
+                try:
+                    buckets, stats = await loop.run_in_executor(None, self.p.step, phase)
+                finally:
+                    self.busy = False
+                total["work"] += time.perf_counter() - t0
+                total["steps"] += 1
+                for k in ("transitions", "expanded", "cpu"):
+                    total[k] += stats.get(k, 0)
+                for j, b in enumerate(buckets):
+                    if len(b):
+                        self.sent += 1  # counted before it can arrive
+                        total["messages"] += 1
+                        total["sent"][j] += len(b)
+                        total["largest"] = max(total["largest"], len(b))
+                        delivery = asyncio.ensure_future(self.peers[j].receive_async(b))
+                        delivery.add_done_callback(self._delivered)
+                        deliveries.append(delivery)
+            await asyncio.gather(*deliveries)  # all delivered already (the client saw sent == received)
+        except BaseException:
+            self.failed = True  # ``run`` ends with the error, which the client raises (``_remote_run``)
+            self.quiet.set()
+            raise
         return {**total, "pending": 0}
+
+    def _delivered(self, delivery) -> None:
+        """A delivery's end: a failure ends ``run`` (the client would otherwise wait for
+        a bucket that never arrives)."""
+        if not delivery.cancelled() and delivery.exception() is not None:
+            self.error = delivery.exception()
+            self.wake.set()
 
     async def stop(self) -> None:
         self.stopped = True
@@ -738,7 +751,9 @@ def _remote_run(handles, phase, counts) -> int:
     while True:
         first = [f.result() for f in [a.settled() for a in handles]]  # each waits until its partition is idle
         for f, (idle, _, _) in zip(runs, first):
-            if idle is None:  # ``run`` failed: its error
+            if idle is None:  # ``run`` failed: the others stop, its error is raised
+                for g in [a.stop() for a in handles]:
+                    g.result()
                 f.result()
         second = [f.result() for f in [a.status() for a in handles]]
         now = [(s, r) for _, s, r in second]
