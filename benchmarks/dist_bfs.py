@@ -216,7 +216,8 @@ def main() -> int:
             print(f"{p} partitions without rounds on {p} free cores: {r.makespan:.2f} s of the partitions' work "
                   f"(x{solo.cpu_seconds / r.makespan:.2f} one partition; Dask and its messages aside), CPU "
                   f"{r.cpu_seconds:.2f} s in all (x{r.cpu_seconds / solo.cpu_seconds:.2f} one partition's), the busiest "
-                  f"{r.cpu_path:.2f} s; {r.levels} steps in the busiest partition, {r.messages} messages; counts "
+                  f"{r.cpu_path:.2f} s; {r.levels} steps in the busiest partition, {r.messages} messages, {r.states_sent:,} states "
+                  f"sent; counts "
                   f"{'equal' if same else 'DIFFERENT'}; {_load()}")
     print("exact counts: " + ("equal" if ok else "DIFFERENT"))
     return 0 if ok else 1

@@ -13,26 +13,29 @@ codes (a bitmap over the code space, or a sorted array past ``DENSE_LIMIT``), it
 codes in discovery order (the queue of states still to expand is their tail) and, with
 ``keep=True``, the out-transitions of its states (target codes, by state).
 
-The search goes in rounds. In a round every partition (1) queues the codes the others
-sent it that it has not seen, (2) expands its queue in batches of up to ``CHUNK`` states
-through the traced engine's batch expansion (``btfsm.verify.traced.BatchSuccessors``: the
-trie over ``Program.step`` that the one-process search runs), queueing the new targets it
-owns at once and cutting the others' new targets into one bucket per owner (a code is sent
+The search goes in steps. In a step a partition (1) queues the codes the others sent it
+that it has not seen, (2) expands its queue in batches of up to ``CHUNK`` states through
+the traced engine's batch expansion (``btfsm.verify.traced.BatchSuccessors``: the trie
+over ``Program.step`` that the one-process search runs), queueing the new targets it owns
+at once and cutting the others' new targets into one bucket per owner (a code is sent
 once: sent codes are marked seen too), (3) stops after ``ROUND_STATES`` expanded states
-(so that no partition goes on alone while the others wait for its messages), when the
-buckets hold ``message_min`` states, or when its queue is empty, and (4) sends each bucket (an int64 array) straight to the
-owner's actor, worker to worker, before the round ends. The client calls one method per
-partition per round and gets a few ints back: when no partition sent anything and none has
-a queue left, nothing is in flight and the search is over. Every state is expanded exactly
-once (its owner queues it once), so the sums are the exact state and transition counts of
-the one-process search, whatever ``P``.
+(so that no partition goes on alone while the others wait for its states), when the
+buckets hold ``message_min`` states, or when its queue is empty. On Dask (``_Actor.run``)
+a partition takes steps while it has work and sends each bucket (an int64 array) straight
+to the owner's actor, worker to worker, without waiting, and sleeps when it has none; the
+client detects the end by Mattern's counting of buckets sent and received
+(``_remote_run``): no rounds, no barrier. ``simulate`` runs the steps in rounds (every
+partition one step, then every delivery: the figures of the docs' tables) or, with
+``rounds=False``, as on Dask on a clock of CPU seconds (``_free_cores``). Every state is
+expanded exactly once (its owner queues it once), so the sums are the exact state and
+transition counts of the one-process search, whatever ``P`` and the order of deliveries.
 
 The checks that ``keep=True`` makes possible (``check_distributed``): *no-dead-states* at
 model level (a state with no successor that is not terminal and not a domain error; an FSM
 token on a sink state) is judged by each partition on its own states; *workable-
 reachability* (AG EF workable) is a backward reachability over the partitions: each
-partition ships its reversed transitions to the target's owner once, then rounds like the
-search's spread "can reach a workable state" backwards until nothing changes; the states
+partition ships its reversed transitions to the target's owner once, then rounds of steps
+like the search's spread "can reach a workable state" backwards until nothing changes; the states
 never reached are the traps. ``simulate`` runs the same partitions one after the other in
 this process (no Dask): the same counts, rounds and message volume for any ``P`` (the 16-
 and 64-worker figures of the docs).
