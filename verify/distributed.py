@@ -438,7 +438,7 @@ class DistributedCounts:
 
     states: int
     transitions: int
-    levels: int  # rounds
+    levels: int  # rounds (simulate; 1 worker); on Dask with 2 or more: the steps of the busiest partition
     seconds: float
     per_partition: list = field(default_factory=list)  # states owned by each partition
     messages: int = 0  # non-empty buckets sent
