@@ -148,13 +148,13 @@ def main() -> int:
     print(f"one process : {one['states']:,} states, {one['transitions']:,} transitions, {one['seconds']:.2f} s "
           f"({one['cpu']:.2f} CPU s), peak RSS {one['rss'] / 2**20:,.0f} MB (explore: the whole system stored); "
           f"{_load()}")
+    if a.check:
+        print(f"{'':12}  with the traps, dead and sink states: {one['check_seconds']:.2f} s, peak RSS "
+              f"{one['check_rss'] / 2**20:,.0f} MB")
     count = _child(_COUNT.format(n=a.size), root)
     print(f"one process : {count['states']:,} states, {count['transitions']:,} transitions, {count['seconds']:.2f} s "
           f"({count['cpu']:.2f} CPU s), peak RSS {count['rss'] / 2**20:,.0f} MB (the partitions' search, 1 partition, "
           f"no Dask: counts only, like for like); {_load()}")
-    if a.check:
-        print(f"{'':12}  with the traps, dead and sink states: {one['check_seconds']:.2f} s, peak RSS "
-              f"{one['check_rss'] / 2**20:,.0f} MB")
     want = (one["states"], one["transitions"])
     ok = (count["states"], count["transitions"]) == want
     kw = {} if a.message_min is None else {"message_min": a.message_min}

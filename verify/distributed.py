@@ -666,7 +666,8 @@ class _Actor:
         """The search without rounds: steps (at most ``round_states`` states, then each
         bucket sent to its owner at once, without waiting for its delivery) while there is
         work, asleep while there is none, until ``stop``; the client decides when to stop
-        by ``status`` (``_remote_run``). Returns the sums of the steps' stats."""
+        by ``status`` (``_remote_run``). Returns the sums of the steps' stats. Called once
+        per actor (a ``stop`` that comes before it ends it at once)."""
         loop = asyncio.get_running_loop()
         total: dict = {"transitions": 0, "expanded": 0, "cpu": 0.0, "work": 0.0, "steps": 0, "messages": 0,
                        "largest": 0, "sent": [0] * self.p.parts}
