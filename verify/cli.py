@@ -133,7 +133,7 @@ def _check_partitioned(args, props) -> int:
     skipped = {p: not_applicable(model, p) for p in PARTITIONED}
     asked = props or list(PARTITIONED)
     out = {"model": model.name, "partitioned": True, "workers": len(c.per_partition), "states": c.states,
-           "transitions": c.transitions, "rounds": c.levels, "seconds": round(r.seconds, 3),
+           "transitions": c.transitions, "steps": c.levels, "seconds": round(r.seconds, 3),
            "per_partition": c.per_partition, "states_sent": c.states_sent,
            "results": {p: ("not applicable" if skipped[p] else verdicts[p]) for p in asked},
            "traps": r.traps, "dead_states": r.dead, "sink_states": r.sinks,
@@ -141,7 +141,7 @@ def _check_partitioned(args, props) -> int:
     if args.json:
         print(json.dumps(out))
     else:
-        print(f"{model.name}: {c.states:,} states, {c.transitions:,} transitions on {where}, {c.levels} rounds, "
+        print(f"{model.name}: {c.states:,} states, {c.transitions:,} transitions on {where}, {c.levels} steps (the busiest worker), "
               f"{r.seconds:.2f} s (states per worker {', '.join(f'{k:,}' for k in c.per_partition)}; "
               f"{c.states_sent:,} states sent)")
         for p in asked:
