@@ -194,20 +194,23 @@ def run_btfsm(semantics: str, ticks: int, log: bool = True):
 
 
 class _StepOracle:
-    """Answers ``Program.step`` like the implementations (no Runtime): the timing of the bare step."""
+    """Answers ``Program.step`` like the implementations (no Runtime): the timing of the bare step.
+    Per action, like a BT.CPP callback: ``leaf_status`` and one dict look-up of its answer
+    (here to the index of the outcome of that name)."""
 
     __slots__ = ("clock", "index")
 
     def __init__(self, prog, clock):
         self.clock = clock
-        self.index = {site.index: (site.node, {o[2]: k for k, o in enumerate(site.outcomes)}) for site in prog.sites}
+        self.index = {site.index: (site.node, {o[2].upper(): k for k, o in enumerate(site.outcomes)})
+                      for site in prog.sites}
 
     def env(self, i):
         return True
 
     def outcome(self, site):
         name, idx = self.index[site.index]
-        return idx[leaf_status(name, self.clock.t).lower()]
+        return idx[leaf_status(name, self.clock.t)]
 
     def halt(self, site):
         pass

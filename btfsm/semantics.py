@@ -34,7 +34,8 @@ from .bt import (Action, Condition, Effects, FailureIsRunning, ForceFailure, For
                  ReactiveFallback, ReactiveSequence, Repeat, Retry, RunOnce, SequenceWithMemory,
                  SkillRequest, SubTree, WhileDoElse, check_arity, check_bounds)
 from .errors import ModelError
-from .expr import BOOL, Scope, Slot, Type, compile_effects, compile_fn
+from .expr import (BOOL, INT, BinOp, Compare, Const, Expr, Name, Scope, Slot, Type, compile_effects, compile_fn,
+                   flat)
 from .profiles import profile
 from .timing import duration_ticks, interval_ticks
 from .status import Status
@@ -279,6 +280,7 @@ class Program:
         self.wake: Any = self._wake_slot()
         self.merge_points = self._merge_points()
         self.exclusive = self._exclusive_groups()
+        self._crowded_fn = self._crowded()
         self._compile_fsms()
         timers: list[tuple[int, int, int]] = []  # (event index, slot, ticks) of events with a minimum interval
         self.env_timers: Any = timers
@@ -895,14 +897,39 @@ class Program:
         return tuple(out)
 
     def _exclusive_groups(self) -> tuple[Any, ...]:
-        """Per resource with two leaves that can run: (resource, ((flag, name), ...), the
-        flags alone) checked at the end of every tick (rule 'Exclusive resources')."""
+        """Per resource with two leaves that can run: ((flag, name), ...) checked at the end
+        of every tick (rule 'Exclusive resources')."""
         out = []
         for res, members in self.model.resources:
             flags = tuple((self.nodes[m].flag, m) for m in members if self.nodes[m].flag is not None)
             if len(flags) > 1:
-                out.append((res, flags, tuple(flag for flag, _ in flags)))
+                out.append((res, flags))
         return tuple(out)
+
+    def _crowded(self) -> Optional[Callable[[Any], bool]]:
+        """The end-of-tick test of rule 'Exclusive resources' as one compiled expression:
+        does some resource have running flags that sum above 1 (two of its leaves run)?
+        None without such a resource. Only when it holds does ``_exclusive_end`` look which
+        leaves: one call a tick instead of a loop over flags."""
+        if not self.exclusive:
+            return None
+        return self._flags_above([tuple(flag for flag, _ in flags) for _, flags in self.exclusive], 1)
+
+    def _flags_above(self, groups: "list[tuple[int, ...]]", bound: int) -> Callable[[Any], bool]:
+        """``f(state)``: whether the running flags of some group (slots) sum above ``bound``,
+        compiled into one expression (a flag holds 0 or 1)."""
+        scope, tests = Scope(), []
+        for flags in groups:
+            terms: list[Expr] = []
+            for flag in flags:
+                scope[self.slots[flag].name] = Slot(flag, INT, 0, 1)
+                terms.append(Name(self.slots[flag].name))
+            while len(terms) > 1:  # a balanced sum: nested no deeper than log2 of the flags
+                terms = [BinOp("+", *terms[i:i + 2]) if i + 1 < len(terms) else terms[i]
+                         for i in range(0, len(terms), 2)]
+            tests.append(Compare(">", terms[0], Const(bound)))
+        fn: Callable[[Any], bool] = compile_fn(flat("or", *tests), scope, "resources", BOOL)
+        return fn
 
     def _lint_reactive_sequences(self) -> None:
         self.lints = []
@@ -927,15 +954,15 @@ class Program:
         blocked = self.environment_phase(s, oracle, ctx.rec)
         if blocked is not None:
             return _step(None, FAILURE, ctx.rec, [("blocked", blocked)])
-        root, wake, exclusive = self.root, self.wake, self.exclusive
+        root, wake, crowded = self.root, self.wake, self._crowded_fn
         try:
             status = root(ctx) if root is not None else SUCCESS
             if wake is not None and status == RUNNING and s[wake]:
                 status = self._reticks(ctx, status)
         except _Late as late:
             return _step(None, FAILURE, ctx.rec, [("timing", late.site.label, late.text)])
-        if exclusive:
-            _exclusive_end(ctx, exclusive)
+        if crowded is not None and crowded(s):  # two leaves of a resource run: which ones
+            _exclusive_end(ctx, self.exclusive)
         return _step(tuple(s), status, ctx.rec, ctx.violations)
 
     def _reticks(self, ctx: _Ctx, status: int) -> int:
@@ -1088,15 +1115,7 @@ def _exclusive_check(ctx: _Ctx, rivals: tuple[Any, ...]) -> None:
 def _exclusive_end(ctx: _Ctx, groups: tuple[Any, ...]) -> None:
     """Rule 'Exclusive resources' at the end of a tick: two leaves of one resource running."""
     s = ctx.s
-    for res, flags, slots in groups:
-        seen = False
-        for flag in slots:
-            if s[flag]:
-                if seen:
-                    break
-                seen = True
-        else:
-            continue  # at most one of them runs: the usual case
+    for res, flags in groups:
         a = None
         for flag, name in flags:
             if s[flag]:
@@ -1679,6 +1698,8 @@ def _action(prog: Program, c: NodeRule) -> Tick:
     site = prog._site("action", n.name, None, None, n.primitive, n.args, where, n.duration)
     info.node_site = site
     run, rivals = prog._primitive_runner(site), prog._rivals(info)
+    # whether a rival runs, as one compiled expression: most starts find none
+    rival_runs = prog._flags_above([tuple(flag for flag, _, _ in rivals)], 0) if rivals else None
 
     def tick(ctx: _Ctx) -> int:
         s = ctx.s
@@ -1686,7 +1707,8 @@ def _action(prog: Program, c: NodeRule) -> Tick:
             for fl, h in conflicts:  # _halt_running, inlined: halt before start
                 if s[fl]:
                     h(ctx)
-            if rivals:  # rule 'Exclusive resources', once the competing branches are halted
+            # rule 'Exclusive resources', once the competing branches are halted
+            if rival_runs is not None and rival_runs(s):
                 _exclusive_check(ctx, rivals)
         st = run(ctx)
         if flag is not None:  # finish(st, ctx), inlined (the hot path)
