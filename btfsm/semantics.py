@@ -226,9 +226,10 @@ def rule(*types: "type[Node]", slots: "Optional[Callable[[Program, _N], None]]" 
 class NodeRule:
     """What a node's rule is compiled from: ``node``; ``kids``, the tick functions of its
     children; ``finish(status, ctx)``, which every tick function returns through (it keeps
-    the running flag and records the status); ``where`` (``tree.NAME``); ``flag``, its
-    running-flag slot or None; ``info``, the compile-time facts of the layout (memory
-    slots, children's flags and halts)."""
+    the running flag and records the status; the hottest rules inline it, with ``evs``, the
+    status events it records); ``where`` (``tree.NAME``); ``flag``, its running-flag slot
+    or None; ``info``, the compile-time facts of the layout (memory slots, children's flags
+    and halts)."""
 
     __slots__ = ("info", "node", "name", "where", "kids", "flag", "finish", "evs")
 
@@ -1526,16 +1527,8 @@ _STATUS_TABLES = {
 def _status_map(prog: Program, c: NodeRule) -> Tick:
     """Rules 'Inverter', 'ForceSuccess', 'ForceFailure', 'KeepRunningUntilFailure' and
     'FailureIsRunning' (section 3): the child's status through the type's table."""
-    child, flag, evs, table = c.kids[0], c.flag, c.evs, _STATUS_TABLES[type(c.node)]
-
-    def tick(ctx: _Ctx) -> int:
-        st = table[child(ctx)]
-        if flag is not None:  # finish(st, ctx), inlined (the hot path)
-            ctx.s[flag] = 1 if st == RUNNING else 0
-        if ctx.rec is not None:
-            ctx.rec.append(evs[st])
-        return st
-    return tick
+    child, finish, table = c.kids[0], c.finish, _STATUS_TABLES[type(c.node)]
+    return lambda ctx: finish(table[child(ctx)], ctx)
 
 
 rule(KeepRunningUntilFailure, FailureIsRunning, can_run=_always)(_status_map)  # they make RUNNING themselves
