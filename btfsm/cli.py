@@ -231,6 +231,15 @@ def _args_check(sp):
     _args_response(sp, required=False)
     sp.add_argument("--within", type=finite_float(0, None), metavar="S", default=None,
                     help="with --trigger/--response: the bound in seconds (property 'response')")
+    _args_timed(sp)
+
+
+def _args_timed(sp):
+    sp.add_argument("--timed", action="store_true",
+                    help="first give every primitive the bind table drives a duration derived from the scene "
+                         "(--scene, else the model's own scene); docs/verification.md 2.1")
+    sp.add_argument("--scene", metavar="FILE", type=input_file, default=None,
+                    help="with --timed: the scene file (docs/cell.md) to derive the durations from")
 
 
 def _args_response(sp, required):
@@ -248,6 +257,7 @@ def _args_bound(sp):
     sp.add_argument("--within", type=finite_float(0, None), default=None, metavar="S",
                     help="also the worst first late response: over runs that answered every earlier trigger within S "
                          "seconds (an event trigger whose minimum interval exceeds S); -o then writes that run")
+    _args_timed(sp)
     _args_json(sp, "the figures")
     _args_max_states(sp)
     _args_budgets(sp)

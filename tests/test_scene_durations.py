@@ -1,0 +1,121 @@
+"""Durations of a user's scene (issue 21: "a user's scene gets derived durations and a
+``response`` verdict through a documented command"): ``btfsm check MODEL --timed
+[--scene S]`` and ``btfsm bound MODEL --timed`` give every primitive the scene's bind
+table drives a duration derived from the scene (``btfsm.sim.durations.derive_scene``).
+
+The shipped two-area and machine-tending scenes get finite worst cases; the derived
+durations contain every run the cell makes (runs of the timed model in the scene, each
+run's length measured, the runtime refusing any answer outside a declared duration); a
+wait the scene cannot bound is named, and a duration the model declares is kept.
+"""
+from __future__ import annotations
+
+import dataclasses
+import json
+from pathlib import Path
+
+import pytest
+
+from btfsm.cli import main
+from btfsm.files import load_data, load_model
+from btfsm.sim.durations import derive_scene, measure_scene, timed_in_scene
+from btfsm.sim.scene import load_scene, scene_from_data
+from btfsm.timing import seconds_to_ticks
+
+ROOT = Path(__file__).resolve().parents[1]
+SCENES = ROOT / "models" / "scenes"
+MT_MODEL = str(ROOT / "models" / "examples" / "machine_tending.yaml")
+CYCLE = "in_machine == 1 and not machined and held == 'none'"  # a loaded part waits for its cycle
+
+
+@pytest.mark.parametrize("scene_file", ["two_area.yaml", "machine_tending.yaml"])
+def test_every_primitive_that_can_run_gets_a_finite_derived_duration(scene_file):
+    scene = load_scene(SCENES / scene_file)
+    model = load_model(scene.model)
+    table = derive_scene(model, scene)
+    running = {s.index for s in model.program.sites if any(o[0] == 0 for o in s.outcomes)}
+    assert set(table) == running  # every site that can answer RUNNING, and only those
+    for d in table.values():
+        assert d.source == "derived" and d.duration is not None and 0 <= d.duration[0] <= d.duration[1] < 10, d
+
+
+def test_two_area_reach_holds_with_a_finite_worst_case(capsys):
+    """A reported part is grasped (or the job is done) within 20 s: worst case 16.4 s."""
+    argv = ["check", "two-area", "--timed", "--property", "response", "--trigger", "event:arrive",
+            "--response", "arm.state == 'grasp_in' or placed == 3", "--within", "20"]
+    assert main(argv) == 0
+    out = capsys.readouterr().out
+    assert "arm.grasp_in                 [0, 0.211] s  grip(wait=True): grip waits for a part: a part sensor at_end" in out
+    assert "response  holds" in out
+    assert main(argv + ["--json"]) == 0
+    cap = capsys.readouterr()
+    info = json.loads(cap.out)["properties"][0]["info"]["responses"]["cli"]
+    assert info["worst_seconds"] == 16.4 and not info["unbounded"]
+    assert "durations derived from the scene" in cap.err  # the table goes to stderr with --json
+    assert main(argv[:-1] + ["16"]) == 1  # and 16 s is too short: a counterexample
+    assert "the response can take 16.4 s > 16 s" in capsys.readouterr().out
+
+
+def test_machine_tending_cycle_bound_and_its_counterexample(capsys, tmp_path):
+    """A loaded part is machined within 12.9 s (retreat, door 1.5 s, cycle 6 s): ``bound``
+    prints it; ``check --within 12`` fails with a counterexample that replays."""
+    assert main(["bound", MT_MODEL, "--timed", "--trigger", CYCLE, "--response", "machined"]) == 0
+    out = capsys.readouterr().out
+    assert "run_cycle                  [5.9, 6.011] s  wait(seconds=6.0): waits 6 s" in out
+    assert "worst case: 129 ticks = 12.9 s" in out
+    assert main(["check", MT_MODEL, "--timed", "--scene", str(SCENES / "machine_tending.yaml"), "--property",
+                 "response", "--trigger", CYCLE, "--response", "machined", "--within", "12",
+                 "--counterexample-dir", str(tmp_path)]) == 1
+    assert "the response can take 12.9 s > 12 s" in capsys.readouterr().out
+    (ce,) = tmp_path.glob("*.json")
+    # the counterexample is a run of the timed model (the durations are the derived ones)
+    timed = timed_in_scene(load_model(MT_MODEL), load_scene(SCENES / "machine_tending.yaml"))
+    from btfsm.verify.counterexample import replay_counterexample
+
+    ok, text = replay_counterexample(str(ce), timed)
+    assert ok, text
+
+
+@pytest.mark.parametrize("scene_file,seeds", [("two_area.yaml", (0, 1)), ("machine_tending.yaml", (0, 1))])
+def test_derived_durations_contain_every_run_of_the_cell(scene_file, seeds):
+    """The timed model runs in the scene: the runtime refuses no answer, and every run of
+    every site (ticks from its start to its answer) lies within the derived maximum."""
+    scene = load_scene(SCENES / scene_file)
+    model = load_model(scene.model)
+    table = derive_scene(model, scene)
+    longest, problems = measure_scene(timed_in_scene(model, scene, (), table), scene, seeds)
+    assert problems == []
+    assert set(table) <= set(longest)  # every timed site ran: the comparison is not vacuous
+    rate = model.tick_rate
+    for i, d in table.items():
+        secs, (lo, hi) = longest[i], d.duration
+        assert secs <= seconds_to_ticks(hi, rate) / rate, (table[i].label, secs, hi)
+
+
+def test_a_wait_the_scene_cannot_bound_is_named_and_a_declared_duration_is_kept(capsys):
+    """Without the sensor nothing says when a part comes under the cup: the grasp is
+    unbounded (named, with what to do), so is the worst case; a duration the model
+    declares on the state is kept and bounds it again."""
+    data = load_data(str(SCENES / "two_area.yaml"))
+    del data["sensors"]
+    scene = scene_from_data(data, "no-sensor")
+    model = load_model("two-area")
+    table = {d.label: d for d in derive_scene(model, scene).values()}
+    grasp = table["arm.grasp_in"]
+    assert grasp.source == "unbounded" and grasp.duration is None
+    assert "no part rests or is reported arriving at (-0.43, 0.5)" in grasp.how
+    arm = model.fsm("arm")
+    states = tuple(dataclasses.replace(s, duration=(0.0, 0.5)) if s.id == "grasp_in" else s for s in arm.states)
+    declared = dataclasses.replace(model, fsms=(dataclasses.replace(arm, states=states),))
+    table = {d.label: d for d in derive_scene(declared, scene).values()}
+    assert table["arm.grasp_in"].source == "declared" and table["arm.grasp_in"].duration == (0.0, 0.5)
+    assert timed_in_scene(declared, scene).fsm("arm").states[4].duration == (0.0, 0.5)
+
+
+def test_bad_timed_usage_exits_2(capsys):
+    assert main(["check", "two-area", "--scene", str(SCENES / "two_area.yaml")]) == 2
+    assert "--scene goes with --timed" in capsys.readouterr().err
+    assert main(["bound", "ariac-preemptive", "--timed", "--scene", str(SCENES / "ariac.yaml"), "--trigger",
+                 "event:arrive", "--response", "arm.goal == 'none'"]) == 2
+    err = capsys.readouterr().err
+    assert "Python binding" in err and "Traceback" not in err
