@@ -331,6 +331,9 @@ def _args_sweep(sp):
     sp.add_argument("--out", default="out/sweep", type=output_dir,
                     help="folder for sweep.csv, sweep.parquet, the figure and the finished trials (cache/); "
                          "a re-run with the same --out reuses finished trials")
+    sp.add_argument("--limit-line", action="store_true",
+                    help="also prove the limit belt speed of each variant (the fastest for which 'reach' holds, "
+                         "by bisection over 0.005 m/s steps up to the fastest --belt-speed; a few minutes) and draw it")
     sp.add_argument("--quiet", action="store_true", help="no progress bar")
 
 

@@ -103,6 +103,9 @@ def _check_partitioned(args, props) -> int:
         if getattr(args, flag, None) is not None:
             raise UsageError(f"--{flag.replace('_', '-')} does not go with --scheduler (the partitioned check has no "
                              "budgets, no counterexample paths and no response properties)")
+    if getattr(args, "timed", False) or getattr(args, "scene", None):
+        raise UsageError("--timed and --scene do not go with --scheduler (the partitioned check has no response "
+                         "properties)")
     local = re.fullmatch(r"local(?::([0-9]+))?", args.scheduler)
     if local is None and not re.fullmatch(r"(tcp|tls|inproc)://[^\s]+", args.scheduler):
         raise UsageError(f"--scheduler: expected tcp://HOST:PORT or local:N, got {args.scheduler!r}")
