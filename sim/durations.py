@@ -807,13 +807,15 @@ def measure_scene(model, scene, seeds=(0,)) -> tuple:
     return longest, problems
 
 
-def print_scene_table(model, scene, table, file=None) -> None:
-    """The derived durations, one line per site; the unbounded ones say why."""
+def print_scene_table(model, scene, table, file=None, measured: "dict | None" = None) -> None:
+    """The derived durations, one line per site; the unbounded ones say why; ``measured``:
+    ``{site index: seconds}`` (``measure_scene``), printed beside them."""
     print(f"{model.name} in scene {scene.name}: durations derived from the scene (context-free, per call site)", file=file)
-    for d in table.values():
+    for i, d in table.items():
         iv = "unbounded" if d.duration is None else f"[{d.duration[0]:g}, {d.duration[1]:g}] s"
         tag = "" if d.source == "derived" else f" ({d.source})"
-        print(f"  {d.label:24s} {iv:>16s}{tag}  {d.call}: {d.how}", file=file)
+        meas = "" if measured is None else f" {('-' if i not in measured else format(measured[i], '.1f')):>5s}"
+        print(f"  {d.label:24s} {iv:>16s}{meas}{tag}  {d.call}: {d.how}", file=file)
 
 
 def scene_main(argv) -> int:
@@ -833,6 +835,8 @@ def scene_main(argv) -> int:
     p.add_argument("--trigger")
     p.add_argument("--response")
     p.add_argument("--within", type=float)
+    p.add_argument("--trials", type=int, default=2, help="runs of the timed model in the scene (seeds 0..N-1) whose "
+                   "longest run per site is printed beside the derived bound (0: none)")
     args = p.parse_args(argv)
     try:
         scene = load_scene(args.scene)
@@ -851,7 +855,14 @@ def scene_main(argv) -> int:
     except (ModelError, OSError) as exc:
         print(f"btfsm.sim.durations: {exc}", file=sys.stderr)
         return 2
-    print_scene_table(model, scene, table)
+    measured = None
+    if args.trials > 0:
+        measured, problems = measure_scene(timed_in_scene(model, scene, (), table), scene, range(args.trials))
+        for problem in problems:
+            print(f"measured: {problem}")
+        print(f"(after the bound: the longest run in {args.trials} run(s) of the timed model in the scene, s; a run "
+              "answers on the first tick at or after its bound, docs/semantics.md 6.1)")
+    print_scene_table(model, scene, table, measured=measured)
     if not timed.responses:
         print("no requirement: give --trigger, --response and --within (or declare responses: in the model)")
         return 0
