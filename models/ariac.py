@@ -328,13 +328,14 @@ def timed(model: Model, durations: str = "derived", *, timing: "dict | None" = N
     ``reach`` in seconds (dt*)."""
     import dataclasses
 
-    from btfsm.positions import split_by_entry, split_by_goal
+    from btfsm.positions import split_by_entry, split_by_goal, split_history
 
     f = model.fsms[0]
     if durations == "derived":
         t = derived_timing() if timing is None else timing
         table = {s: {u: tuple(iv) for u, iv in rows.items()} for s, rows in t["table"].items()}
-        model = split_by_entry(split_by_goal(model, f.name, t["classes"]), f.name, table)
+        split = split_history(split_by_goal(model, f.name, t["classes"]), f.name, t["history"])
+        model = split_by_entry(split, f.name, table)
         how = "derived from the scene per goal class and entry (models/ariac_timing.json)"
     elif durations == "measured":
         states = tuple(dataclasses.replace(s, duration=(0.0, ARM_DURATIONS[s.id])) if s.id in ARM_DURATIONS else s

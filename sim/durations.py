@@ -3,7 +3,7 @@ and measured in trials as a check.
 
 ``derive(model)`` derives, for every state of the arm FSM that moves the arm, the slowest
 run from the scene's geometry and the arm's motion profiles, per goal class and per
-entry (the position abstraction of ``btfsm.positions``; ``Timing``, docs/verification.md
+entry, two states deep (the position abstraction of ``btfsm.positions``; ``Timing``, docs/verification.md
 2.1); ``btfsm.models.ariac.timed`` declares them (``models/ariac_timing.json``).
 
 ``measure(specs)`` runs trials of the experiment (``btfsm.sim.trial.run_trial``) and records,
@@ -114,11 +114,15 @@ def main(argv=None) -> int:
     slowest = timing.slowest()
     specs = [TrialSpec(v, k) for v in VARIANTS for k in range(1, args.trials + 1)]
     maxima = measure(specs, args.workers) if specs else {}
+    from btfsm.positions import base_state
+
     copies: dict = {}
-    for c in timing.table:
-        copies[c.split("#")[0].split("@")[0]] = copies.get(c.split("#")[0].split("@")[0], 0) + 1
-    print(f"derived from the scene: {len(timing.table)} timed copies of {len(slowest)} states; measured: "
-          f"{len(specs)} trial(s)")
+    split = next(f for f in timing.apply(ariac.preemptive()).fsms if f.name == timing.fsm)
+    for st in split.states:
+        if st.duration is not None:
+            copies[base_state(st.id)] = copies.get(base_state(st.id), 0) + 1
+    print(f"derived from the scene: {sum(copies.values())} timed copies of {len(slowest)} states "
+          f"({len(split.states)} states in the split FSM); measured: {len(specs)} trial(s)")
     print(f"{'state':22s} {'copies':>6s} {'derived s':>14s} {'measured s':>10s} {'was declared':>12s}")
     for state in sorted(set(slowest) | set(maxima)):
         n = maxima.get(state)
@@ -249,26 +253,31 @@ class Timing:
     """The derived position abstraction of a kitting model's arm FSM.
 
     ``classes``: ``{state: {class: goals}}``, the states whose runs go to different
-    targets for different goals (``btfsm.positions.split_by_goal``); ``table``: ``{copy:
-    {entry: (min, max)}}`` for the copies of the states that move the arm
-    (``split_by_entry``); ``where``: ``{copy: sorted poses}``, where the arm can be when
+    targets for different goals (``btfsm.positions.split_by_goal``); ``history``: the
+    states that move the arm, each split into one copy per entry (``split_history``);
+    ``table``: ``{copy s@u: {entry copy u@w: (min, max)}}`` for those copies, split again
+    by the copy they are entered from (``split_by_entry``: two states of history);
+    ``where``: ``{state: sorted poses}``, where the arm can be when
     a run of the copy starts (the fixed point). Poses: ``home``, ``hub:A`` (area A's
     approach pose), ``above:A:G`` / ``contact:A:G`` / ``lifted:A:G`` (above, at, or lifted
     from the target of goal G at A; G ``*``: any target there, after the gripper let go)."""
 
-    def __init__(self, fsm, classes, table, where):
+    def __init__(self, fsm, classes, table, where, history=()):
         self.fsm, self.classes, self.table, self.where = fsm, classes, table, where
+        self.history = list(history)
 
     def to_data(self) -> dict:
-        """The JSON form (``models/ariac_timing.json``): classes, table and poses."""
+        """The JSON form (``models/ariac_timing.json``): classes, history, table and poses."""
         return {"fsm": self.fsm, "classes": {s: {c: list(g) for c, g in cl.items()} for s, cl in self.classes.items()},
+                "history": self.history,
                 "table": {s: {u: list(iv) for u, iv in rows.items()} for s, rows in self.table.items()},
                 "where": self.where}
 
     def apply(self, model):
-        from btfsm.positions import split_by_entry, split_by_goal
+        from btfsm.positions import split_by_entry, split_by_goal, split_history
 
-        return split_by_entry(split_by_goal(model, self.fsm, self.classes), self.fsm, self.table)
+        split = split_history(split_by_goal(model, self.fsm, self.classes), self.fsm, self.history)
+        return split_by_entry(split, self.fsm, self.table)
 
     def slowest(self) -> dict:
         """{state: the slowest derived run over its copies and entries} (for the table)."""
@@ -283,7 +292,9 @@ class Timing:
 
 def derive(model, scene=None) -> Timing:
     """The position abstraction of a kitting model's arm FSM with each state's duration
-    derived from the scene, per goal class and per entry (docs/verification.md 2.1).
+    derived from the scene, per goal class and per entry, two states deep: a copy's
+    duration depends on the copy it was entered from, and on the state that one was
+    entered from (docs/verification.md 2.1).
 
     A pose is symbolic and relational: ``above:bins:pick_bins`` is above *the* part the
     pick goes for, so the grasp from there descends ``clearance`` and nothing else, while
@@ -293,7 +304,7 @@ def derive(model, scene=None) -> Timing:
     of the copy itself restarts on its own path toward the same target, which is no
     farther. The slowest run is the longest move from those poses (``Derivation``);
     every declared minimum is 0 (a restarted run may start next to its target)."""
-    from btfsm.positions import entries_of, split_by_entry, split_by_goal
+    from btfsm.positions import entries_of, split_by_goal, split_history
 
     scene, binding = _kitting(model, scene)
     d = binding.d
@@ -451,8 +462,8 @@ def derive(model, scene=None) -> Timing:
     # history: a copy s@u's runs start where u's own runs, from u's entries, left the arm)
     entries = entries_of(f)
     timed_states = [s for s in entries if kind(base[s]) != "instant"]
-    dummy = {s: {u: (0.0, float(k)) for k, u in enumerate(entries[s])} for s in timed_states}
-    f2 = next(x for x in split_by_entry(split_by_goal(model, d.fsm, classes), d.fsm, dummy).fsms if x.name == d.fsm)
+    f2 = next(x for x in split_history(split_by_goal(model, d.fsm, classes), d.fsm, timed_states).fsms
+              if x.name == d.fsm)
     for s2 in f2.states:
         b1 = s2.id.split("@", 1)[0]
         base[s2.id] = base[b1]
@@ -474,22 +485,21 @@ def derive(model, scene=None) -> Timing:
     else:
         raise RuntimeError("the position fixed point did not converge")
 
+    # 4. a copy's duration by its entry in that split: two states of history (the copy of
+    # s entered from u@w starts where u's runs from w's ends left the arm)
     table: dict = {}
     where: dict = {}
     for s2, ent in entries2.items():
         if kind(base[s2]) == "instant":
             continue
         s1 = s2.split("@", 1)[0]
-        starts: set = set()
         for u, (direct, goals) in ent.items():
-            starts |= {("home",)} if not u else leave(u, at[u], direct, goals)
-        hi = max((run(s1, g, p)[0] for g in goals_of[s1] for p in starts), default=0.0)
-        pred = s2.split("@", 1)[1] if "@" in s2 else next(iter(entries[s1]))
-        pred = "" if pred == "start" else pred
-        table.setdefault(s1, {})[pred] = (0.0, round(hi + geo.dt + 1e-3, 3))
-        where.setdefault(s1, set()).update(starts)
+            starts = {("home",)} if not u else leave(u, at[u], direct, goals)
+            hi = max((run(s1, g, p)[0] for g in goals_of[s1] for p in starts), default=0.0)
+            table.setdefault(s2, {})[u] = (0.0, round(hi + geo.dt + 1e-3, 3))
+            where.setdefault(s1, set()).update(starts)
     where = {s: sorted(":".join("*" if v is None else str(v) for v in p) for p in ps) for s, ps in where.items()}
-    return Timing(d.fsm, classes, table, where)
+    return Timing(d.fsm, classes, table, where, history=sorted(timed_states))
 
 
 class Derived(NamedTuple):
