@@ -43,7 +43,7 @@ def cli_check(args) -> int:
         from btfsm.html import require_dot
 
         require_dot()
-    model = _with_response(_load(args), args)
+    model = _with_response(_timed(_load(args), args), args)
     if getattr(args, "trigger", None) and props and "response" not in props:
         props.append("response")
     progress = ExplorationProgress()
@@ -103,6 +103,9 @@ def _check_partitioned(args, props) -> int:
         if getattr(args, flag, None) is not None:
             raise UsageError(f"--{flag.replace('_', '-')} does not go with --scheduler (the partitioned check has no "
                              "budgets, no counterexample paths and no response properties)")
+    if getattr(args, "timed", False) or getattr(args, "scene", None):
+        raise UsageError("--timed and --scene do not go with --scheduler (the partitioned check has no response "
+                         "properties)")
     local = re.fullmatch(r"local(?::([0-9]+))?", args.scheduler)
     if local is None and not re.fullmatch(r"(tcp|tls|inproc)://[^\s]+", args.scheduler):
         raise UsageError(f"--scheduler: expected tcp://HOST:PORT or local:N, got {args.scheduler!r}")
@@ -159,6 +162,30 @@ def _check_partitioned(args, props) -> int:
     return 1 if any(v is False for v in out["results"].values()) else 0
 
 
+def _timed(model, args):
+    """``--timed``: ``model`` with every primitive its scene's bind table drives given a
+    duration derived from the scene (``btfsm.sim.durations.derive_scene``); the table is
+    printed (to stderr with --json)."""
+    from btfsm.errors import UsageError
+
+    if not getattr(args, "timed", False):
+        if getattr(args, "scene", None):
+            raise UsageError("--scene goes with --timed (durations derived from the scene)")
+        return model
+    from btfsm.sim.durations import derive_scene, print_scene_table, timed_in_scene
+    from btfsm.sim.scene import load_scene
+    from btfsm.sim.scene_trial import scene_for
+
+    path = args.scene or scene_for(model, args.model)
+    if path is None:
+        raise UsageError(f"--timed: no scene for {model.name} (MODEL.scene.yaml beside it, or a shipped one named "
+                         "after it): give --scene FILE")
+    scene = load_scene(path)
+    table = derive_scene(model, scene)
+    print_scene_table(model, scene, table, file=sys.stderr if getattr(args, "json", False) else sys.stdout)
+    return timed_in_scene(model, scene, (), table)
+
+
 def _with_response(model, args):
     """The model plus the requirement given by ``--trigger``/``--response``/``--within`` (named 'cli')."""
     import dataclasses
@@ -191,7 +218,7 @@ def cli_bound(args) -> int:
     from .properties.response import INF, ResponseBound, counterexample
     from .search import DEFAULT_MAX_STATES, DEFAULT_MAX_TRANSITIONS, describe_hit
 
-    model = _load(args)
+    model = _timed(_load(args), args)
     try:
         req = Response("bound", args.trigger, args.response)
     except (ModelError, SyntaxError, ValueError) as exc:
