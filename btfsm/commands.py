@@ -211,6 +211,12 @@ def args_replay(sp) -> None:
     sp.add_argument("--gif", metavar="GIF", type=output_file(".gif"), help="with --cell: write an animation")
     sp.add_argument("--time", type=finite_float(0, cliargs.MAX_SIM_TIME, lo_open=True), default=120.0,
                     help="with --cell: time limit (simulated s)")
+    sp.add_argument("--pace", choices=("paced", "ticks", "phase"),
+                    help="with --cell, the kitting cell: paced (the default for a response counterexample: each FSM "
+                         "state lasts at least as long as there), ticks (the events at the counterexample's ticks, "
+                         "the arm at its own speed), phase (each event when the cell's FSM is at the counterexample's "
+                         "state and ticks into it, its failures forced, the arm at its own speed; prints where the "
+                         "response time went)")
     cliargs.html(sp, "the counterexample or trace (with --cell: and the cell run, with pictures)")
 
 

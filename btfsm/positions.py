@@ -31,7 +31,7 @@ from .errors import ModelError
 from .fsm import Edge
 from .expr import BoolOp, Compare, Const, Expr, Name, Unary, flat
 
-__all__ = ["split_by_entry", "split_by_goal", "base_state", "entries_of", "SEP", "GOAL_SEP"]
+__all__ = ["split_by_entry", "split_history", "split_by_goal", "base_state", "entries_of", "SEP", "GOAL_SEP"]
 
 SEP = "@"  # a copy by entry: "<state>@<predecessor>"
 GOAL_SEP = "#"  # a copy by goal: "<state>#<class>"
@@ -69,15 +69,16 @@ def _groups(table: dict, entries: dict) -> dict:
         if missing:
             raise ModelError(f"positions.{s}", f"no duration for the entry from {', '.join(missing)}")
         groups: dict = {}
-        for u in entries[s]:
-            groups.setdefault(tuple(by_entry[u]), []).append(u)
+        for u in entries[s]:  # None: a copy of its own, keeping the state's duration
+            groups.setdefault(("own", u) if by_entry[u] is None else tuple(by_entry[u]), []).append(u)
         if len(groups) == 1:
             (dur, preds), = groups.items()
-            out[s] = [(s, dur, preds)]
+            out[s] = [(s, None if dur[0] == "own" else dur, preds)]
             continue
         named = []
         for dur, preds in groups.items():
             tag = preds[0] or "start"
+            dur = None if dur[0] == "own" else dur
             named.append((f"{s}{SEP}{tag}" + (f"+{len(preds) - 1}" if len(preds) > 1 else ""), dur, preds))
         out[s] = named
     return out
@@ -137,7 +138,8 @@ def split_by_entry(model, fsm: str, table: dict):
     states = []
     for st in f.states:
         if st.id in groups:
-            states += [dataclasses.replace(st, id=name, duration=dur) for name, dur, _ in groups[st.id]]
+            states += [dataclasses.replace(st, id=name, duration=st.duration if dur is None else dur)
+                       for name, dur, _ in groups[st.id]]
         else:
             states.append(st)
     field = f"{fsm}.state"
@@ -152,6 +154,29 @@ def split_by_entry(model, fsm: str, table: dict):
               for k in ("tree", "environment", "invariants", "workable", "terminal", "responses")}
     fsms = tuple(new_f if x.name == fsm else _rename_any(x, field, copies) for x in model.fsms)
     return dataclasses.replace(model, fsms=fsms, **others)
+
+
+def split_history(model, fsm: str, states):
+    """``model`` with each of ``states`` of FSM ``fsm`` split into one copy per entry
+    (``s@u``, none merged, durations kept): a second ``split_by_entry`` of the result
+    then gives a state's duration by the entry of its predecessor's copy, two states of
+    history (docs/verification.md 2.1).
+
+    >>> from btfsm import FSM, Edge, Model, State, Primitive, running, success
+    >>> f = FSM("arm", states=[State("a", "move"), State("b", "move"), State("c", "move")], initial="a",
+    ...         goals=("g",), edges=[Edge("a", "b", "g"), Edge("c", "b", "g"), Edge("b", "a", "g"), Edge("a", "c", "g")])
+    >>> m = Model("m", primitives=[Primitive("move", (running(), success()))], fsms=[f])
+    >>> [st.id for st in split_history(m, "arm", ["b"]).fsms[0].states]
+    ['a', 'b@a', 'b@c', 'c']
+    """
+    f = next((x for x in model.fsms if x.name == fsm), None)
+    if f is None:
+        raise ModelError("positions", f"no FSM named '{fsm}'")
+    entries = entries_of(f)
+    for s in states:
+        if s not in entries:
+            raise ModelError(f"positions.{s}", "no such state")
+    return split_by_entry(model, fsm, {s: dict.fromkeys(entries[s]) for s in states})
 
 
 def split_by_goal(model, fsm: str, classes: dict):

@@ -329,6 +329,20 @@ def cli_conform(args) -> int:
     return 1 if failed else 0
 
 
+def _limit_lines(variants, hi) -> dict:
+    """``{variant: Limit}``: the proved limit belt speed of each variant, by bisection over
+    0.005 m/s steps up to ``hi`` (``btfsm.sim.speed_limit``; the durations derived at every
+    speed checked)."""
+    from .speed_limit import proved_limit
+
+    out = {}
+    for v in variants:
+        t0 = time.perf_counter()
+        out[v] = lim = proved_limit(v, hi)
+        print(f"limit line: {v}: {len(lim.checks)} response checks in {time.perf_counter() - t0:.1f} s", file=sys.stderr)
+    return out
+
+
 def args_sweep(sp) -> None:
     sp.add_argument("--k", type=int_range(1, 40), action="append", default=[], help="trial index k (seed and dTa(k); repeatable)")
     sp.add_argument("--trials", type=int_range(1, 40), help="this many k values spread evenly over 1..40 (default 1)")
@@ -354,6 +368,9 @@ def args_sweep(sp) -> None:
     sp.add_argument("--out", default="out/sweep", type=output_dir,
                     help="folder for sweep.csv, sweep.parquet, the figure and the finished trials (cache/); "
                          "a re-run with the same --out reuses finished trials")
+    sp.add_argument("--limit-line", action="store_true",
+                    help="also prove the limit belt speed of each variant (the fastest for which 'reach' holds, "
+                         "by bisection over 0.005 m/s steps up to the fastest --belt-speed; a few minutes) and draw it")
     sp.add_argument("--quiet", action="store_true", help="no progress bar")
 
 
@@ -389,7 +406,8 @@ def cli_sweep(args) -> int:
                         progress=not args.quiet)
     wall = time.perf_counter() - t0
     csv_path, pq_path = write_table(specs, results, args.out)
-    png = plot_lost(specs, results, os.path.join(args.out, "lost_vs_belt_speed.png"))
+    limits = _limit_lines(variants, max(args.belt_speed)) if args.limit_line else None
+    png = plot_lost(specs, results, os.path.join(args.out, "lost_vs_belt_speed.png"), limits)
     print(f"{'variant':12s} {'belt m/s':>8s} {'period s':>8s} {'scale':>6s} {'dt* s':>6s} {'trials':>6s} "
           f"{'lost':>5s} {'max reaction s':>14s}")
     groups: dict = {}
@@ -400,6 +418,8 @@ def cli_sweep(args) -> int:
         print(f"{v:12s} {bs:8g} {('dTa(k)' if per is None else f'{per:g}'):>8s} {sc:6g} {pw:6g} {len(rs):6d} "
               f"{sum(r.lost for r in rs):5d} {(f'{max(rts):.1f}' if rts else '-'):>14s}")
     print(f"{len(specs)} trials in {wall:.1f} s wall")
+    for v, lim in (limits or {}).items():
+        print(f"proved limit belt speed, {v}: {lim.describe()}")
     print(f"table: {csv_path}" + (f", {pq_path}" if pq_path else " (Parquet needs pyarrow)"))
     print(f"figure: {png}")
     errors = [r for r in results if r.conformance_error]

@@ -16,7 +16,7 @@ from typing import Any, cast
 
 from .loop import Hooks, run_loop, start
 
-__all__ = ["CellReplay", "triggers_of", "replay_in_cell", "SceneReplay", "scene_triggers", "replay_in_scene",
+__all__ = ["CellReplay", "triggers_of", "phases_of", "replay_in_cell", "SceneReplay", "scene_triggers", "replay_in_scene",
            "replay_for_cli"]
 
 
@@ -48,6 +48,12 @@ class CellReplay:
     mismatch: "str | None" = None  # the runtime refused a tick of the cell: the replay stopped there
     reaches: list = field(default_factory=list)  # (part id, s from its detection to the arm starting its grasp)
     at_ticks: bool = False  # the parts were sent at the counterexample's ticks (the arm unpaced)
+    at_phase: bool = False  # the parts were sent at the counterexample's FSM phase (state, ticks into its visit)
+    too_soon: list = field(default_factory=list)  # (time, FSM state): a phase the cell reached before the spacing allowed
+    forced: list = field(default_factory=list)  # (time, site, outcome): the counterexample's failures forced on the cell
+    responses: list = field(default_factory=list)  # (part id, s from its detection to the next belt grasp's start)
+    grasp_states: set = field(default_factory=set)  # the FSM states that grasp on the belt
+    decomposition: list = field(default_factory=list)  # (state, counterexample s, cell s): see ``decomposition``
 
     def text(self) -> str:
         lines = [f"cell replay of a counterexample on {self.model}: {len(self.triggers)} environment event(s)"]
@@ -57,9 +63,17 @@ class CellReplay:
             if self.diverged:
                 t, want, got = self.diverged
                 lines.append(f"  pacing stopped at tick {t}: the counterexample is at '{want}', the cell at '{got}'")
+        for t, st in self.too_soon:
+            lines.append(f"  t = {t:6.1f} s: the arm FSM is at the counterexample's phase of '{st}' before the "
+                         "arrivals' minimum interval allows a part: not sent")
         for t, st, pid in self.injected:
-            how = "at the counterexample's tick" if self.at_ticks else "as in the counterexample"
+            how = ("at the counterexample's tick" if self.at_ticks else
+                   "at the counterexample's phase: its state, as many ticks into the visit" if self.at_phase else
+                   "as in the counterexample")
             lines.append(f"  t = {t:6.1f} s: belt part {pid} sent to the sensor (arm FSM at '{st}', {how})")
+        for t, site, outcome in self.forced:
+            lines.append(f"  t = {t:6.1f} s: '{site}' answered '{outcome}' as in the counterexample "
+                         "(the gripper let the part go)")
         for t, pid in self.lost:
             lines.append(f"  t = {t:6.1f} s: belt part {pid} reached the end of the belt: LOST")
         if self.frozen:
@@ -70,6 +84,18 @@ class CellReplay:
             lines.append(f"  stopped: {self.mismatch}")
         for pid, r in self.reaches:
             lines.append(f"  belt part {pid} reached (the grasp starts) {r:.1f} s after its detection")
+        reached = {pid for pid, _ in self.reaches}
+        for pid, r in self.responses:
+            if pid not in reached:
+                lines.append(f"  belt part {pid}: the arm starts a belt grasp (the model's response) {r:.1f} s after "
+                             "its detection")
+        if self.decomposition:
+            ce_total = sum(c for _, c, _x in self.decomposition)
+            cell_total = sum(x for _, _c, x in self.decomposition)
+            lines.append(f"  where the response time went, per FSM state (counterexample {ce_total:.1f} s, "
+                         f"cell {cell_total:.1f} s):")
+            for st, c, x in self.decomposition:
+                lines.append(f"    {st:24s} {c:6.1f} s {x:6.1f} s {c - x:+6.1f} s")
         if self.kind == "response":  # a late response loses the belt part in the cell, or it does not
             lines.append("  the cell shows the late response: a belt part was lost" if self.lost else
                          "  the cell does not show the late response: no belt part was lost")
@@ -84,6 +110,57 @@ class CellReplay:
             return False
         _, t0, t1 = self.frozen
         return any(t0 <= t <= t1 for t, _ in self.lost)
+
+
+def _by_state(visits) -> dict:
+    """{state the copies were split from: seconds} summed over ``visits`` [(state, seconds)], in order."""
+    from btfsm.positions import base_state
+
+    out: dict = {}
+    for st, sec in visits:
+        out[base_state(st)] = out.get(base_state(st), 0.0) + sec
+    return out
+
+
+def decomposition(ce: dict, fsm: str, result: "CellReplay", rate: float) -> list:
+    """[(state, counterexample s, cell s)]: where the response time of a ``response``
+    counterexample (from its trigger to the response) and the cell's (from the last part's
+    detection to its next belt grasp) went, per FSM state (copies summed), in the
+    counterexample's order; empty unless both are known."""
+    v = ce.get("violation") or {}
+    last = result.injected[-1][2] if result.injected and len(result.injected) == len(result.triggers) else None
+    cell_r = dict(result.responses).get(last)
+    if v.get("kind") != "response" or v.get("trigger_step") is None or cell_r is None:
+        return []
+    states = fsm_states_of(ce, fsm)
+    k0 = int(v["trigger_step"])  # states[k0]: the state the trigger's tick reached
+    k1 = next((k for k in range(k0, len(states)) if states[k] in result.grasp_states), len(states))
+    ce_side = _by_state((states[k], 1.0 / rate) for k in range(k0, k1))
+    tl = result.timeline
+    end = next(t for t, st, _g in tl if t > 0 and st in result.grasp_states and t >= result.injected[-1][0])
+    start = end - cell_r
+    segs = []
+    for j, (t, st, _g) in enumerate(tl):
+        t1 = tl[j + 1][0] if j + 1 < len(tl) else result.end_time
+        lo, hi = max(t, start), min(t1, end)
+        if hi > lo + 1e-9:
+            segs.append((st, hi - lo))
+    cell_side = _by_state(segs)
+    return [(st, round(ce_side.get(st, 0.0), 2), round(cell_side.get(st, 0.0), 2))
+            for st in list(ce_side) + [x for x in cell_side if x not in ce_side]]
+
+
+def phases_of(ce: dict, fsm: str, event: str = "arrive") -> list:
+    """[(FSM state, ticks the FSM had been in it)] before each step of ``ce`` with ``event``."""
+    states = fsm_states_of(ce, fsm)
+    out = []
+    for i, step in enumerate(ce["steps"]):
+        if event in step.get("env", ()):
+            c = 0
+            while c < i and states[i - c - 1] == states[i]:
+                c += 1
+            out.append((states[i], c))
+    return out
 
 
 def fsm_states_of(ce: dict, fsm: str) -> list:
@@ -149,21 +226,67 @@ class _Pacer:
         return len(self.visits) - 1, 0
 
     def wrap(self, impl):
-        pacer = self
-        tick = impl if callable(impl) else impl.tick
+        return _wrap(impl, self._answer)
 
-        class Paced:
-            halt = getattr(impl, "halt", None)
+    def _answer(self, call, answer):
+        if self.hold():
+            running = [o[2] for o in call.site.outcomes if o[0] == 0]
+            if running and answer not in running:
+                self.held += 1
+                return running[0]
+        return answer
 
-            def tick(self, call):
-                answer = tick(call)
-                if pacer.hold():
-                    running = [o[2] for o in call.site.outcomes if o[0] == 0]
-                    if running and answer not in running:
-                        pacer.held += 1
-                        return running[0]
-                return answer
-        return Paced()
+
+def _wrap(impl, change):
+    """``impl`` (a primitive's implementation) answering ``change(call, its answer)``."""
+    tick = impl if callable(impl) else impl.tick
+
+    class Wrapped:
+        halt = getattr(impl, "halt", None)
+
+        def tick(self, call):
+            return change(call, tick(call))
+    return Wrapped()
+
+
+class _Forced:
+    """The counterexample's failures after its last arrival, forced on the cell: the n-th
+    run of a site that ends after the cell's last part was sent ends as the
+    counterexample's n-th run there did when that was a failure and the cell's answer a
+    success; the gripper lets the part go (a grasp that missed: the vacuum did not hold).
+    The answer comes on the cell's own tick, so it is inside the declared duration."""
+
+    def __init__(self, ce: dict, model):
+        sites = {site.label: site for site in model.program.sites}
+        last = max([i for i, step in enumerate(ce["steps"]) if step.get("env")], default=len(ce["steps"]))
+        self.ends: dict = {}  # site label -> [outcome of each run ending after the last arrival]
+        for step in ce["steps"][last:]:
+            for label, outcome in step.get("outcomes", ()):
+                site = sites.get(label)
+                if site is not None and any(o[2] == outcome and o[0] != 0 for o in site.outcomes):
+                    self.ends.setdefault(label, []).append(outcome)
+        self.seen: dict = {}  # site label -> runs ended in the cell since it became active
+        self.active = False
+        self.forced: list = []  # (time, site label, outcome) forced on the cell
+        self.world: Any = None
+        self.robot: Any = None
+
+    def wrap(self, impl):
+        return _wrap(impl, self._answer)
+
+    def _answer(self, call, answer):
+        label = call.site.label
+        status = {o[2]: o[0] for o in call.site.outcomes}
+        if not self.active or status.get(answer, 0) == 0:
+            return answer
+        n = self.seen.get(label, 0)
+        self.seen[label] = n + 1
+        want = self.ends.get(label, [])
+        if n < len(want) and status.get(want[n]) == 2 and status.get(answer) == 1:
+            self.world.release(self.robot)
+            self.forced.append((round(call.time, 2), label, want[n]))
+            return want[n]
+        return answer
 
 
 class _CellHooks(Hooks):
@@ -172,12 +295,18 @@ class _CellHooks(Hooks):
     the end ``settle`` seconds after the last injected part left the belt."""
 
     def __init__(self, fsm, beam, result, pending, pacer, arrive_at, frames, settle, on_tick=None, binding=None,
-                 arrive_ticks=None):
+                 arrive_ticks=None, phases=None, spacing=0.0):
         self.fsm, self.beam, self.result, self.pending, self.pacer = fsm, beam, result, pending, pacer
         self.arrive_at, self.frames, self.settle, self.on_tick = arrive_at, frames, settle, on_tick
         self.last, self.since, self.done_at = None, 0.0, None
         self.binding, self.arrive_ticks = binding, arrive_ticks
+        self.phases, self.spacing = phases, spacing  # [(state, ticks into its visit)], the arrivals' minimum interval
+        self.in_state = 0  # ticks the FSM has been in its current state (before this tick)
+        self.missed = False  # the cell left the phase's state before its tick: send on the next tick
+        self.refused: "float | None" = None  # the visit (its start time) whose phase came too soon
+        self.forced: "_Forced | None" = None
         self.reached: set = set()
+        self.responded: set = set()
         self.grasps: set = set()  # the arm FSM's states that grasp on the belt
         if binding is not None:
             d = binding.d
@@ -200,7 +329,9 @@ class _CellHooks(Hooks):
                     self._stay(self.last[0], world)
                 self.since = world.time
             self.last = (st, goal)
-        if self.arrive_ticks is not None:  # at the counterexample's ticks, the arm at its own speed
+        if self.phases is not None:  # at the counterexample's phase, the arm at its own speed
+            due = self._phase_due(st, world)
+        elif self.arrive_ticks is not None:  # at the counterexample's ticks, the arm at its own speed
             due = bool(pending) and rt.clock.tick >= self.arrive_ticks[len(result.injected)]
         else:
             due = (pending and (pacer.at(*self.arrive_at[len(result.injected)]) if pacer is not None and pacer.active()
@@ -209,10 +340,34 @@ class _CellHooks(Hooks):
             pid = world.spawn(self.beam)
             result.injected.append((round(world.time, 2), st, pid))
             pending.pop(0)
+            if not pending and self.forced is not None:
+                self.forced.active = True
         if pacer is not None:
             pacer.now = st
 
+    def _phase_due(self, st, world) -> bool:
+        """A part is due: the FSM is in the next phase's state, as many ticks into its visit
+        as in the counterexample (or it has just left that state before that tick), and
+        the arrivals' minimum interval since the last part sent has passed."""
+        result = self.result
+        if not self.pending:
+            return False
+        want, c = self.phases[len(result.injected)]
+        here = st == want and self.in_state >= c
+        left = self.missed and st != want
+        self.missed = st == want and self.in_state < c
+        if not (here or left):
+            return False
+        if result.injected and world.time - result.injected[-1][0] < self.spacing - 1e-9:
+            if self.refused != self.since:  # once per visit
+                self.refused = self.since
+                result.too_soon.append((round(world.time, 2), want))
+            return False
+        return True
+
     def after(self, rt, world, step, before) -> None:
+        st_now = rt.fsm_state(self.fsm)[0]
+        self.in_state = self.in_state + 1 if self.last is not None and st_now == self.last[0] else 0
         if self.pacer is not None:
             self.pacer.after(rt.fsm_state(self.fsm)[0])
         b = self.binding
@@ -222,6 +377,10 @@ class _CellHooks(Hooks):
             if pid in detected and pid not in self.reached:  # the grasp of this belt part starts
                 self.reached.add(pid)
                 self.result.reaches.append((pid, round(world.time - detected[pid] - 1.0 / rt.model.tick_rate, 2)))
+            for pid, t in b.detections:  # the model's response: a belt grasp starts after the detection
+                if pid not in self.responded:
+                    self.responded.add(pid)
+                    self.result.responses.append((pid, round(world.time - t - 1.0 / rt.model.tick_rate, 2)))
         if self.on_tick is not None:
             self.on_tick(rt, world)
         if self.frames is not None and rt.clock.tick % 5 == 0 and len(self.frames) < 2000:
@@ -243,13 +402,24 @@ class _CellHooks(Hooks):
 
 
 def replay_in_cell(model, ce, *, time_limit: float = 120.0, render: "str | None" = None, gif: "str | None" = None,
-                   settle: float = 20.0, pace: "bool | None" = None, on_tick=None) -> CellReplay:
+                   settle: float = 20.0, pace: "bool | str | None" = None, on_tick=None,
+                   lift_spacing: bool = False) -> CellReplay:
     """Run ``model`` in the ARIAC scene, raising the counterexample's events in its FSM states.
 
     ``pace`` (default: for a ``response`` counterexample, whose timing is the point): the
     events happen at the counterexample's ticks and a primitive the cell finishes before
     the counterexample does is held running until the counterexample's tick (the arm waits
-    where its move ended); the cell's arm cannot be made faster than it is. Stops
+    where its move ended); the cell's arm cannot be made faster than it is. ``pace="times"``:
+    the parts are sent at the counterexample's ticks, the arm unpaced; ``pace="phase"``: a
+    part is sent when the cell's FSM is in the state the counterexample had at that
+    arrival, as many ticks into the visit (on the next tick when the cell leaves the state
+    sooner), the arm unpaced; a phase reached before the arrivals' minimum interval allows
+    a part is listed in ``too_soon`` and the part waits for the phase's next visit; the
+    counterexample's failures after its last arrival are forced on the cell (``_Forced``),
+    and ``decomposition`` says where the response time went, per FSM state, there and in
+    the cell. ``lift_spacing``: the model's environment events lose their minimum interval
+    (durations stay enforced), to put the cell in a phase that it reaches sooner than the
+    spacing allows: a diagnosis of the bound, not a run of the model. Stops
     ``settle`` seconds after the last injected part was lost or picked, at ``time_limit``,
     or when the runtime refuses a tick (``mismatch``). ``on_tick(rt, world)``: called after
     each tick (``cell_view.CellView``)."""
@@ -263,9 +433,21 @@ def replay_in_cell(model, ce, *, time_limit: float = 120.0, render: "str | None"
         ce = ce["counterexample"]
     kind = (ce.get("violation") or {}).get("kind", "")
     spec = TrialSpec("preemptive", 1, time_limit=time_limit)
+    if lift_spacing:
+        import dataclasses
+
+        model = dataclasses.replace(model, environment=tuple(
+            dataclasses.replace(e, min_interval=None) if getattr(e, "min_interval", None) else e
+            for e in model.environment))
     pacer = arrive_at = None
-    arrive_ticks = None
-    if pace == "times":  # the counterexample's arrival ticks, the arm unpaced
+    arrive_ticks = phases = None
+    forced = None
+    if pace == "phase":  # the counterexample's FSM phase at each arrival, its failures, the arm unpaced
+        from .binding import Dialect, dialect_of
+
+        phases = phases_of(ce, cast(Dialect, dialect_of(model)).fsm)
+        forced = _Forced(ce, model)
+    elif pace == "times":  # the counterexample's arrival ticks, the arm unpaced
         arrive_ticks = [i - 1 for i, step in enumerate(ce["steps"], start=1) for ev in step.get("env", ()) if ev == "arrive"]
     elif pace if pace is not None else kind == "response":
         from .binding import Dialect, dialect_of
@@ -276,21 +458,31 @@ def replay_in_cell(model, ce, *, time_limit: float = 120.0, render: "str | None"
         arrive_at = [pacer.position(i) for i, step in enumerate(ce["steps"], start=1)
                      for ev in step.get("env", ()) if ev == "arrive"]
         arrive_at = [(v, max(0, c - 1)) for v, c in arrive_at]
-    model, world, binding, rt = build_trial(spec, model, detections=(), wrap=pacer.wrap if pacer else None)
+    model, world, binding, rt = build_trial(spec, model, detections=(),
+                                            wrap=pacer.wrap if pacer else forced.wrap if forced else None)
     d = binding.d
     pending = [t for t in triggers_of(ce, d.fsm) if t[1] == "arrive"]
     result = CellReplay(model.name, list(pending), kind=kind, paced=pacer.ticks if pacer else 0,
-                        at_ticks=arrive_ticks is not None)
+                        at_ticks=arrive_ticks is not None, at_phase=phases is not None)
     frames: "list | None" = [] if gif else None
+    spacing = max([e.min_interval or 0.0 for e in model.environment if getattr(e, "name", None) == "arrive"],
+                  default=0.0)
     hooks = _CellHooks(d.fsm, world.scene.sensors[binding.sensor]["region"], result, pending, pacer, arrive_at,
-                       frames, settle, on_tick, binding, arrive_ticks)
+                       frames, settle, on_tick, binding, arrive_ticks, phases, spacing)
+    if forced is not None:
+        forced.world, forced.robot, hooks.forced = world, binding.robot, forced
     end = run_loop(rt, world, binding, time_limit, hooks, stop_at_mismatch=False)
     hooks.finish(world)
     if end.ended_by is not None:
         result.mismatch = str(end.ended_by)
     if pacer is not None:
         result.held, result.diverged = pacer.held, pacer.diverged
+    if forced is not None:
+        result.forced = forced.forced
     result.end_time = round(world.time, 2)
+    result.grasp_states = set(hooks.grasps)
+    if phases is not None:
+        result.decomposition = decomposition(ce, d.fsm, result, model.tick_rate)
     if render:
         from .scene_render import render_scene
 
@@ -456,7 +648,9 @@ def replay_for_cli(model, ce_json: dict, args, record: bool = False):
             from .cell_view import CellView
 
             view = CellView(model, f"{model.name} in the kitting cell")
-        out = replay_in_cell(model, ce_json, time_limit=args.time, render=args.render, gif=args.gif, on_tick=view)
+        pace = {None: None, "paced": True, "ticks": "times", "phase": "phase"}[args.pace]
+        out = replay_in_cell(model, ce_json, time_limit=args.time, render=args.render, gif=args.gif, on_tick=view,
+                             pace=pace)
     else:
         path = path or scene_for(model, args.model)
         if path is None:
@@ -465,6 +659,8 @@ def replay_for_cli(model, ce_json: dict, args, record: bool = False):
                              "give --scene FILE (docs/cell.md)")
         if args.gif:
             raise UsageError("--gif is not available for a scene replay yet (use --render)")
+        if args.pace:
+            raise UsageError("--pace is for the kitting cell (a scene replay raises each event in its FSM state)")
         scene = load_scene(path)
         if record:
             from .cell_view import CellView

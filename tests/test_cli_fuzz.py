@@ -92,7 +92,7 @@ TABLE = {
                                     "--trace": BAD_OUTPUT_FILES}),
     "replay": ([A_FILE + ".jsonl", TWO], {"--time": _floats(0.0, MAX_SIM_TIME, lo_open=True) + ["0", "-0.0"],
                                           "--render": BAD_OUTPUT_FILES + ["x.jpg", "x.gif", "x"],
-                                          "--gif": BAD_OUTPUT_FILES + ["x.png", "x"]}),
+                                          "--gif": BAD_OUTPUT_FILES + ["x.png", "x"], "--pace": CHOICE_BAD}),
     "check": ([TWO], {"--max-states": _ints(1, MAX_STATES_LIMIT) + ["0"], "--counterexample-dir": BAD_OUTPUT_DIRS,
                       "--engine": CHOICE_BAD, "--property": ["", "\0", "no-such-property", "deadlock-freedom "]}),
     "export": ([TWO, "--format", "smv"], {"--format": CHOICE_BAD, "--output": BAD_OUTPUT_FILES,

@@ -265,7 +265,7 @@ def test_free_run_equals_a_brute_force_walk_count(case):
 
 
 def test_a_violation_inside_a_budget_cut_system_is_reported_and_replays(tmp_path):
-    """Cut at 500,000 of its 1.2 M states, the timed baseline's explored part already holds
+    """Cut at 500,000 of its 1.0 M states, the timed baseline's explored part already holds
     a run of 16 s without the response: a real violation (exit 1) whose counterexample
     replays, although the unexpanded states make the worst case look unbounded."""
     from btfsm.cli import main
