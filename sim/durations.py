@@ -250,7 +250,7 @@ class Timing:
 
     ``classes``: ``{state: {class: goals}}``, the states whose runs go to different
     targets for different goals (``btfsm.positions.split_by_goal``); ``history``: the
-    states that move the arm, each split into one copy per entry (``split_history``);
+    states (instants too), each split into one copy per entry (``split_history``);
     ``table``: ``{copy s@u: {entry copy u@w: (min, max)}}`` for those copies, split again
     by the copy they are entered from (``split_by_entry``: two states of history);
     ``where``: ``{state: sorted poses}``, where the arm can be when
