@@ -230,3 +230,33 @@ def test_pacing_holds_each_visit_at_least_as_long_as_the_counterexample():
     assert (p.v, p.c) == (1, 0) and not p.hold()
     p.after("x")  # the counterexample goes to 'c': pacing stops there
     assert p.diverged == (5, "c", "x") and not p.active() and not p.hold()
+
+
+def test_the_preemptive_worst_first_arrival_in_the_cell():
+    """A first arrival is a scenario the cell can always be put in (no spacing to keep):
+    the preemptive model with the arrival allowed once proves 21.3 s; the cell, sent the
+    part at the witness's phase, reaches it in 7.6 s (docs/verification.md 2.1: where the
+    time went). Issue 21.3's 10 % is far: measured, not met. BTFSM_LONG=1 (about 10 s)."""
+    import dataclasses
+
+    from btfsm.expr import to_text
+    from btfsm.sim.replay import replay_in_cell
+    from btfsm.verify.explore import explore
+    from btfsm.verify.properties.response import ResponseBound, counterexample
+    from btfsm.world import Bool
+
+    if os.environ.get("BTFSM_LONG") != "1":
+        pytest.skip("explores and replays for about 10 s (BTFSM_LONG=1)")
+    m = load_builtin("ariac-preemptive-timed")
+    ev = m.environment[0]
+    once = dataclasses.replace(ev, guard=f"({to_text(ev.guard)}) and not once",
+                               effects=tuple(ev.effects) + (("once", "true"),))
+    m = dataclasses.replace(m, variables=tuple(m.variables) + (Bool("once"),), environment=(once,))
+    rb = ResponseBound(explore(m), m.responses[0])
+    assert rb.worst == 213
+    path, k, loop = rb.worst_witness()
+    r = replay_in_cell(m, counterexample(rb, path, k, loop, "the worst first arrival", 160).to_json(), pace="phase")
+    assert r.at_phase and len(r.injected) == 1 and not r.too_soon and not r.lost and not r.mismatch, r.text()
+    assert dict(r.responses)[r.injected[0][2]] == pytest.approx(7.6, abs=0.3)
+    parts = {st: (c, x) for st, c, x in r.decomposition}
+    assert parts["approach_bins"] == pytest.approx((9.8, 2.2), abs=0.25)
