@@ -237,6 +237,15 @@ def _args_check(sp):
     _args_response(sp, required=False)
     sp.add_argument("--within", type=finite_float(0, None), metavar="S", default=None,
                     help="with --trigger/--response: the bound in seconds (property 'response')")
+    _args_timed(sp)
+
+
+def _args_timed(sp):
+    sp.add_argument("--timed", action="store_true",
+                    help="first give every primitive the bind table drives a duration derived from the scene "
+                         "(--scene, else the model's own scene); docs/verification.md 2.1")
+    sp.add_argument("--scene", metavar="FILE", type=input_file, default=None,
+                    help="with --timed: the scene file (docs/cell.md) to derive the durations from")
 
 
 def _args_response(sp, required):
@@ -254,6 +263,7 @@ def _args_bound(sp):
     sp.add_argument("--within", type=finite_float(0, None), default=None, metavar="S",
                     help="also the worst first late response: over runs that answered every earlier trigger within S "
                          "seconds (an event trigger whose minimum interval exceeds S); -o then writes that run")
+    _args_timed(sp)
     _args_json(sp, "the figures")
     _args_max_states(sp)
     _args_budgets(sp)
@@ -327,6 +337,9 @@ def _args_sweep(sp):
     sp.add_argument("--out", default="out/sweep", type=output_dir,
                     help="folder for sweep.csv, sweep.parquet, the figure and the finished trials (cache/); "
                          "a re-run with the same --out reuses finished trials")
+    sp.add_argument("--limit-line", action="store_true",
+                    help="also prove the limit belt speed of each variant (the fastest for which 'reach' holds, "
+                         "by bisection over 0.005 m/s steps up to the fastest --belt-speed; a few minutes) and draw it")
     sp.add_argument("--quiet", action="store_true", help="no progress bar")
 
 

@@ -25,6 +25,7 @@ from typing import TYPE_CHECKING, Any, Callable, Iterable, Mapping, Sequence
 from .errors import ConformanceError
 from .oracles import Oracle
 from .clock import Clock
+from .semantics import Step
 from .status import Status
 from .trace import TraceWriter, render_answers, tick_record
 
@@ -176,6 +177,60 @@ def _outcome_index(site, answer) -> int:
     raise ConformanceError(f"{site.label}: '{site.primitive}' returned {answer!r}, not an outcome")
 
 
+class _Ask:
+    """A question the step function asked (``ask(*args)``, a method of the runtime's
+    oracle) and what came next after each answer (``_Ask`` or ``_Done``)."""
+
+    __slots__ = ("ask", "args", "next")
+
+    def __init__(self, ask, args):
+        self.ask, self.args, self.next = ask, args, {}
+
+
+class _Done:
+    """What the step function returned after the answers on the path to it."""
+
+    __slots__ = ("state", "status", "events", "violations")
+
+    def __init__(self, step):
+        self.state, self.status, self.violations = step.state, step.status, tuple(step.violations)
+        self.events = None if step.events is None else tuple(step.events)
+
+
+class _Tape:
+    """The oracle a memoized tick gives the step function: it answers the first questions
+    with ``given`` (the answers the live oracle already gave while the memo was followed),
+    asks the live oracle the rest, and logs every question with its answer."""
+
+    __slots__ = ("live", "given", "log", "request")
+
+    def __init__(self, live, given):
+        self.live, self.given, self.log = live, given, []
+        if hasattr(live, "request"):
+            self.request = self._request
+
+    def _ask(self, ask, args):
+        i = len(self.log)
+        answer = self.given[i] if i < len(self.given) else ask(*args)
+        self.log.append((ask, args, answer))
+        return answer
+
+    def env(self, i):
+        return self._ask(self.live.env, (i,))
+
+    def choose(self, i, enabled):
+        return self._ask(self.live.choose, (i, enabled))
+
+    def outcome(self, site):
+        return self._ask(self.live.outcome, (site,))
+
+    def halt(self, site):
+        return self._ask(self.live.halt, (site,))
+
+    def _request(self, fsm_index, goal_index):
+        return self._ask(self.live.request, (fsm_index, goal_index))
+
+
 class Runtime:
     """Runs a model tick by tick.
 
@@ -187,10 +242,13 @@ class Runtime:
     outcome indices) while running and writes the full records by re-running the pure
     step function every ``flush_every`` ticks and on ``close()``: the same file as
     ``"live"``, which builds and writes each record during the tick. ``record=True``
-    makes every step keep its events (``runtime.last.events``, ``runtime.last_record``).
+    makes every step keep its events (``runtime.last.events``); ``runtime.last_record``
+    is the trace record of the last tick when the trace is written live (else None: a
+    record costs a tenth of a cell trial's runtime, and the cell loops read the events).
     """
 
     FLUSH_EVERY = 4096
+    MEMO_STATES = 4096  # states whose ticks are memoized (``_step``); later ones are not
 
     def __init__(self, model, implementations: "Mapping | None" = None, *, fallback=None,
                  trace=None, state=None, record: "bool | None" = None, trace_mode: str = "deferred"):
@@ -213,6 +271,7 @@ class Runtime:
         self.record = (self.trace is not None and not self.deferred) if record is None else record
         self._last_status: dict = {}
         self._oracle = _ImplOracle(self)
+        self._memo: dict = {}  # state -> _Ask or _Done: the ticks taken from that state (``_step``)
         self._answers: list = []
         self._render_from: tuple = (self.state, 0, {})  # state, tick and statuses where rendering resumes
         self.last = None
@@ -238,7 +297,7 @@ class Runtime:
         if self.deferred:
             oracle.log = []
         self._live = self.state
-        step = self.program.step(self.state, oracle, self.record)
+        step = self._step(self.state, oracle)
         if step.state is None:
             v = step.violations[0]
             if v[0] == "timing":  # an answer outside a declared duration (docs/semantics.md section 6.1)
@@ -250,10 +309,9 @@ class Runtime:
             if unknown:
                 raise ConformanceError(f"tick {self.clock.tick}: observed event(s) {sorted(unknown)} not enabled by the model in this state")
         record = None
-        if self.record:
+        if self.record and self.trace is not None and not self.deferred:  # only a live trace needs the record
             record = tick_record(self.program, self.clock, step, self._last_status)
-            if self.trace is not None and not self.deferred:
-                self.trace.write(record)
+            self.trace.write(record)
         if self.deferred:
             self._answers.append((events, oracle.log))
             if len(self._answers) >= self.FLUSH_EVERY:
@@ -264,6 +322,51 @@ class Runtime:
         step.status = _STATUS[step.status]
         self.last_record = record
         return step
+
+    def _step(self, state, oracle):
+        """``Program.step(state, oracle, self.record)``, memoized. The step function is pure
+        in the state and the oracle's answers, and which question it asks next depends only
+        on them: so a tick from a state seen before asks the live oracle the questions that
+        tick asked (the implementations run as they would, in the same order), and while
+        every answer is one seen before, the result is the one recorded then; at the first
+        new answer the step function runs on from the answers given so far. A cell trial
+        starts most ticks from the state of the tick before (an arm that moves, a part on
+        its way); the memo keeps the ticks of the first ``MEMO_STATES`` states."""
+        memo = self._memo
+        node = memo.get(state)
+        given: list = []
+        if node is None:
+            if len(memo) >= self.MEMO_STATES:
+                return self.program.step(state, oracle, self.record)
+        else:
+            while type(node) is _Ask:
+                answer = node.ask(*node.args)
+                given.append(answer)
+                node = node.next.get(answer)
+            if node is not None:
+                return Step(node.state, node.status, None if node.events is None else list(node.events),
+                            list(node.violations))
+        tape = _Tape(oracle, given)
+        step = self.program.step(state, tape, self.record)
+        self._remember(state, tape.log, step)
+        return step
+
+    def _remember(self, state, log, step) -> None:
+        """Put the path of questions and answers ``log`` that led to ``step`` into the memo."""
+        done = _Done(step)
+        if not log:
+            self._memo[state] = done
+            return
+        node = self._memo.get(state)
+        if node is None:
+            node = self._memo[state] = _Ask(log[0][0], log[0][1])
+        for j, (_ask, _args, answer) in enumerate(log):
+            if type(node) is not _Ask:
+                return  # not the path seen before (an oracle whose questions are not repeatable): keep the old
+            nxt = node.next.get(answer)
+            if nxt is None:
+                nxt = node.next[answer] = done if j + 1 == len(log) else _Ask(log[j + 1][0], log[j + 1][1])
+            node = nxt
 
     def run(self, ticks: int, events: "Callable[[Runtime], Iterable[str]] | None" = None):
         """Tick ``ticks`` times; ``events(runtime)`` supplies each tick's observed events."""

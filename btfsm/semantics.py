@@ -34,7 +34,8 @@ from .bt import (Action, Condition, Effects, FailureIsRunning, ForceFailure, For
                  ReactiveFallback, ReactiveSequence, Repeat, Retry, RunOnce, SequenceWithMemory,
                  SkillRequest, SubTree, WhileDoElse, check_arity, check_bounds)
 from .errors import ModelError
-from .expr import BOOL, Scope, Slot, Type, compile_effects, compile_fn
+from .expr import (BOOL, INT, BinOp, Compare, Const, Expr, Name, Scope, Slot, Type, compile_effects, compile_fn,
+                   flat)
 from .profiles import profile
 from .timing import duration_ticks, interval_ticks
 from .status import Status
@@ -101,22 +102,53 @@ class _Late(Exception):
 
 
 class _Ctx:
-    __slots__ = ("s", "oracle", "rec", "fsm_done", "violations", "on_request", "on_merge", "reticks")
+    """The context of one tick (made by ``_context``)."""
 
-    def __init__(self, s: list[int], oracle: Any, rec: Optional[list[Any]]) -> None:
-        self.s, self.oracle = s, oracle
-        self.rec: Any = rec  # the events of the tick, when recorded (list), else None
-        self.fsm_done: dict[int, tuple[int, int, str, Any]] = {}  # FSM -> (goal, reply, requester, params)
-        self.violations: list[Any] = []
-        self.reticks: tuple[tuple[int, ...], ...] = ()  # the states the tickOnce re-ticks of this tick started from (rule 'tickOnce')
-        self.on_request = getattr(oracle, "request", None)  # optional: told which goal an FSM drives
-        self.on_merge = getattr(oracle, "merge", None)  # optional: told where the tick's context is its state
+    __slots__ = ("s", "oracle", "rec", "fsm_done", "violations", "on_request", "on_merge", "reticks")
+    s: list[int]  # the state, changed in place
+    oracle: Any
+    rec: Any  # the events of the tick, when recorded (list), else None
+    fsm_done: dict[int, tuple[int, int, str, Any]]  # FSM -> (goal, reply, requester, params)
+    violations: list[Any]
+    reticks: tuple[tuple[int, ...], ...]  # the states the tickOnce re-ticks of this tick started from (rule 'tickOnce')
+    on_request: Any  # the oracle's optional hook: told which goal an FSM drives
+    on_merge: Any  # the oracle's optional hook: told where the tick's context is its state
 
     def merge_point(self, key: Any) -> None:
         """Tell the oracle (``oracle.merge``, when it has one) that the rest of the tick
         depends only on the state list, the violations, FSM records and re-ticks so far."""
         if self.on_merge is not None:
             self.on_merge(key, self.s, self.violations, self.fsm_done, self.reticks)
+
+
+_new = object.__new__
+
+
+def _context(s: list[int], oracle: Any, rec: Optional[list[Any]], hooks: bool = True) -> _Ctx:
+    """A new tick context (once per tick: filled in here rather than by an ``__init__``,
+    which costs more to call). The oracle's optional hooks are looked up only when the
+    program can call them (``hooks``: it has an FSM or a merge point)."""
+    ctx: _Ctx = _new(_Ctx)
+    ctx.s = s
+    ctx.oracle = oracle
+    ctx.rec = rec
+    ctx.fsm_done = {}
+    ctx.violations = []
+    ctx.reticks = ()
+    ctx.on_request = getattr(oracle, "request", None) if hooks else None
+    ctx.on_merge = getattr(oracle, "merge", None) if hooks else None
+    return ctx
+
+
+def _step(state: Optional[tuple[int, ...]], status: int, events: Any, violations: list[Any]) -> Step:
+    """``Step(state, status, events, violations)``, filled in without calling ``__init__``
+    (once per tick)."""
+    out: Step = _new(Step)
+    out.state = state
+    out.status = status
+    out.events = events
+    out.violations = violations
+    return out
 
 
 class _N:
@@ -194,11 +226,12 @@ def rule(*types: "type[Node]", slots: "Optional[Callable[[Program, _N], None]]" 
 class NodeRule:
     """What a node's rule is compiled from: ``node``; ``kids``, the tick functions of its
     children; ``finish(status, ctx)``, which every tick function returns through (it keeps
-    the running flag and records the status); ``where`` (``tree.NAME``); ``flag``, its
-    running-flag slot or None; ``info``, the compile-time facts of the layout (memory
-    slots, children's flags and halts)."""
+    the running flag and records the status; the hottest rules inline it, with ``evs``, the
+    status events it records); ``where`` (``tree.NAME``); ``flag``, its running-flag slot
+    or None; ``info``, the compile-time facts of the layout (memory slots, children's flags
+    and halts)."""
 
-    __slots__ = ("info", "node", "name", "where", "kids", "flag", "finish")
+    __slots__ = ("info", "node", "name", "where", "kids", "flag", "finish", "evs")
 
     def __init__(self, info: "_N") -> None:
         self.info = info
@@ -206,13 +239,16 @@ class NodeRule:
         self.name, self.where = info.node.name, f"tree.{info.node.name}"
         self.kids: "tuple[Tick, ...]" = tuple(k.tick for k in info.kids)
         self.flag: Any = info.flag  # int, or None for a node that never runs
-        flag, evs = info.flag, tuple(("status", self.name, st) for st in (RUNNING, SUCCESS, FAILURE))
+        # the status events ``finish`` records, by status: preallocated, no tuple per tick (the
+        # hottest rules inline ``finish`` with them)
+        self.evs = evs = tuple(("status", self.name, st) for st in (RUNNING, SUCCESS, FAILURE))
+        flag = info.flag
 
         def finish(st: int, ctx: "_Ctx") -> int:
             if flag is not None:
                 ctx.s[flag] = 1 if st == RUNNING else 0
             if ctx.rec is not None:
-                ctx.rec.append(evs[st])  # preallocated: no tuple per tick
+                ctx.rec.append(evs[st])
             return st
         self.finish = finish
 
@@ -245,11 +281,15 @@ class Program:
         self.wake: Any = self._wake_slot()
         self.merge_points = self._merge_points()
         self.exclusive = self._exclusive_groups()
+        self._crowded_fn = self._crowded()
         self._compile_fsms()
         timers: list[tuple[int, int, int]] = []  # (event index, slot, ticks) of events with a minimum interval
         self.env_timers: Any = timers
         self.env = [self._compile_env(i, ev) for i, ev in enumerate(model.environment)]
         self.env_timers = {i: (slot, wait) for i, slot, wait in self.env_timers}
+        # what environment_phase reads of each entry, in one flat row: (index, name, guard,
+        # effects, options, (timer slot, wait) or None)
+        self._env_rows = tuple((i, *entry, self.env_timers.get(i)) for i, entry in enumerate(self.env))
         self.root: Any = self.nodes[model.tree.name].tick if model.tree is not None else None
         self.invariants = [(name, compile_fn(e, self.scope, f"invariants.{name}", BOOL)) for name, e in model.invariants]
         self._check_responses()
@@ -257,6 +297,7 @@ class Program:
         self.terminal = self._predicate(model.terminal, "terminal") if model.terminal is not None else None
         self.initial = tuple(self._initial)
         self.width = len(self.slots)
+        self._hooks = bool(self.fsm_info or self.merge_points)  # _Ctx: whether the oracle's hooks can be called
 
     # ------------------------------------------------------------------ layout
     def _slot(self, name: str, kind: str, size: int, lo: int = 0, init: int = 0) -> int:
@@ -856,19 +897,6 @@ class Program:
                                     ("violation", me, f"exclusive {res}: starts while {m} runs")))
         return tuple(out)
 
-    def _exclusive_start(self, info: _N, run: Tick) -> Tick:
-        """``run`` preceded by the rule 'Exclusive resources' check when the leaf starts
-        (ticked while idle; a leaf that cannot return RUNNING starts on every tick)."""
-        rivals, flag = self._rivals(info), info.flag
-        if not rivals:
-            return run
-
-        def checked(ctx: _Ctx) -> int:
-            if flag is None or not ctx.s[flag]:
-                _exclusive_check(ctx, rivals)
-            return run(ctx)
-        return checked
-
     def _exclusive_groups(self) -> tuple[Any, ...]:
         """Per resource with two leaves that can run: ((flag, name), ...) checked at the end
         of every tick (rule 'Exclusive resources')."""
@@ -878,6 +906,31 @@ class Program:
             if len(flags) > 1:
                 out.append((res, flags))
         return tuple(out)
+
+    def _crowded(self) -> Optional[Callable[[Any], bool]]:
+        """The end-of-tick test of rule 'Exclusive resources' as one compiled expression:
+        does some resource have running flags that sum above 1 (two of its leaves run)?
+        None without such a resource. Only when it holds does ``_exclusive_end`` look which
+        leaves: one call a tick instead of a loop over flags."""
+        if not self.exclusive:
+            return None
+        return self._flags_above([tuple(flag for flag, _ in flags) for _, flags in self.exclusive], 1)
+
+    def _flags_above(self, groups: "list[tuple[int, ...]]", bound: int) -> Callable[[Any], bool]:
+        """``f(state)``: whether the running flags of some group (slots) sum above ``bound``,
+        compiled into one expression (a flag holds 0 or 1)."""
+        scope, tests = Scope(), []
+        for flags in groups:
+            terms: list[Expr] = []
+            for flag in flags:
+                scope[self.slots[flag].name] = Slot(flag, INT, 0, 1)
+                terms.append(Name(self.slots[flag].name))
+            while len(terms) > 1:  # a balanced sum: nested no deeper than log2 of the flags
+                terms = [BinOp("+", *terms[i:i + 2]) if i + 1 < len(terms) else terms[i]
+                         for i in range(0, len(terms), 2)]
+            tests.append(Compare(">", terms[0], Const(bound)))
+        fn: Callable[[Any], bool] = compile_fn(flat("or", *tests), scope, "resources", BOOL)
+        return fn
 
     def _lint_reactive_sequences(self) -> None:
         self.lints = []
@@ -895,20 +948,23 @@ class Program:
         """One BT tick: environment events, then the tree. Pure in ``state``. ``record``:
         collect the trace events (``Step.events``); a list given here receives them as they
         happen, so an oracle holding it can see the tick so far."""
-        ctx = _Ctx(list(state), oracle, record if isinstance(record, list) else ([] if record else None))
+        ctx = _context(list(state), oracle,
+                   None if record is False else record if isinstance(record, list) else ([] if record else None),
+                   self._hooks)
         s = ctx.s
         blocked = self.environment_phase(s, oracle, ctx.rec)
         if blocked is not None:
-            return Step(None, FAILURE, ctx.rec, [("blocked", blocked)])
+            return _step(None, FAILURE, ctx.rec, [("blocked", blocked)])
+        root, wake, crowded = self.root, self.wake, self._crowded_fn
         try:
-            status = self.root(ctx) if self.root is not None else SUCCESS
-            if self.wake is not None and status == RUNNING and s[self.wake]:
+            status = root(ctx) if root is not None else SUCCESS
+            if wake is not None and status == RUNNING and s[wake]:
                 status = self._reticks(ctx, status)
         except _Late as late:
-            return Step(None, FAILURE, ctx.rec, [("timing", late.site.label, late.text)])
-        if self.exclusive:
+            return _step(None, FAILURE, ctx.rec, [("timing", late.site.label, late.text)])
+        if crowded is not None and crowded(s):  # two leaves of a resource run: which ones
             _exclusive_end(ctx, self.exclusive)
-        return Step(tuple(s), status, ctx.rec, ctx.violations)
+        return _step(tuple(s), status, ctx.rec, ctx.violations)
 
     def _reticks(self, ctx: _Ctx, status: int) -> int:
         """Rule 'tickOnce' (docs/semantics.md 8.1): BT.CPP's ``tickOnce()`` ticks the root
@@ -942,18 +998,16 @@ class Program:
         ``indices`` when given) change the state list ``s`` in place, asking ``oracle``;
         ``rec`` collects env and write events. Returns the name of a choice with no enabled
         option (the tick cannot happen), else None."""
-        timers = self.env_timers
-        env = self.env
+        rows = self._env_rows
         name: str
-        for i in (range(len(env)) if indices is None else indices):
-            name, guard, eff, options = env[i]
+        for i, name, guard, eff, options, timer in (rows if indices is None else [rows[i] for i in indices]):
             if options is not None:  # a choice: exactly one enabled option
                 enabled = [k for k, o in enumerate(options) if o[1] is None or o[1](s)]
                 if not enabled:
                     return name
                 name, _, eff, _ = options[enabled[oracle.choose(i, enabled)]]
-            elif timers and i in timers:  # rule 'Event spacing': enabled once `wait` ticks have passed
-                slot, wait = timers[i]
+            elif timer is not None:  # rule 'Event spacing': enabled once `wait` ticks have passed
+                slot, wait = timer
                 since = s[slot]
                 if since < wait:
                     since = s[slot] = since + 1
@@ -976,12 +1030,12 @@ class Program:
         fi = self.fsm_index[fsm] if isinstance(fsm, str) else fsm
         f = self.fsm_info[fi][0]
         g = f.goals.index(goal) if isinstance(goal, str) else goal
-        ctx = _Ctx(list(state), oracle, [] if record else None)
+        ctx = _context(list(state), oracle, [] if record else None)
         try:
             status = self.fsm_ticks[fi](ctx, g, tuple(params), "<request>")
         except _Late as late:
-            return Step(None, FAILURE, ctx.rec, [("timing", late.site.label, late.text)])
-        return Step(tuple(ctx.s), status, ctx.rec, ctx.violations)
+            return _step(None, FAILURE, ctx.rec, [("timing", late.site.label, late.text)])
+        return _step(tuple(ctx.s), status, ctx.rec, ctx.violations)
 
     def decode(self, state: Any) -> dict[str, Any]:
         """Readable values of a state: variables, FSM states/goals/params, node memory."""
@@ -1217,7 +1271,7 @@ def _round_robin_slots(prog: Program, info: _N) -> None:
 @rule(ReactiveSequence, ReactiveFallback, merge="tells")
 def _reactive(prog: Program, c: NodeRule) -> Tick:
     """Rules 'ReactiveSequence' and 'ReactiveFallback' (docs/semantics.md section 2)."""
-    n, kids, finish = c.node, c.kids, c.finish
+    n, kids, finish, flag, evs = c.node, c.kids, c.finish, c.flag, c.evs
     go_on = SUCCESS if isinstance(n, ReactiveSequence) else FAILURE
     halts = tuple(c.later_halts(i) for i in range(len(kids)))
     pairs = tuple(zip(kids, halts))
@@ -1225,6 +1279,7 @@ def _reactive(prog: Program, c: NodeRule) -> Tick:
         return _merging_reactive(c.name, pairs, go_on, finish)
 
     def tick(ctx: _Ctx) -> int:
+        st = go_on
         for child, hs in pairs:
             st = child(ctx)
             if st != go_on:
@@ -1232,8 +1287,12 @@ def _reactive(prog: Program, c: NodeRule) -> Tick:
                 for fl, h in hs:  # _halt_running, inlined: the hottest loop of a tick
                     if s[fl]:
                         h(ctx)
-                return finish(st, ctx)
-        return finish(go_on, ctx)
+                break
+        if flag is not None:  # finish(st, ctx), inlined (the hot path)
+            ctx.s[flag] = 1 if st == RUNNING else 0
+        if ctx.rec is not None:
+            ctx.rec.append(evs[st])
+        return st
     return tick
 
 
@@ -1255,7 +1314,7 @@ def _merging_reactive(name: str, pairs: "tuple[tuple[Tick, Halts], ...]", go_on:
 @rule(MemorySequence, MemoryFallback, slots=_child_slot, merge="tells")
 def _memory(prog: Program, c: NodeRule) -> Tick:
     """Rules 'MemorySequence' and 'MemoryFallback' (section 2)."""
-    n, info, kids, finish = c.node, c.info, c.kids, c.finish
+    n, info, kids, flag, evs = c.node, c.info, c.kids, c.flag, c.evs
     go_on = SUCCESS if isinstance(n, MemorySequence) else FAILURE
     mem, count = info.mem, len(kids)
     name, merge = c.name, c.name in prog.merge_points
@@ -1263,16 +1322,22 @@ def _memory(prog: Program, c: NodeRule) -> Tick:
     def tick(ctx: _Ctx) -> int:
         s = ctx.s
         i = s[mem]
+        st = go_on
         while i < count:
             if merge and i:
                 ctx.merge_point((name, i))
             st = kids[i](ctx)
             if st != go_on:
                 s[mem] = i if st == RUNNING else 0
-                return finish(st, ctx)
+                break
             i += 1
-        s[mem] = 0
-        return finish(go_on, ctx)
+        else:
+            s[mem] = 0
+        if flag is not None:  # finish(st, ctx), inlined (the hot path)
+            s[flag] = 1 if st == RUNNING else 0
+        if ctx.rec is not None:
+            ctx.rec.append(evs[st])
+        return st
     return tick
 
 
@@ -1607,24 +1672,43 @@ def _effects(prog: Program, c: NodeRule) -> Tick:
 @rule(Condition, can_run=_never)
 def _condition_leaf(prog: Program, c: NodeRule) -> Tick:
     """Rule 'Condition' (section 3)."""
-    n, finish, where = c.node, c.finish, c.where
+    n, evs, where = c.node, c.evs, c.where
     cond = compile_fn(n.expr, prog.scope, f"{where}.expr", BOOL)
-    return lambda ctx: finish(SUCCESS if cond(ctx.s) else FAILURE, ctx)
+
+    def tick(ctx: _Ctx) -> int:
+        st = SUCCESS if cond(ctx.s) else FAILURE
+        if ctx.rec is not None:  # finish(st, ctx), inlined: a condition has no running flag
+            ctx.rec.append(evs[st])
+        return st
+    return tick
 
 
 @rule(Action, can_run=_action_can_run)
 def _action(prog: Program, c: NodeRule) -> Tick:
     """Rule 'Action' (section 3; halt before start: section 4)."""
-    n, info, finish, where, flag = c.node, c.info, c.finish, c.where, c.flag
-    conflicts = prog._conflicts(info)
+    n, info, evs, where, flag = c.node, c.info, c.evs, c.where, c.flag
+    conflicts = prog._conflicts(info)  # () for a leaf that cannot run
     site = prog._site("action", n.name, None, None, n.primitive, n.args, where, n.duration)
     info.node_site = site
-    run = prog._exclusive_start(info, prog._primitive_runner(site))
+    run, rivals = prog._primitive_runner(site), prog._rivals(info)
+    # whether a rival runs, as one compiled expression: most starts find none
+    rival_runs = prog._flags_above([tuple(flag for flag, _, _ in rivals)], 0) if rivals else None
 
     def tick(ctx: _Ctx) -> int:
-        if flag is not None and not ctx.s[flag]:
-            _halt_running(ctx, conflicts)
-        return finish(run(ctx), ctx)
+        s = ctx.s
+        if flag is None or not s[flag]:  # it starts (a leaf that cannot run starts every tick)
+            for fl, h in conflicts:  # _halt_running, inlined: halt before start
+                if s[fl]:
+                    h(ctx)
+            # rule 'Exclusive resources', once the competing branches are halted
+            if rival_runs is not None and rival_runs(s):
+                _exclusive_check(ctx, rivals)
+        st = run(ctx)
+        if flag is not None:  # finish(st, ctx), inlined (the hot path)
+            s[flag] = 1 if st == RUNNING else 0
+        if ctx.rec is not None:
+            ctx.rec.append(evs[st])
+        return st
     return tick
 
 

@@ -313,7 +313,8 @@ def derived_timing() -> dict:
     return json.loads((Path(__file__).resolve().parent / TIMING_FILE).read_text(encoding="utf-8"))
 
 
-def timed(model: Model, durations: str = "derived") -> Model:
+def timed(model: Model, durations: str = "derived", *, timing: "dict | None" = None,
+          window: float = PICK_WINDOW) -> Model:
     """``model`` (an ARIAC variant) with the arm's durations, the arrivals' minimum
     interval and the requirement ``reach``: every detected belt part is reached (the arm
     starts grasping at the conveyor) within dt* = 16 s. Picking it cannot be bounded in this
@@ -322,14 +323,16 @@ def timed(model: Model, durations: str = "derived") -> Model:
     ``durations="derived"``: the arm FSM split by goal class and entry (``btfsm.positions``)
     with every copy's slowest run derived from the scene (``derived_timing``);
     ``"measured"``: one context-free maximum per state, measured in trials
-    (``ARM_DURATIONS``)."""
+    (``ARM_DURATIONS``). ``timing``: another derivation (``Timing.to_data()``, e.g. at
+    another belt speed) instead of ``models/ariac_timing.json``; ``window``: the bound of
+    ``reach`` in seconds (dt*)."""
     import dataclasses
 
     from btfsm.positions import split_by_entry, split_by_goal, split_history
 
     f = model.fsms[0]
     if durations == "derived":
-        t = derived_timing()
+        t = derived_timing() if timing is None else timing
         table = {s: {u: tuple(iv) for u, iv in rows.items()} for s, rows in t["table"].items()}
         split = split_history(split_by_goal(model, f.name, t["classes"]), f.name, t["history"])
         model = split_by_entry(split, f.name, table)
@@ -343,7 +346,7 @@ def timed(model: Model, durations: str = "derived") -> Model:
         raise ValueError(f"durations: 'derived' or 'measured', not {durations!r}")
     env = tuple(dataclasses.replace(cast(EnvEvent, e), min_interval=ARRIVAL_MIN_INTERVAL) for e in model.environment)
     grasp = [s.id for s in model.fsms[0].states if s.id.split("#")[0].split("@")[0] == "grasp_conveyor"]
-    reach = Response("reach", "event:arrive", " or ".join(f"arm.state == '{g}'" for g in grasp), PICK_WINDOW)
+    reach = Response("reach", "event:arrive", " or ".join(f"arm.state == '{g}'" for g in grasp), window)
     return dataclasses.replace(model, name=f"{model.name}-timed", environment=env, responses=(reach,),
                                description=model.description + "; durations " + how)
 

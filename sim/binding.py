@@ -169,6 +169,7 @@ class KittingBinding(Binding):
         if not scene.areas[tray]["slots"]:
             raise ModelError(f"areas.{tray}", "the kitting binding needs a tray with slots", scene.file)
         self.robot, self.bins, self.tray, self.belt, self.sensor = robot, tuple(bins), tray, belt, sensor
+        self._tray_place = Place("AREA", tray)
         self.belt_area = "conveyor"  # the model's name for the belt's area
         self.speed = float(speed_scale)  # the authors' move_to default velocity scaling is 0.5
         self.clearance = float(clearance)
@@ -188,6 +189,9 @@ class KittingBinding(Binding):
         self.n_tray = model.var(self.d.tray_var).hi
         prog = model.program
         self._q_slot = prog.scope["queue"].index
+        # the three variables the abstraction check reads after every tick: (slot, variable)
+        self._checked = tuple((prog.scope[v].index, model.var(v)) for v in (self.d.gripper_var, self.d.tray_var, "queue"))
+        self._answers: dict = {}  # (site index, status) -> the site's outcome name
         self._check_reach()
 
     def _check_reach(self) -> None:
@@ -216,10 +220,16 @@ class KittingBinding(Binding):
         return impls
 
     def _answer(self, call, status: str) -> str:
-        """The name of the site's declared outcome with ``status``."""
-        for _, _, name in (o for o in call.site.outcomes if o[0] == _STATUS[status]):
-            return name
-        raise KeyError(f"{call.site.primitive} declares no {status} outcome")
+        """The name of the site's declared outcome with ``status`` (looked up once per site)."""
+        key = (call.site.index, status)
+        name = self._answers.get(key)
+        if name is None:
+            for _, _, name in (o for o in call.site.outcomes if o[0] == _STATUS[status]):
+                break
+            else:
+                raise KeyError(f"{call.site.primitive} declares no {status} outcome")
+            self._answers[key] = name
+        return name
 
     def _collect(self) -> None:
         ev = self.world.events
@@ -247,7 +257,15 @@ class KittingBinding(Binding):
             pid = self.delivered.pop(0)
             if self.targets.get(self.belt) == pid:
                 del self.targets[self.belt]
-        return self.abstraction_errors(rt.vars, *rt.fsm_state(self.d.fsm))
+        # the usual case first: the three variables agree with the world outright (the full
+        # check below, which reads every variable and the arm's state, says so too)
+        state, d = rt.state, self.d
+        (gs, gv), (ts, tv), (qs, qv) = self._checked
+        g = gv.decode(state[gs])
+        if ((g if d.gripper_var_means_full else not g) == (self.r.holding is not None)
+                and tv.decode(state[ts]) == self.tray_count() and qv.decode(state[qs]) == len(self.delivered)):
+            return []
+        return self.abstraction_errors(rt.vars, *rt.fsm_state(d.fsm))
 
     # ------------------------------------------------------------------ world queries
     def place_of(self, pid: int) -> Place:
@@ -263,7 +281,7 @@ class KittingBinding(Binding):
         return kind == "BELT" or (kind == "AREA" and name in self.bins)
 
     def tray_count(self) -> int:
-        return self.world.count(self.tray)
+        return len(self.world.members.get(self._tray_place, ()))
 
     def free_slots(self) -> list:
         w = self.world

@@ -293,6 +293,20 @@ def cli_conform(args) -> int:
     return 1 if failed else 0
 
 
+def _limit_lines(variants, hi) -> dict:
+    """``{variant: Limit}``: the proved limit belt speed of each variant, by bisection over
+    0.005 m/s steps up to ``hi`` (``btfsm.sim.speed_limit``; the durations derived at every
+    speed checked)."""
+    from .speed_limit import proved_limit
+
+    out = {}
+    for v in variants:
+        t0 = time.perf_counter()
+        out[v] = lim = proved_limit(v, hi)
+        print(f"limit line: {v}: {len(lim.checks)} response checks in {time.perf_counter() - t0:.1f} s", file=sys.stderr)
+    return out
+
+
 def cli_sweep(args) -> int:
     """``btfsm sweep``: the experiment over a grid of trial parameters (``btfsm.sim.sweep``)."""
     from .protocol import VARIANTS
@@ -325,7 +339,8 @@ def cli_sweep(args) -> int:
                         progress=not args.quiet)
     wall = time.perf_counter() - t0
     csv_path, pq_path = write_table(specs, results, args.out)
-    png = plot_lost(specs, results, os.path.join(args.out, "lost_vs_belt_speed.png"))
+    limits = _limit_lines(variants, max(args.belt_speed)) if getattr(args, "limit_line", False) else None
+    png = plot_lost(specs, results, os.path.join(args.out, "lost_vs_belt_speed.png"), limits)
     print(f"{'variant':12s} {'belt m/s':>8s} {'period s':>8s} {'scale':>6s} {'dt* s':>6s} {'trials':>6s} "
           f"{'lost':>5s} {'max reaction s':>14s}")
     groups: dict = {}
@@ -336,6 +351,8 @@ def cli_sweep(args) -> int:
         print(f"{v:12s} {bs:8g} {('dTa(k)' if per is None else f'{per:g}'):>8s} {sc:6g} {pw:6g} {len(rs):6d} "
               f"{sum(r.lost for r in rs):5d} {(f'{max(rts):.1f}' if rts else '-'):>14s}")
     print(f"{len(specs)} trials in {wall:.1f} s wall")
+    for v, lim in (limits or {}).items():
+        print(f"proved limit belt speed, {v}: {lim.describe()}")
     print(f"table: {csv_path}" + (f", {pq_path}" if pq_path else " (Parquet needs pyarrow)"))
     print(f"figure: {png}")
     errors = [r for r in results if r.conformance_error]

@@ -19,20 +19,24 @@ stays for ``timed(model, durations="measured")``.
 
     python -m btfsm.sim.durations [--trials N] [--write models/ariac_timing.json]
 
-``derive_scene(model, scene)`` (a scene with a ``bind`` table): each FSM state bound to a
-library move gets its slowest rest-to-rest run, context-free; other states no duration.
+``derive_scene(model, scene)`` (a scene with a ``bind`` table): every call site (FSM state
+or Action) the table drives that can answer RUNNING gets its slowest run from the scene,
+context-free: moves from the robot's profiles, grips from the gripper and where parts are,
+waits and doors from their seconds; a wait the scene cannot bound is reported as such (the
+model may declare it). ``btfsm check MODEL --timed [--scene S]`` checks the model so timed.
 
     python -m btfsm.sim.durations --scene FILE [MODEL] --trigger T --response R --within S
 """
 from __future__ import annotations
 
 import math
-from typing import cast
+from typing import NamedTuple, cast
 from collections import defaultdict
 
 from btfsm.errors import ModelError
+from btfsm.status import Status
 
-__all__ = ["measure", "declared", "derive", "Derivation", "Timing", "derive_scene", "timed_in_scene", "main"]
+__all__ = ["measure", "declared", "derive", "Derivation", "Timing", "derive_scene", "timed_in_scene", "Derived", "print_scene_table", "measure_scene", "main"]
 
 
 def _visits(spec) -> dict:
@@ -498,14 +502,147 @@ def derive(model, scene=None) -> Timing:
     return Timing(d.fsm, classes, table, where, history=sorted(timed_states))
 
 
+class Derived(NamedTuple):
+    """One call site's duration in a scene: ``label`` (``fsm.state`` or the Action's
+    name), ``call`` (the library primitive it runs), ``duration`` ``(min, max)`` seconds
+    or None (unbounded: the scene gives no bound), ``how`` (where it comes from, or why
+    there is none) and ``source``: ``derived``, ``declared`` (the model's own duration,
+    kept) or ``unbounded``."""
+
+    label: str
+    call: str
+    duration: "tuple | None"
+    how: str
+    source: str
+
+
+_INSTANT = ("release", "detect", "succeed")
+_STILL = ("grip", "release", "gripper", "wait", "detect", "wait_for", "open_door", "close_door", "succeed")
+
+
+def _clip(box, a, b) -> "tuple | None":
+    """(s0, s1): the stretch of segment a->b (arc length from a) inside the box, or None."""
+    (ax, ay), (bx, by) = a, b
+    length = math.hypot(bx - ax, by - ay)
+    t0, t1 = 0.0, 1.0
+    for d, lo, hi, p in ((bx - ax, box[0], box[2], ax), (by - ay, box[1], box[3], ay)):
+        if abs(d) < 1e-12:
+            if not lo <= p <= hi:
+                return None
+            continue
+        u0, u1 = sorted(((lo - p) / d, (hi - p) / d))
+        t0, t1 = max(t0, u0), min(t1, u1)
+    return None if t0 > t1 else (t0 * length, t1 * length)
+
+
+def _start_points(model, scene, calls) -> dict:
+    """``{(fsm, state): set of (x, y) | None}``: where the robot is when a run of the
+    state starts (None: somewhere not known, e.g. where a halted or blocked move stopped).
+    A run starts where the run of the state it came from ended: the frame of a move that
+    succeeded, the start of a run that does not move the robot (a grip, a wait), else
+    not known; the initial state's first run starts at the robot's home, and a state's
+    run may start again where its own last run ended (a new request)."""
+    sites = {(s.fsm, s.state): s for s in model.program.sites if s.kind == "state"}
+    out: dict = {}
+    for f in model.fsms:
+        def call(sid):
+            site = sites.get((f.name, sid))
+            return None if site is None else calls.get(site.index)
+
+        def moves(sid):
+            c = call(sid)
+            return c is None or c[0] not in _STILL  # unbound or custom: may move
+
+        start: dict = {s.id: set() for s in f.states}
+        home = None
+        for s in f.states:
+            c = call(s.id)
+            if c is not None:
+                home = tuple(scene.robots[c[1]]["home"])
+                break
+        start[f.initial] = {home} if home is not None else {None}
+
+        def end(sid):
+            c = call(sid)
+            if c is not None and c[0] in ("move_to", "carry_to"):
+                return {tuple(c[2]["frame"])}
+            return set(start[sid]) if not moves(sid) else {None}
+
+        for _ in range(len(f.states) + 2):
+            changed = False
+            for s in f.states:
+                new = set(start[s.id]) | end(s.id)
+                for e in f.edges:
+                    if e.target != s.id:
+                        continue
+                    if e.direct or e.on != Status.SUCCESS:
+                        new |= set(start[e.source]) if not moves(e.source) else {None}
+                    else:
+                        new |= end(e.source)
+                if new != start[s.id]:
+                    start[s.id], changed = new, True
+            if not changed:
+                break
+        for sid, pts in start.items():
+            out[(f.name, sid)] = pts
+    return out
+
+
+def _part_wait(scene, robot, p, rate) -> tuple:
+    """(seconds, how) until a part is under the tool at p, or (None, why not)."""
+    spec = scene.robots[robot]
+    close = spec["close_time"] if spec["gripper"] == "fingers" else 0.0
+    for name, a in scene.areas.items():
+        r = a["region"]
+        if r[0] <= p[0] <= r[2] and r[1] <= p[1] <= r[3]:
+            return close, f"the part rests in area {name}" + (f"; the fingers close in {close:g} s" if close else "")
+    for sname, sen in scene.sensors.items():
+        if not sen.get("on_enter"):
+            continue
+        for bname, b in scene.belts.items():
+            stretch = _clip(sen["region"], b["from"], b["to"])
+            if stretch is None:
+                continue
+            (ax, ay), (bx, by), length = b["from"], b["to"], b["length"]
+            ux, uy = (bx - ax) / length, (by - ay) / length
+            s_p = (p[0] - ax) * ux + (p[1] - ay) * uy
+            lateral = abs(-(p[0] - ax) * uy + (p[1] - ay) * ux)
+            radius = spec["radius"]
+            stop = length - max(scene.part_types[t] for t in b["part_types"]) if b["end"] == "stop" else length
+            if lateral > radius or s_p - radius > stop or s_p < stretch[0] - radius:
+                continue
+            travel = max(0.0, min(s_p, stop) - stretch[0])
+            secs = travel / b["speed"] + close
+            return secs, (f"a part sensor {sname} reported ('{sen['on_enter']}') rides belt {bname} "
+                          f"{travel:.3f} m to the tool at {b['speed']:g} m/s" + (f", then the fingers close in {close:g} s"
+                                                                                  if close else ""))
+    return None, f"no part rests or is reported arriving at ({p[0]:g}, {p[1]:g})"
+
+
 def derive_scene(model, scene) -> dict:
-    """``{fsm: {state: (0, max) seconds}}`` for the FSM states of a model run in a scene
-    with a ``bind`` table whose call is a library move (``move_to``, ``carry_to``): the
-    slowest rest-to-rest move of the scene's robot to the state's frame from the robot's
-    home or any frame its moves go to (context-free: no position abstraction; the
-    farthest of those points bounds every start on the segments between them). Other
-    states get no duration (a grip that waits for a part, a wait for a sensor, have no
-    bound the geometry gives)."""
+    """``{site index: Derived}``: a duration for every call site of ``model`` (FSM states and
+    Actions) that a scene's ``bind`` table drives and that can answer RUNNING, from the
+    scene (docs/verification.md 2.1). A site whose duration the model declares keeps it.
+
+    * ``move_to``, ``carry_to``: the slowest rest-to-rest move of the robot (its velocity
+      and acceleration limits at the call's speed scale) to the frame from the farthest
+      of its home and the frames its moves go to (a halted move stops on a segment
+      between those points, no farther); ``move_to_part``: to the farthest corner of the
+      area;
+    * ``grip``: the gripper's ``close_time`` (fingers; a vacuum attaches at once); with
+      ``wait``, also until a part is under the tool at the points the robot can be when
+      the run starts (``_start_points``): at once where parts rest (an area), or the belt
+      travel from where a sensor reported the part to the tool. This assumes the model
+      grips only where a part is (its tree's conditions: ``waiting > 0``); a run in which
+      the part does not come is refused by the runtime (the declared maximum is
+      exceeded), so trials test the assumption. Anywhere else: unbounded;
+    * ``wait``: its seconds; ``open_door``/``close_door``: the door's ``open_time``
+      (closing assumes the tool is out of the door: the door waits for it otherwise);
+    * ``wait_for``, custom ``python:`` primitives: unbounded (the scene does not say when
+      a part comes, or what the code does): declare ``duration:`` in the model.
+
+    Every maximum adds one physics step and 1 ms; minimums are 0 (a halted run may
+    restart next to its end), except ``wait``'s (its seconds less one tick)."""
     from .loop import start
     from .scene import Profile
 
@@ -513,35 +650,182 @@ def derive_scene(model, scene) -> dict:
     calls = getattr(binding, "calls", None)
     if calls is None:
         raise ModelError("bind", f"scene {scene.name} binds the model through a Python binding: durations are "
-                         "derived from a bind table's moves (or, for the kitting binding, by derive())", scene.file)
+                         "derived from a bind table's primitives (or, for the kitting binding, by derive())", scene.file)
     prog = model.program
-    moves = {i: c for i, c in calls.items() if c[0] in ("move_to", "carry_to")}
     points: dict = {}
-    for lib, robot, args in moves.values():
-        points.setdefault(robot, {tuple(scene.robots[robot]["home"])}).add(tuple(args["frame"]))
+    for lib, robot, args in calls.values():
+        pts = points.setdefault(robot, {tuple(scene.robots[robot]["home"])})
+        if lib in ("move_to", "carry_to"):
+            pts.add(tuple(args["frame"]))
+        elif lib == "move_to_part":
+            r = scene.areas[args["area"]]["region"]
+            pts.update({(r[0], r[1]), (r[0], r[3]), (r[2], r[1]), (r[2], r[3])})
+    starts = _start_points(model, scene, calls)
+    pad = scene.dt + 1e-3
     out: dict = {}
     for site in prog.sites:
-        if site.index not in moves or not site.fsm or not site.state:
+        label = site.label.replace("/", ".")
+        if not any(o[0] == int(Status.RUNNING) for o in site.outcomes):
+            continue  # answers at once: nothing to bound
+        c = calls.get(site.index)
+        if c is None:
+            if site.index in binding.sites:  # a custom python: primitive
+                dec = _declared(model, site)
+                out[site.index] = (Derived(label, "python", dec, "declared in the model", "declared") if dec else
+                                   Derived(label, "python", None, "custom python: the scene cannot bound it; declare "
+                                           "duration: in the model", "unbounded"))
             continue
-        lib, robot, args = moves[site.index]
-        spec, (tx, ty) = scene.robots[robot], args["frame"]
-        far = max(math.hypot(tx - x, ty - y) for x, y in points[robot])
-        s = float(args["speed"])
-        slow = Profile(far, spec["speed"] * s, spec["acceleration"] * s).total
-        row = out.setdefault(site.fsm, {})
-        row[site.state] = (0.0, round(max(row.get(site.state, (0, 0))[1], slow + scene.dt + 1e-3), 3))
+        lib, robot, args = c
+        shown = lib + ("(" + ", ".join(f"{k}={v!r}" if not isinstance(v, tuple) else f"{k}=({v[0]:g}, {v[1]:g})"
+                                       for k, v in args.items()) + ")" if args else "")
+        declared = _declared(model, site)
+        if declared is not None:
+            out[site.index] = Derived(label, shown, declared, "declared in the model", "declared")
+            continue
+        spec = scene.robots[robot]
+        lo, hi, how = 0.0, None, ""
+        if lib in ("move_to", "carry_to", "move_to_part"):
+            if lib == "move_to_part":
+                r = scene.areas[args["area"]]["region"]
+                targets = [(r[0], r[1]), (r[0], r[3]), (r[2], r[1]), (r[2], r[3])]
+            else:
+                targets = [tuple(args["frame"])]
+            far = max(math.hypot(tx - x, ty - y) for tx, ty in targets for x, y in points[robot])
+            s = float(args["speed"])
+            hi = Profile(far, spec["speed"] * s, spec["acceleration"] * s).total
+            how = f"rest-to-rest over {far:.3f} m (the farthest start) at speed scale {s:g}"
+        elif lib in ("grip", "gripper"):
+            close = spec["close_time"] if spec["gripper"] == "fingers" else 0.0
+            if lib == "gripper" or not args.get("wait"):
+                hi, how = close, f"the {spec['gripper']} gripper closes in {close:g} s"
+            else:
+                pts = starts.get((site.fsm, site.state), {None}) if site.kind == "state" else {None}
+                waits = [(None, "where the robot is when it starts is not known (an Action, or a halted move "
+                          "before it)")] if None in pts else [_part_wait(scene, robot, p, model.tick_rate)
+                                                              for p in sorted(pts)]
+                bad = [w for w in waits if w[0] is None]
+                if bad:
+                    hi, how = None, "grip waits for a part: " + bad[0][1]
+                else:
+                    hi = max(w[0] for w in waits)
+                    how = "grip waits for a part: " + "; ".join(sorted({w[1] for w in waits}))
+        elif lib == "wait":
+            lo, hi = max(0.0, float(args["seconds"]) - 1.0 / model.tick_rate), float(args["seconds"])
+            how = f"waits {args['seconds']:g} s"
+        elif lib in ("open_door", "close_door"):
+            d = scene.doors[args["door"]]
+            hi = d["open_time"]
+            how = f"door {args['door']} moves in {hi:g} s" + (" (with the tool out of it)" if lib == "close_door" else "")
+        else:  # wait_for, and anything new
+            how = (f"{lib} waits for a part in {args.get('region', '?')}: the scene does not say when one comes; "
+                   "declare duration: in the model")
+        if hi is None:
+            out[site.index] = Derived(label, shown, None, how, "unbounded")
+        else:
+            out[site.index] = Derived(label, shown, (round(lo, 3), round(hi + pad, 3)), how, "derived")
     return out
 
 
-def timed_in_scene(model, scene, responses=()):
-    """``model`` with the durations of ``derive_scene`` on its FSM states and ``responses``."""
+def _declared(model, site) -> "tuple | None":
+    """The duration the model itself declares for a site (state, Action or primitive)."""
+    if site.kind == "state":
+        st = next(s for s in next(f for f in model.fsms if f.name == site.fsm).states if s.id == site.state)
+        if st.duration is not None:
+            return st.duration
+    else:
+        node = next((n for n in model.nodes() if getattr(n, "name", None) == site.node), None)
+        if node is not None and getattr(node, "duration", None) is not None:
+            return node.duration
+    prim = model.all_primitives().get(site.primitive)
+    return getattr(prim, "duration", None)
+
+
+def _with_durations(node, table: dict):
+    """The tree with the Actions named in ``table`` given those durations."""
     import dataclasses
 
-    table = derive_scene(model, scene)
+    from btfsm.bt import Action
+
+    if isinstance(node, Action) and node.name in table:
+        return dataclasses.replace(node, duration=table[node.name])
+    kids = getattr(node, "children", None)
+    if kids:
+        return dataclasses.replace(node, children=tuple(_with_durations(k, table) for k in kids))
+    child = getattr(node, "child", None)
+    if child is not None:
+        return dataclasses.replace(node, child=_with_durations(child, table))
+    return node
+
+
+def timed_in_scene(model, scene, responses=(), table: "dict | None" = None):
+    """``model`` with the durations of ``derive_scene`` (or ``table``) on its FSM states and
+    Actions, and ``responses`` added."""
+    import dataclasses
+
+    table = derive_scene(model, scene) if table is None else table
+    sites = {s.index: s for s in model.program.sites}
+    states: dict = {}
+    actions: dict = {}
+    for i, d in table.items():
+        if d.source != "derived":
+            continue
+        s = sites[i]
+        if s.kind == "state":
+            states[(s.fsm, s.state)] = d.duration
+        else:
+            actions[s.node] = d.duration
     fsms = tuple(dataclasses.replace(f, states=tuple(
-        dataclasses.replace(st, duration=table[f.name][st.id]) if st.id in table.get(f.name, {}) else st
+        dataclasses.replace(st, duration=states[(f.name, st.id)]) if (f.name, st.id) in states else st
         for st in f.states)) for f in model.fsms)
-    return dataclasses.replace(model, fsms=fsms, responses=tuple(model.responses) + tuple(responses))
+    tree = _with_durations(model.tree, actions) if model.tree is not None and actions else model.tree
+    return dataclasses.replace(model, fsms=fsms, tree=tree, responses=tuple(model.responses) + tuple(responses))
+
+
+def measure_scene(model, scene, seeds=(0,)) -> tuple:
+    """``({site index: the longest run in seconds}, [mismatches])`` over runs of ``model`` in
+    ``scene`` (one per seed, to the scene's ``terminal`` or time limit): a run of a site
+    lasts from the tick that starts it to the tick it answers other than RUNNING, (n - 1)
+    ticks of the model's rate (docs/semantics.md 6.1); a halted run is not counted. Run on
+    the timed model (``timed_in_scene``), any run outside a declared duration is also a
+    mismatch (the runtime refuses it)."""
+    from .loop import Hooks, run_loop, start
+
+    class _Done(Hooks):
+        def done(self, rt, world, step) -> bool:
+            term = model.program.terminal
+            return term is not None and bool(term(list(step.state)))
+
+    longest: dict = {}
+    problems: list = []
+    for seed in seeds:
+        world, binding, rt = start(scene, model, seed)
+        ticks: dict = {}
+        tick_site = binding.tick_site
+
+        def counted(call, tick_site=tick_site, ticks=ticks):
+            i = call.site.index
+            ticks[i] = 1 if call.first or i not in ticks else ticks[i] + 1
+            out = tick_site(call)
+            if i not in binding.active:  # the run answered: it is over
+                longest[i] = max(longest.get(i, 0.0), (ticks.pop(i) - 1) / model.tick_rate)
+            return out
+
+        binding.tick_site = counted
+        end = run_loop(rt, world, binding, scene.time_limit, _Done())
+        if end.mismatch is not None:
+            problems.append(f"seed {seed}: {end.mismatch}")
+    return longest, problems
+
+
+def print_scene_table(model, scene, table, file=None, measured: "dict | None" = None) -> None:
+    """The derived durations, one line per site; the unbounded ones say why; ``measured``:
+    ``{site index: seconds}`` (``measure_scene``), printed beside them."""
+    print(f"{model.name} in scene {scene.name}: durations derived from the scene (context-free, per call site)", file=file)
+    for i, d in table.items():
+        iv = "unbounded" if d.duration is None else f"[{d.duration[0]:g}, {d.duration[1]:g}] s"
+        tag = "" if d.source == "derived" else f" ({d.source})"
+        meas = "" if measured is None else f" {('-' if i not in measured else format(measured[i], '.1f')):>5s}"
+        print(f"  {d.label:24s} {iv:>16s}{meas}{tag}  {d.call}: {d.how}", file=file)
 
 
 def scene_main(argv) -> int:
@@ -561,6 +845,8 @@ def scene_main(argv) -> int:
     p.add_argument("--trigger")
     p.add_argument("--response")
     p.add_argument("--within", type=float)
+    p.add_argument("--trials", type=int, default=2, help="runs of the timed model in the scene (seeds 0..N-1) whose "
+                   "longest run per site is printed beside the derived bound (0: none)")
     args = p.parse_args(argv)
     try:
         scene = load_scene(args.scene)
@@ -573,16 +859,20 @@ def scene_main(argv) -> int:
             if not (args.trigger and args.response):
                 raise ModelError("requirement", "give both --trigger and --response")
             reqs = (Response("requirement", args.trigger, args.response, args.within),)
-        timed = timed_in_scene(model, scene, reqs)
-        timed.program  # the requirement's expressions are checked here
         table = derive_scene(model, scene)
+        timed = timed_in_scene(model, scene, reqs, table)
+        timed.program  # the requirement's expressions are checked here
     except (ModelError, OSError) as exc:
         print(f"btfsm.sim.durations: {exc}", file=sys.stderr)
         return 2
-    print(f"{model.name} in scene {scene.name}: durations derived from the bind table's moves (context-free)")
-    for fsm, rows in table.items():
-        for st, (lo, hi) in rows.items():
-            print(f"  {fsm}.{st:24s} [{lo:g}, {hi:g}] s")
+    measured = None
+    if args.trials > 0:
+        measured, problems = measure_scene(timed_in_scene(model, scene, (), table), scene, range(args.trials))
+        for problem in problems:
+            print(f"measured: {problem}")
+        print(f"(after the bound: the longest run in {args.trials} run(s) of the timed model in the scene, s; a run "
+              "answers on the first tick at or after its bound, docs/semantics.md 6.1)")
+    print_scene_table(model, scene, table, measured=measured)
     if not timed.responses:
         print("no requirement: give --trigger, --response and --within (or declare responses: in the model)")
         return 0

@@ -475,6 +475,11 @@ class World:
         self._wait = 1  # steps to take one at a time before ``_quiet`` looks again
         self._carriers: list = []  # robots whose tool and part a batch of steps drives every step
         self._calm_until = -1  # until this step no belt part can cross a sensor's or sink's edge (``_belt_horizon``)
+        self._version = 0  # counts the commands and changes of place (``_quiet`` keeps a horizon while it stands)
+        self._quiet_end, self._quiet_version = -1, -1  # the steps up to which the last horizon holds, and when found
+        self._lookahead = max(2, int(round(1.0 / self.dt)))  # steps ``_quiet`` looks ahead (one second)
+        self._top: "float | None" = None  # the highest top of a part that a cup could take (``_above_parts``)
+        self._top_version = -1
         sc = self.scene
         space = self.space = pymunk.Space()
         space.iterations = 10
@@ -528,7 +533,7 @@ class World:
     def _pressed(self, arbiter, space, data) -> None:
         """A part in contact (with a part or a wall) may move: watch it until it rests
         (every step of the contact: a sleeping group of touching parts wakes as a whole)."""
-        self._contact, self._calm_until = True, -1
+        self._contact, self._calm_until, self._quiet_end = True, -1, -1
         for s in arbiter.shapes:
             p = getattr(s.body, "part", None)
             if p is not None and p.place.kind != "BELT":
@@ -536,7 +541,7 @@ class World:
 
     def _touch(self, arbiter, space, data) -> None:
         """Two parts touched: both may now move (they are watched until they rest)."""
-        self._contact, self._calm_until = True, -1
+        self._contact, self._calm_until, self._quiet_end = True, -1, -1
         a, b = (s.body.part for s in arbiter.shapes)
         for p, q in ((a, b), (b, a)):
             p.pushed_by = q.id
@@ -664,6 +669,7 @@ class World:
     def _move(self, part: _Part, place: Place) -> None:
         old = part.place
         self._calm_until = -1
+        self._version += 1
         if old is not None:
             self.members[old].remove(part.id)
             if old.kind == "BELT":  # the parts queued behind it may move on
@@ -775,6 +781,7 @@ class World:
         target is behind a closed door."""
         r = self.robots[robot]
         r.tracking, r.arrived = None, False
+        self._version += 1
         if self.door_at(p) is not None:
             r.moving, r.blocked = False, True
             return False
@@ -806,6 +813,7 @@ class World:
         acceleration), the height moved to ``z`` on its own profile. ``arrived`` holds while
         the part is within ``track_tolerance`` under the tool and the height is reached."""
         r = self.robots[robot]
+        self._version += 1
         if r.tracking is None:
             r.vel = (0.0, 0.0)
         r.tracking, r.moving, r.blocked, r.arrived, r.k, r.coasting = part_id, True, False, False, 0, False
@@ -816,6 +824,7 @@ class World:
     def stop(self, robot: str) -> None:
         r = self.robots[robot]
         r.moving, r.tracking, r.vel, r.arrived = False, None, (0.0, 0.0), False
+        self._version += 1
 
     def door_at(self, p) -> "str | None":
         """The door (not fully open) whose region contains p, or None."""
@@ -830,6 +839,7 @@ class World:
         if r.holding is None and r.closing is None:
             r.closing = max(1, round(r.spec["close_time"] / self.dt)) if r.spec["close_time"] > 0 else 0
             r.armed = True
+            self._version += 1
 
     def attach(self, robot: str) -> bool:
         """Attach the part under the tool now (a vacuum cup); False when there is none."""
@@ -844,6 +854,7 @@ class World:
     def release(self, robot: str) -> None:
         r = self.robots[robot]
         r.closing, r.armed = None, True
+        self._version += 1
         if r.holding is not None:
             part = self.parts[r.holding]
             r.holding = None
@@ -889,7 +900,10 @@ class World:
         return best
 
     def set_door(self, door: str, open_: bool) -> None:
-        self.door_goal[door] = 1.0 if open_ else 0.0
+        goal = 1.0 if open_ else 0.0
+        if self.door_goal[door] != goal:
+            self.door_goal[door] = goal
+            self._version += 1
 
     def tool_in(self, region) -> bool:
         return any(_inside(region, (r.x, r.y)) for r in self.robots.values())
@@ -978,11 +992,22 @@ class World:
         its support can only fall, and after ``j`` steps it lies within
         ``j * dt * (|v - v_support| + 1 mm/s)`` of where its support carries it
         (``_belt_horizon``, ``_rest_horizon``). A robot that carries a part at a constant
-        velocity (at rest or in the cruise phase of a move, the part settled under the
+        velocity (at rest, in a vertical move or in the cruise phase of a move, the part settled under the
         tool) needs nothing at all (``_steady``). A contact or a change of place (a part
         slips) ends a batch (``_coast``). When it finds no batch, ``self._wait`` says how
         many steps to take one at a time before looking again (only a matter of speed:
-        stepping one at a time is always right)."""
+        stepping one at a time is always right). It looks a second ahead (``_lookahead``
+        steps, or ``n``): the horizon it finds holds for the calls that follow until a
+        command or a change of place (``_version``) or a contact (``_coast``) ends it."""
+        if self._quiet_version == self._version and self._quiet_end - self.steps > 1:
+            return min(n, self._quiet_end - self.steps)  # the last horizon (and its carriers) still holds
+        m = self._horizon_ahead(max(n, self._lookahead))
+        if m > 1:
+            self._quiet_end, self._quiet_version = self.steps + m, self._version
+        return min(n, m)
+
+    def _horizon_ahead(self, n: int) -> int:
+        """``_quiet`` worked out afresh."""
         self._wait = 1
         self._carriers = carriers = []
         if self._added or (self._sensor_regions and len(self.log) != self._sensed_log):
@@ -1006,10 +1031,10 @@ class World:
                 self._wait = n
                 return 0
             if r.tracking is not None:  # the tool follows its part step by step
-                if r.closing == 0 and r.armed:
-                    return 0
                 carriers.append(r)
-                if r.closing is not None:
+                if r.closing == 0 and r.armed:  # a waiting cup: batched while it stays above every part
+                    m = self._above_parts(r, m)
+                elif r.closing is not None:
                     m = min(m, r.closing - 1)
             elif r.holding is not None:
                 steady = self._steady(r, m)
@@ -1030,7 +1055,7 @@ class World:
         if m < 2:
             return 0
         for r in robots:  # an armed vacuum cup attaches the first part that comes within its radius
-            if r.holding is None and r.closing == 0 and r.armed:
+            if r.holding is None and r.closing == 0 and r.armed and r.tracking is None:
                 m = self._out_of_grip(r, m, movers)
                 if m < 2:
                     self._wait = 4
@@ -1039,17 +1064,18 @@ class World:
 
     def _steady(self, r: _Robot, m: int) -> int:
         """``m`` or fewer steps (0 or 1: none) in which ``r``'s tool carries its part at a
-        constant velocity (at rest, or in the cruise phase of its move) with the part
-        settled under it: the part cannot slip, and Chipmunk moves the tool body alone."""
+        constant velocity (at rest, in a vertical move, or in the cruise phase of its move)
+        with the part settled under it: the part cannot slip, and Chipmunk moves the tool
+        body alone."""
         if self.scene.faults:
             return 0
         dt, prof = self.dt, r.prof
-        if r.moving:
+        if r.moving and (r.x0 != r.x1 or r.y0 != r.y1):
             if not r.coasting:
                 return 0
             while m > 1 and (r.k + m) * dt > prof.total - prof.t_acc:  # the batch ends in the cruise phase
                 m = min(m - 1, int((prof.total - prof.t_acc) / dt) - r.k + 1)
-        elif r.last_v != (0.0, 0.0):
+        elif r.last_v != (0.0, 0.0):  # at rest, or a vertical move (x-y stays put), since the last step
             return 0
         part = self.parts[r.holding]  # it sits well within the cup and moves with the tool
         ax, ay = r.anchor
@@ -1115,6 +1141,32 @@ class World:
                 return 0
         return m
 
+    def _above_parts(self, r: _Robot, m: int) -> int:
+        """``m`` or fewer steps (0 or 1: none) in which the armed cup of ``r``, which tracks a
+        part, stays more than its grasp tolerance above the top of every part it could take
+        (``part_under`` finds none, wherever the tool goes in x-y): its height follows its
+        own profile, monotone towards its target."""
+        zs = r.spec["z"]
+        if zs is None:
+            return 0
+        if self._top_version != self._version:  # the highest top changes only with a change of place
+            self._top_version = self._version
+            self._top = max((self.top(pid) for place, ids in self.members.items()
+                             if place.kind not in ("GRIPPER", "LOST") for pid in ids), default=None)
+        if self._top is None:
+            return m
+        floor = self._top + r.spec["grasp_tolerance"] + 1e-9  # the cup must stay above this
+        prof, dt = r.prof, self.dt
+        if r.z <= floor:
+            return 0
+        if r.z1 >= r.z0 or prof.dist <= 0.0:  # rising or level: never lower than now
+            return m
+        while m > 1:  # sinking: the height at the batch's last step bounds the ones before it
+            if r.z0 + (r.z1 - r.z0) * prof.at((r.k + m) * dt) / prof.dist > floor:
+                return m
+            m //= 2
+        return 0
+
     def _out_of_grip(self, r: _Robot, m: int, movers: dict) -> int:
         """``m`` or fewer steps in which no part comes under ``r``'s cup (``part_under``:
         within its radius, its top within the grasp tolerance of the cup's height). The
@@ -1165,8 +1217,11 @@ class World:
                 self._cp_activate(self.parts[r.holding].cb)
         self._contact = False
         k = 0
-        if len(carriers) == 1 and carriers[0].tracking is None and not self.doors and not self.scene.faults:
-            k = self._carry(carriers[0], m)
+        one = carriers[0] if len(carriers) == 1 and not self.doors and not self.scene.faults else None
+        if one is not None and one.tracking is None:
+            k = self._carry(one, m)
+        elif one is not None and one.holding is None and self.parts[one.tracking].place.kind not in ("GRIPPER", "LOST"):
+            k = self._chase(one, m)
         elif carriers:
             log, n_log, parts, get_pos = self.log, len(self.log), self.parts, self._cp_pos
             while k < m:
@@ -1199,8 +1254,8 @@ class World:
             if r.moving and r not in carriers:
                 prof = r.prof
                 end = r.k + k
-                if r.holding is None:  # the step at which the move ends, if it ends within the batch
-                    last = max(r.k + 1, math.ceil(prof.total / dt) - 1)
+                if r.holding is None or r.x0 == r.x1 and r.y0 == r.y1:  # the step at which the move ends, if it
+                    last = max(r.k + 1, math.ceil(prof.total / dt) - 1)  # ends within the batch (not in a cruise)
                     while last * dt < prof.total:
                         last += 1
                     while last - 1 > r.k and (last - 1) * dt >= prof.total:
@@ -1216,6 +1271,8 @@ class World:
                     r.moving, r.arrived = False, True
             if r.holding is None and r.closing is not None and r.closing > 0 and r not in carriers:
                 r.closing -= k  # fingers closing (``_quiet``: they close after the batch)
+        if self._contact or k < m:  # what touched may move: the horizon is to be found anew
+            self._quiet_end = -1
         self._after_step()
         return k
 
@@ -1225,7 +1282,7 @@ class World:
         variables (the same arithmetic in the same order: ``tests/test_physics.py``
         compares batches with steps one at a time)."""
         cp_step, cp_space, dt, hypot = self._cp_step, self.space._space, self.dt, math.hypot
-        set_pos, set_vel, activate, get_pos = self._cp_set_pos, self._cp_set_vel, self._cp_activate, self._cp_pos
+        set_pos, set_vel, get_pos = self._cp_set_pos, self._cp_set_vel, self._cp_pos
         part = self.parts[r.holding]
         tb, pb, radius, (ax, ay) = r.body._body, part.cb, r.spec["radius"], r.anchor
         prof, zs = r.prof, r.spec["z"] is not None
@@ -1274,8 +1331,7 @@ class World:
                 if acc > peak:
                     peak = acc
             lv = (vx, vy)
-            activate(pb)
-            cp_step(cp_space, dt)
+            cp_step(cp_space, dt)  # (Chipmunk keeps a body joined to a kinematic one awake)
             pos = get_pos(pb)  # _held
             px, py = pos.x, pos.y
             if hypot(px - x - ax, py - y - ay) > radius:
@@ -1289,6 +1345,88 @@ class World:
         part.x, part.y = px, py
         if slipped:
             self._slip(r, part)
+        return k
+
+    def _chase(self, r: _Robot, m: int) -> int:
+        """The steps of a batch with one carrier that tracks a part and holds none, and no
+        doors or faults: ``_drive`` of the carrier (``_track``, ``_velocity``, ``_pursuit``,
+        ``Scene.clamp_to_reach``, ``Profile.at``) inlined on local variables, the same
+        arithmetic in the same order (``tests/test_physics.py`` compares a trial in batches
+        with one stepped one step at a time). Within a batch the tracked part keeps its
+        place (a change of place ends the batch) and the fingers do not finish closing
+        (``_quiet``)."""
+        cp_step, cp_space, dt, hypot, sqrt = self._cp_step, self.space._space, self.dt, math.hypot, math.sqrt
+        log, n_log, get_pos = self.log, len(self.log), self._cp_pos
+        part = self.parts[r.tracking]
+        on_belt, pb = part.place.kind == "BELT", part.cb
+        pvx, pvy = self._velocity(part)
+        spec, prof = r.spec, r.prof
+        vmax, acc, tol = spec["speed"], spec["acceleration"], spec["track_tolerance"]
+        dv_max = 2.0 * acc * dt
+        (rax, ray), (rbx, rby) = self.scene.robots[r.name]["rail"]
+        rdx, rdy = rbx - rax, rby - ray
+        rl2, reach = rdx * rdx + rdy * rdy, self.scene.robots[r.name]["reach"]
+        pdist, ptotal, pt_acc, pa, pv = prof.dist, prof.total, prof.t_acc, prof.a, prof.v
+        z0, dz = r.z0, r.z1 - r.z0
+        x, y, z, (wx, wy), rk, closing = r.x, r.y, r.z, r.vel, r.k, r.closing
+        px, py, arrived = part.x, part.y, r.arrived
+        steps, k = self.steps, 0
+        r.faults_in.clear()
+        while k < m:
+            k += 1
+            self.steps = steps + k  # a contact callback reads the time
+            if on_belt:  # the tracked part where the last step left it (``_belts``)
+                pos = get_pos(pb)
+                px, py = pos.x, pos.y
+            rk += 1  # _track
+            t = rk * dt
+            if pdist > 0.0:
+                if t >= ptotal:
+                    f = pdist
+                elif t <= pt_acc:
+                    f = 0.5 * pa * t * t
+                elif t <= ptotal - pt_acc:
+                    f = 0.5 * pa * pt_acc * pt_acc + pv * (t - pt_acc)
+                else:
+                    rt = ptotal - t
+                    f = pdist - 0.5 * pa * rt * rt
+                z = z0 + dz * f / pdist
+            qx, qy = px + pvx * dt, py + pvy * dt
+            if rl2 == 0.0:  # _pursuit: the reachable point nearest the target
+                u = 0.0
+            else:
+                u = ((qx - rax) * rdx + (qy - ray) * rdy) / rl2
+                u = u if u < 1.0 else 1.0
+                u = u if u > 0.0 else 0.0
+            cx, cy = rax + u * rdx, ray + u * rdy
+            ex, ey = qx - cx, qy - cy
+            d = hypot(ex, ey)
+            if d <= reach:
+                cx, cy, fx, fy = qx, qy, pvx, pvy
+            else:
+                cx, cy = cx + ex * reach / d, cy + ey * reach / d
+                fx, fy = (pvx, pvy) if (cx, cy) == (qx, qy) else (0.0, 0.0)
+            ex, ey = cx - x, cy - y
+            dist = hypot(ex, ey)
+            if dist == 0.0:
+                vx, vy = fx, fy
+            else:
+                speed = min(vmax, sqrt(2.0 * acc * dist), dist / dt)
+                vx, vy = fx + ex / dist * speed, fy + ey / dist * speed
+            dvx, dvy = vx - wx, vy - wy
+            dv = hypot(dvx, dvy)
+            if dv > dv_max:  # acceleration limit
+                vx, vy = wx + dvx * dv_max / dv, wy + dvy * dv_max / dv
+            wx, wy = vx, vy
+            x, y = x + vx * dt, y + vy * dt
+            arrived = hypot(qx - x, qy - y) <= tol and t >= ptotal
+            if closing is not None and closing > 0:  # fingers closing (they close after the batch)
+                closing -= 1
+            cp_step(cp_space, dt)
+            if self._contact or len(log) != n_log:
+                break
+        r.x, r.y, r.z, r.vel, r.k, r.closing, r.arrived = x, y, z, (wx, wy), rk, closing, arrived
+        part.x, part.y = px, py
         return k
 
     def _arrive(self) -> None:

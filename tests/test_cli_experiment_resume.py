@@ -100,14 +100,19 @@ def test_real_ctrl_c_with_workers_then_resume(tmp_path):
            "experiment", *ks, "--time", "300", "--quiet", "--workers", "2", "--out", str(tmp_path)]
     proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
-        deadline = time.time() + 120
+        # generous limits: on a loaded machine the first trial can take minutes, and a
+        # signal sent before it (during start-up) would test something else
+        deadline = time.time() + 600
         trials = tmp_path / "trials"
-        # wait for a finished trial file: the folder (and a temporary) appear before it
-        while time.time() < deadline and not (trials.is_dir() and any(
-                p.suffix == ".json" and not p.name.startswith(".") for p in trials.iterdir())):
+
+        def saved_one() -> bool:  # a finished trial file: the folder (and a temporary) appear first
+            return trials.is_dir() and any(
+                p.suffix == ".json" and not p.name.startswith(".") for p in trials.iterdir())
+        while time.time() < deadline and proc.poll() is None and not saved_one():
             time.sleep(0.02)
+        assert saved_one(), "no trial was saved in 600 s"
         proc.send_signal(signal.SIGINT)
-        out, err = proc.communicate(timeout=60)
+        out, err = proc.communicate(timeout=300)
     finally:
         if proc.poll() is None:
             proc.kill()

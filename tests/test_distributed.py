@@ -70,6 +70,17 @@ def test_checks_give_the_one_process_verdicts(client):
     assert want["traps"] == 0 and r.verdicts["workable-reachability"]
 
 
+def test_a_failing_partition_ends_the_search(client, monkeypatch):
+    """A partition's error reaches the caller (the workers run in this process here, so
+    the patch reaches them); the search does not wait for buckets that never come."""
+    def boom(self, out):
+        raise RuntimeError("boom")
+
+    monkeypatch.setattr(dist.Partition, "_explore", boom)
+    with pytest.raises(RuntimeError, match="boom"):
+        dist.explore_distributed(client, pickplace, (2,), {"bug": True})
+
+
 def test_a_running_scheduler_by_address(local):
     """``cluster(address)`` is how a user's own cluster is reached (``--scheduler``)."""
     with dist.cluster(local.scheduler_address) as c:
@@ -80,14 +91,17 @@ def test_a_running_scheduler_by_address(local):
 
 def test_any_number_of_partitions():
     """The same counts and verdicts with 1, 3 and 8 partitions (simulated in this process),
-    rounds ending early (``message_min`` of 50 states) or not."""
+    rounds ending early (``message_min`` of 50 states) or not, and without rounds."""
     model = pickplace(2, dead=True)
     want = _one(model)
     assert want["traps"] and want["dead"]
-    for parts, message_min in ((1, dist.MESSAGE_MIN), (3, 50), (8, dist.MESSAGE_MIN)):
-        r = dist.simulate(model, parts, keep=True, message_min=message_min)
+    for parts, message_min, rounds in ((1, dist.MESSAGE_MIN, True), (3, 50, True), (8, dist.MESSAGE_MIN, True),
+                                       (3, 50, False), (8, dist.MESSAGE_MIN, False)):
+        r = dist.simulate(model, parts, keep=True, message_min=message_min, rounds=rounds)
         assert _mine(r) == want
         assert len(r.counts.per_partition) == parts and sum(r.counts.per_partition) == want["states"]
+        if not rounds:  # the search as on Dask, on a clock of CPU seconds: the busiest partition's
+            assert r.counts.cpu_path <= r.counts.makespan <= r.counts.cpu_seconds + 1e-9
 
 
 def test_partition_key_takes_the_slots_transitions_change_least():

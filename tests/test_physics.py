@@ -269,11 +269,16 @@ def test_typed_sensors_checks_and_events_and_the_sorter_conforms():
 
 
 # --------------------------------------------------------------------------- batches of steps
+_CHUNKS = (1, 3, 24, 2, 7, 5)  # the step calls of a command's ``n`` steps in every other command (batched)
+
+
 def _stepwise(data, commands, batched: bool) -> list:
-    """The world after each drawn command, stepped ``n`` at once (batches) or one at a time."""
+    """The world after each drawn command, stepped ``n`` at once (batches; every other
+    command's ``n`` steps in calls of ``_CHUNKS`` steps, so that a horizon found by one
+    call is kept by the next ones) or one at a time."""
     scene = scene_from_data(copy.deepcopy(data))
     w, seen = World(scene), []
-    for cmd, x, y, n in commands:
+    for i, (cmd, x, y, n) in enumerate(commands):
         if cmd == "move" and scene.reachable("r", (x, y)):
             w.move_to("r", (x, y), 1.0)
         elif cmd == "grip":
@@ -287,7 +292,13 @@ def _stepwise(data, commands, batched: bool) -> list:
             w.release("r")
         elif cmd == "door" and scene.doors:
             w.set_door("d", x > 0)
-        if batched:
+        if batched and i % 2:
+            left, j = n, 0
+            while left:
+                c = min(left, _CHUNKS[j % len(_CHUNKS)])
+                w.step(c)
+                left, j = left - c, j + 1
+        elif batched:
             w.step(n)
         else:
             for _ in range(n):

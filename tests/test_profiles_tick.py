@@ -8,6 +8,8 @@ import pathlib
 
 import pytest
 
+from btfsm.status import Status
+
 pytest.importorskip("py_trees")
 pytest.importorskip("behaviortreepy")
 
@@ -33,3 +35,18 @@ def test_profiles_agree_with_the_real_engines():
 def test_main_json_runs(capsys):
     assert profiles_tick.main(["--ticks", "200", "--repeats", "1", "--check-ticks", "200", "--json"]) == 0
     assert '"claimed_equal"' in capsys.readouterr().out
+
+
+def test_step_oracle_runs_the_runtime_ticks():
+    """The timed bare ``Program.step`` (``_StepOracle``) goes through the same ticks as the
+    Runtime whose callbacks are compared with the engines: same root status every tick."""
+    n = 300
+    _, roots, _ = profiles_tick.run_btfsm("btcpp", n)
+    prog, clock = profiles_tick.build_model(n, "btcpp").program, profiles_tick._Clock()
+    oracle, s, got = profiles_tick._StepOracle(prog, clock), prog.initial, []
+    for k in range(1, n + 1):
+        clock.t = k
+        step = prog.step(s, oracle)
+        s = step.state
+        got.append(Status(step.status).name)
+    assert got == roots and len(set(roots)) == 3

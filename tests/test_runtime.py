@@ -377,3 +377,63 @@ def test_runtime_from_a_given_state():
     rt = Runtime(m, state=(3,))
     rt.tick()
     assert rt.vars == {"n": 4} and rt.state == (4,)
+
+
+# --------------------------------------------------------------------------- the memo of ticks
+
+
+def _memo_run(model, seed, ticks, memo: bool):
+    """Per tick (state, status, events, violations) or the error that ended the run, and
+    every implementation call in order, with the runtime's memo on or off."""
+    rng, events_rng, calls, out = random.Random(seed), random.Random(seed + 1), [], []
+
+    class Impl:  # answers at random, mostly the first outcome (so that states repeat with new answers)
+        def tick(self, call):
+            calls.append(("tick", call.site.label, call.first, call.tick, call.goal))
+            return 0 if rng.random() < 0.6 else rng.randrange(len(call.site.outcomes))
+
+        def halt(self, call):
+            calls.append(("halt", call.site.label, call.tick))
+
+    rt = Runtime(model, {p: Impl() for p in model.all_primitives()}, record=True)
+    if not memo:
+        rt.MEMO_STATES = 0
+    for _ in range(ticks):
+        try:
+            step = rt.tick(pick_events(rt.program, rt.state, events_rng))
+        except ConformanceError as exc:
+            out.append(str(exc))
+            break
+        out.append((step.state, step.status, step.events, step.violations))
+    return out, calls, len(rt._memo)
+
+
+@settings(max_examples=30, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(models(), st.integers(0, 2**16), st.integers(1, 30))
+def test_memoized_ticks_are_the_step_function_s(model, seed, ticks):
+    """The runtime memoizes ticks per state (``Runtime._step``): with the memo and without
+    it, the implementations see the same calls in the same order and every tick has the
+    same result (state, status, events, violations)."""
+    with_memo, without = _memo_run(model, seed, ticks, True), _memo_run(model, seed, ticks, False)
+    assert with_memo[:2] == without[:2] and without[2] == 0
+
+
+def test_a_tick_from_a_state_seen_before_calls_the_implementations_and_reuses_the_result(monkeypatch):
+    """The cell model ticks from the same state while the arm works: with the memo the
+    step function runs only for new answers, the implementation on every tick as without it."""
+    from btfsm.semantics import Program
+
+    step = Program.step
+
+    def run(memo):
+        answers, log, runs = ["busy"] * 5 + ["ok"] + ["busy"] * 3 + ["ok"] + ["busy"] * 2, [], []
+        monkeypatch.setattr(Program, "step", lambda self, *a: runs.append(1) or step(self, *a))
+        rt = Runtime(_cell(), {"work": Recorder(answers, log, "work")})
+        if not memo:
+            rt.MEMO_STATES = 0
+        statuses = [rt.tick().status for _ in range(12)]
+        return statuses, log, rt.vars["count"], len(runs)
+
+    with_memo, without = run(True), run(False)
+    assert with_memo[:3] == without[:3] and with_memo[2] == 2 and len(with_memo[1]) == 11
+    assert without[3] == 12 and with_memo[3] <= 7  # a "busy" tick from a state seen busy before: no step function

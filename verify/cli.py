@@ -43,7 +43,7 @@ def cli_check(args) -> int:
         from btfsm.html import require_dot
 
         require_dot()
-    model = _with_response(_load(args), args)
+    model = _with_response(_timed(_load(args), args), args)
     if getattr(args, "trigger", None) and props and "response" not in props:
         props.append("response")
     progress = ExplorationProgress()
@@ -103,6 +103,9 @@ def _check_partitioned(args, props) -> int:
         if getattr(args, flag, None) is not None:
             raise UsageError(f"--{flag.replace('_', '-')} does not go with --scheduler (the partitioned check has no "
                              "budgets, no counterexample paths and no response properties)")
+    if getattr(args, "timed", False) or getattr(args, "scene", None):
+        raise UsageError("--timed and --scene do not go with --scheduler (the partitioned check has no response "
+                         "properties)")
     local = re.fullmatch(r"local(?::([0-9]+))?", args.scheduler)
     if local is None and not re.fullmatch(r"(tcp|tls|inproc)://[^\s]+", args.scheduler):
         raise UsageError(f"--scheduler: expected tcp://HOST:PORT or local:N, got {args.scheduler!r}")
@@ -133,7 +136,7 @@ def _check_partitioned(args, props) -> int:
     skipped = {p: not_applicable(model, p) for p in PARTITIONED}
     asked = props or list(PARTITIONED)
     out = {"model": model.name, "partitioned": True, "workers": len(c.per_partition), "states": c.states,
-           "transitions": c.transitions, "rounds": c.levels, "seconds": round(r.seconds, 3),
+           "transitions": c.transitions, "steps": c.levels, "seconds": round(r.seconds, 3),
            "per_partition": c.per_partition, "states_sent": c.states_sent,
            "results": {p: ("not applicable" if skipped[p] else verdicts[p]) for p in asked},
            "traps": r.traps, "dead_states": r.dead, "sink_states": r.sinks,
@@ -141,7 +144,7 @@ def _check_partitioned(args, props) -> int:
     if args.json:
         print(json.dumps(out))
     else:
-        print(f"{model.name}: {c.states:,} states, {c.transitions:,} transitions on {where}, {c.levels} rounds, "
+        print(f"{model.name}: {c.states:,} states, {c.transitions:,} transitions on {where}, {c.levels} steps (the busiest worker), "
               f"{r.seconds:.2f} s (states per worker {', '.join(f'{k:,}' for k in c.per_partition)}; "
               f"{c.states_sent:,} states sent)")
         for p in asked:
@@ -157,6 +160,30 @@ def _check_partitioned(args, props) -> int:
                                                                                          if sinks else "")))
                 print("    not checked partitioned: the FSM-level non-progress cycles (run without --scheduler)")
     return 1 if any(v is False for v in out["results"].values()) else 0
+
+
+def _timed(model, args):
+    """``--timed``: ``model`` with every primitive its scene's bind table drives given a
+    duration derived from the scene (``btfsm.sim.durations.derive_scene``); the table is
+    printed (to stderr with --json)."""
+    from btfsm.errors import UsageError
+
+    if not getattr(args, "timed", False):
+        if getattr(args, "scene", None):
+            raise UsageError("--scene goes with --timed (durations derived from the scene)")
+        return model
+    from btfsm.sim.durations import derive_scene, print_scene_table, timed_in_scene
+    from btfsm.sim.scene import load_scene
+    from btfsm.sim.scene_trial import scene_for
+
+    path = args.scene or scene_for(model, args.model)
+    if path is None:
+        raise UsageError(f"--timed: no scene for {model.name} (MODEL.scene.yaml beside it, or a shipped one named "
+                         "after it): give --scene FILE")
+    scene = load_scene(path)
+    table = derive_scene(model, scene)
+    print_scene_table(model, scene, table, file=sys.stderr if getattr(args, "json", False) else sys.stdout)
+    return timed_in_scene(model, scene, (), table)
 
 
 def _with_response(model, args):
@@ -193,7 +220,7 @@ def cli_bound(args) -> int:
     from .properties.response import INF, ResponseBound, counterexample
     from .search import DEFAULT_MAX_STATES, DEFAULT_MAX_TRANSITIONS, describe_hit
 
-    model = _load(args)
+    model = _timed(_load(args), args)
     try:
         req = widen_to_copies(Response("bound", args.trigger, args.response), model)
     except (ModelError, SyntaxError, ValueError) as exc:

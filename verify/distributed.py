@@ -13,26 +13,29 @@ codes (a bitmap over the code space, or a sorted array past ``DENSE_LIMIT``), it
 codes in discovery order (the queue of states still to expand is their tail) and, with
 ``keep=True``, the out-transitions of its states (target codes, by state).
 
-The search goes in rounds. In a round every partition (1) queues the codes the others
-sent it that it has not seen, (2) expands its queue in batches of up to ``CHUNK`` states
-through the traced engine's batch expansion (``btfsm.verify.traced.BatchSuccessors``: the
-trie over ``Program.step`` that the one-process search runs), queueing the new targets it
-owns at once and cutting the others' new targets into one bucket per owner (a code is sent
+The search goes in steps. In a step a partition (1) queues the codes the others sent it
+that it has not seen, (2) expands its queue in batches of up to ``CHUNK`` states through
+the traced engine's batch expansion (``btfsm.verify.traced.BatchSuccessors``: the trie
+over ``Program.step`` that the one-process search runs), queueing the new targets it owns
+at once and cutting the others' new targets into one bucket per owner (a code is sent
 once: sent codes are marked seen too), (3) stops after ``ROUND_STATES`` expanded states
-(so that no partition goes on alone while the others wait for its messages), when the
-buckets hold ``message_min`` states, or when its queue is empty, and (4) sends each bucket (an int64 array) straight to the
-owner's actor, worker to worker, before the round ends. The client calls one method per
-partition per round and gets a few ints back: when no partition sent anything and none has
-a queue left, nothing is in flight and the search is over. Every state is expanded exactly
-once (its owner queues it once), so the sums are the exact state and transition counts of
-the one-process search, whatever ``P``.
+(so that no partition goes on alone while the others wait for its states), when the
+buckets hold ``message_min`` states, or when its queue is empty. On Dask (``_Actor.run``)
+a partition takes steps while it has work and sends each bucket (an int64 array) straight
+to the owner's actor, worker to worker, without waiting, and sleeps when it has none; the
+client detects the end by Mattern's counting of buckets sent and received
+(``_remote_run``): no rounds, no barrier. ``simulate`` runs the steps in rounds (every
+partition one step, then every delivery: the figures of the docs' tables) or, with
+``rounds=False``, as on Dask on a clock of CPU seconds (``_free_cores``). Every state is
+expanded exactly once (its owner queues it once), so the sums are the exact state and
+transition counts of the one-process search, whatever ``P`` and the order of deliveries.
 
 The checks that ``keep=True`` makes possible (``check_distributed``): *no-dead-states* at
 model level (a state with no successor that is not terminal and not a domain error; an FSM
 token on a sink state) is judged by each partition on its own states; *workable-
 reachability* (AG EF workable) is a backward reachability over the partitions: each
-partition ships its reversed transitions to the target's owner once, then rounds like the
-search's spread "can reach a workable state" backwards until nothing changes; the states
+partition ships its reversed transitions to the target's owner once, then rounds of steps
+like the search's spread "can reach a workable state" backwards until nothing changes; the states
 never reached are the traps. ``simulate`` runs the same partitions one after the other in
 this process (no Dask): the same counts, rounds and message volume for any ``P`` (the 16-
 and 64-worker figures of the docs).
@@ -71,6 +74,11 @@ KEY_SPREAD = 32  # key values per partition (at least) the partition key aims at
 # process). A worker that takes a partition gets the thresholds glibc would grow to
 # (``_malloc_thresholds``; mallopt's M_TRIM_THRESHOLD = -1, M_MMAP_THRESHOLD = -3).
 WORKER_MALLOC = ((-3, 1 << 25), (-1, 1 << 26))
+# The embedded cluster's workers without Dask's statistical profiler (it samples the
+# working thread's stack every 10 ms, for a dashboard the embedded cluster does not have)
+# and with the system monitor every 2 s instead of 0.5 s: an idle worker then takes about
+# 1.6 % of a core instead of 3.2 % (measured), and the partition's thread is not interrupted.
+QUIET_WORKERS = {"distributed.worker.profile.enabled": False, "distributed.admin.system-monitor.interval": "2s"}
 CONNECT_SECONDS = 10  # to reach a running scheduler before giving up
 _GOLDEN = np.uint64(0x9E3779B97F4A7C15)
 
@@ -79,13 +87,14 @@ def owner(codes: np.ndarray, parts: int, key: tuple = ()) -> np.ndarray:
     """Partition of each state code: Fibonacci hashing of its *key* (the digits of the
     slots in ``key``, pairs ``(mult, size)``; ``()``: the whole code) mod ``parts``."""
     c = np.asarray(codes, np.int64)
-    if key:
+    if key:  # x - x // m * m, not x % m: numpy divides by a scalar fast, its remainder of int64 is slower
         d = np.zeros(len(c), np.int64)
         for mult, size in key:
-            d = d * size + (c // mult) % size
+            q = c // mult
+            d = d * size + (q - q // size * size)
         c = d
-    h = (c.astype(np.uint64) * _GOLDEN) >> np.uint64(40)
-    return (h % np.uint64(parts)).astype(np.int64)
+    h = ((c.astype(np.uint64) * _GOLDEN) >> np.uint64(40)).astype(np.int64)  # 24 bits
+    return h % parts
 
 
 def partition_key(model, parts: int, beam: int = 64, steps: int = 32, seed: int = 0, succ=None) -> tuple:
@@ -153,7 +162,8 @@ class _Seen:
     copies it: slower, for code spaces a bitmap cannot cover)."""
 
     def __init__(self, total: int):
-        self.bits = np.zeros((total + 63) // 64, np.uint64) if total <= DENSE_LIMIT else None
+        self.total = total
+        self.bits = np.zeros((total + 7) // 8, np.uint8) if total <= DENSE_LIMIT else None  # bit c % 8 of byte c // 8
         self.sorted = np.zeros(0, np.int64)
 
     def fresh(self, codes: np.ndarray) -> np.ndarray:
@@ -168,12 +178,14 @@ class _Seen:
             new = codes[~seen]
             self.sorted = np.insert(self.sorted, pos[~seen], new)
             return new
-        unseen = (self.bits[codes >> 6] & _bit(codes)) == 0
-        new = _distinct(codes[unseen])  # fewer: the seen ones go first
+        bytes_ = self.bits  # a byte at a time: 3x faster than 64-bit words (fewer bytes moved)
+        unseen = ((bytes_[codes >> 3] >> (codes & 7).astype(np.uint8)) & 1) == 0
+        # fewer: the seen ones go first; sorted as uint32 (codes under DENSE_LIMIT fit): twice as fast
+        new = _distinct(codes[unseen].astype(np.uint32)).astype(np.int64)
         if len(new):
-            word = new >> 6
-            starts = np.flatnonzero(np.concatenate(([True], word[1:] != word[:-1])))
-            self.bits[word[starts]] |= np.bitwise_or.reduceat(_bit(new), starts)
+            byte = new >> 3
+            starts = np.flatnonzero(np.concatenate(([True], byte[1:] != byte[:-1])))
+            bytes_[byte[starts]] |= np.bitwise_or.reduceat(np.left_shift(1, new & 7).astype(np.uint8), starts)
         return new
 
 
@@ -230,7 +242,7 @@ class Partition:
             self._take(codes)
             return 0
         own = owner(codes, self.parts, self.key)
-        order = np.argsort(own, kind="stable")
+        order = np.argsort(own.astype(np.uint16) if self.parts <= 1 << 16 else own, kind="stable")  # a radix sort
         ends = np.cumsum(np.bincount(own, minlength=self.parts))
         starts = ends - np.bincount(own, minlength=self.parts)
         for j in range(self.parts):
@@ -311,7 +323,7 @@ class Partition:
             self._order = np.argsort(own, kind="stable")
             self._sorted = None
             if self.seen.bits is not None:
-                bits = np.zeros_like(self.seen.bits)
+                bits = np.zeros((self.seen.total + 63) // 64, np.uint64)
                 s = own[self._order]
                 word = s >> 6
                 starts = np.flatnonzero(np.concatenate(([True], word[1:] != word[:-1]))) if len(s) else s
@@ -426,7 +438,7 @@ class DistributedCounts:
 
     states: int
     transitions: int
-    levels: int  # rounds
+    levels: int  # rounds (simulate; 1 worker); on Dask with 2 or more: the steps of the busiest partition
     seconds: float
     per_partition: list = field(default_factory=list)  # states owned by each partition
     messages: int = 0  # non-empty buckets sent
@@ -435,7 +447,8 @@ class DistributedCounts:
     critical_path: int = 0  # sum over rounds of the most states a partition expanded in it
     work_seconds: float = 0.0  # on Dask: sum over rounds of the longest partition's work
     cpu_seconds: float = 0.0  # CPU seconds of the partitions' rounds, all together
-    cpu_path: float = 0.0  # sum over rounds of the most CPU seconds a partition took in it
+    cpu_path: float = 0.0  # sum over rounds of the most CPU seconds a partition took in it (no rounds: the most in all)
+    makespan: float = 0.0  # ``simulate(rounds=False)``: the partitions' work on free cores, in CPU seconds
 
     @property
     def ideal_speedup(self) -> float:
@@ -501,18 +514,61 @@ def _rounds(parts, phase, counts=None) -> tuple:
             return rounds, res
 
 
+def _free_cores(parts, phase, counts) -> int:
+    """The search without rounds, as the actors run it on Dask, scheduled in this process
+    on a clock of CPU seconds: each partition's clock advances by the CPU seconds of its
+    steps (``time.thread_time``, which the machine's other jobs do not inflate much); a
+    bucket arrives at its owner at the sender's clock after the step that made it; the
+    next step is the one whose partition is ready first (its own queue, or its earliest
+    bucket). The largest clock at the end (``counts.makespan``) is the time the
+    partitions' work takes on ``len(parts)`` free cores, messages and Dask aside; returns
+    the most steps a partition took."""
+    clock = [0.0] * len(parts)
+    mail: list = [[] for _ in parts]  # (arrival, codes)
+    steps = [0] * len(parts)
+    sizes: list = []  # states in each bucket
+    res: list = [{"transitions": 0, "expanded": 0, "cpu": 0.0, "sent": [0] * len(parts)} for _ in parts]
+    while True:
+        ready = [(clock[j] if p.head < p.n else max(clock[j], min(t for t, _ in mail[j])), j)
+                 for j, p in enumerate(parts) if p.head < p.n or mail[j]]
+        if not ready:
+            break
+        t, j = min(ready)
+        clock[j] = t
+        for _, b in [m for m in mail[j] if m[0] <= t]:
+            parts[j].receive(b)
+        mail[j] = [m for m in mail[j] if m[0] > t]
+        buckets, stats = parts[j].step(phase)
+        clock[j] += stats["cpu"]
+        steps[j] += 1
+        for name in ("transitions", "expanded", "cpu"):
+            res[j][name] += stats[name]
+        for k, b in enumerate(buckets):
+            if len(b):
+                mail[k].append((clock[j], b))
+                res[j]["sent"][k] += len(b)
+                sizes.append(len(b))
+    _tally(counts, res)
+    counts.messages, counts.largest_message = len(sizes), max(sizes, default=0)
+    counts.critical_path = max(r["expanded"] for r in res)
+    counts.cpu_path = max(r["cpu"] for r in res)
+    counts.makespan = max(clock)
+    return max(steps)
+
+
 def simulate(model, parts: int, keep: bool = False, message_min: int = MESSAGE_MIN, key=None,
-             round_states: int = ROUND_STATES):
+             round_states: int = ROUND_STATES, rounds: bool = True):
     """The partitioned search (and with ``keep`` the checks) with ``parts`` partitions run
     one after the other in this process: the same ``Partition`` code and rounds as on
     Dask, so the same counts, rounds and message volume, without the cluster. Returns
-    ``DistributedCounts`` (``keep``: ``DistributedCheck``)."""
+    ``DistributedCounts`` (``keep``: ``DistributedCheck``). ``rounds=False``: the search
+    without rounds, as on Dask, on a clock of CPU seconds (``_free_cores``: its makespan)."""
     t0 = time.perf_counter()
     succ = BatchSuccessors(model)  # one trie for all: the partitions run one after the other
     key = partition_key(model, parts, succ=succ) if key is None else key
     ps = [Partition(model, j, parts, keep, message_min, key, succ, round_states) for j in range(parts)]
     counts = DistributedCounts(0, 0, 0, 0.0)
-    counts.levels = _rounds(ps, "explore", counts)[0]
+    counts.levels = _rounds(ps, "explore", counts)[0] if rounds or parts == 1 else _free_cores(ps, "explore", counts)
     counts.per_partition = [p.n for p in ps]
     counts.states = sum(counts.per_partition)
     counts.seconds = time.perf_counter() - t0
@@ -562,6 +618,11 @@ class _Actor:
         factory, args, kwargs = spec
         self.p = Partition(factory(*args, **dict(kwargs)), me, parts, keep, message_min, key)
         self.peers = None
+        self.wake = asyncio.Event()  # ``run``: set by a delivery or ``stop``
+        self.quiet = asyncio.Event()  # ``settled``: set by ``run`` when it goes idle
+        self.busy = self.stopped = self.failed = False
+        self.error: "BaseException | None" = None
+        self.sent = self.received = 0  # buckets, for the client's termination test
 
     def connect(self, peers) -> None:
         self.peers = peers
@@ -575,6 +636,87 @@ class _Actor:
         work = time.perf_counter() - t0
         await asyncio.gather(*[self.peers[j].receive(b) for j, b in enumerate(buckets) if len(b)])
         return {**stats, "sent": [len(b) for b in buckets], "work": work}
+
+    # ------------------------------------------------ the search without rounds
+
+    async def receive_async(self, codes) -> None:
+        """A peer's bucket during ``run``: queued, counted, and the partition woken."""
+        self.p.receive(codes)
+        self.received += 1
+        self.wake.set()
+
+    def _idle(self) -> bool:
+        return not self.busy and not self.p.inbox and self.p.head >= self.p.n
+
+    async def status(self) -> tuple:
+        """(idle, buckets sent, buckets received): read on the worker's event loop, where
+        ``run`` and ``receive_async`` change them, so the three agree with each other."""
+        return self._idle(), self.sent, self.received
+
+    async def settled(self) -> tuple:
+        """``status`` once this partition is idle (at once if it is): the client waits
+        here instead of reading the status of a busy partition again and again. Also
+        returns when ``run`` failed (idle: None)."""
+        while not self._idle() and not self.failed:
+            self.quiet.clear()
+            await self.quiet.wait()
+        return (None if self.failed else True), self.sent, self.received
+
+    async def run(self, phase) -> dict:
+        """The search without rounds: steps (at most ``round_states`` states, then each
+        bucket sent to its owner at once, without waiting for its delivery) while there is
+        work, asleep while there is none, until ``stop``; the client decides when to stop
+        by ``status`` (``_remote_run``). Returns the sums of the steps' stats. Called once
+        per actor (a ``stop`` that comes before it ends it at once)."""
+        loop = asyncio.get_running_loop()
+        total: dict = {"transitions": 0, "expanded": 0, "cpu": 0.0, "work": 0.0, "steps": 0, "messages": 0,
+                       "largest": 0, "sent": [0] * self.p.parts}
+        deliveries: list = []
+        try:
+            while not self.stopped:
+                if self.error is not None:  # a delivery failed (its peer's worker is gone)
+                    raise self.error
+                if self._idle():
+                    self.quiet.set()
+                    self.wake.clear()
+                    await self.wake.wait()
+                    continue
+                self.busy = True
+                t0 = time.perf_counter()
+                try:
+                    buckets, stats = await loop.run_in_executor(None, self.p.step, phase)
+                finally:
+                    self.busy = False
+                total["work"] += time.perf_counter() - t0
+                total["steps"] += 1
+                for k in ("transitions", "expanded", "cpu"):
+                    total[k] += stats.get(k, 0)
+                for j, b in enumerate(buckets):
+                    if len(b):
+                        self.sent += 1  # counted before it can arrive
+                        total["messages"] += 1
+                        total["sent"][j] += len(b)
+                        total["largest"] = max(total["largest"], len(b))
+                        delivery = asyncio.ensure_future(self.peers[j].receive_async(b))
+                        delivery.add_done_callback(self._delivered)
+                        deliveries.append(delivery)
+            await asyncio.gather(*deliveries)  # all delivered already (the client saw sent == received)
+        except BaseException:
+            self.failed = True  # ``run`` ends with the error, which the client raises (``_remote_run``)
+            self.quiet.set()
+            raise
+        return {**total, "pending": 0}
+
+    def _delivered(self, delivery) -> None:
+        """A delivery's end: a failure ends ``run`` (the client would otherwise wait for
+        a bucket that never arrives)."""
+        if not delivery.cancelled() and delivery.exception() is not None:
+            self.error = delivery.exception()
+            self.wake.set()
+
+    async def stop(self) -> None:
+        self.stopped = True
+        self.wake.set()
 
     def n(self) -> int:
         return self.p.n
@@ -594,6 +736,45 @@ def _remote_rounds(handles, phase, counts=None) -> tuple:
             _tally(counts, res)
         if _done(res):
             return rounds, res
+
+
+POLL_SECONDS = 0.005  # the client's pause between two reads of the partitions' status
+
+
+def _remote_run(handles, phase, counts) -> int:
+    """``phase`` on the actors without rounds (``_Actor.run``), then the sums of their
+    work in ``counts``; returns the most steps a partition took. Termination is detected
+    by reading every partition's (idle, buckets sent, buckets received) twice, one wave
+    of reads after the other (Mattern's counting method; the first wave waits for each
+    partition to be idle, ``settled``): when every partition was idle at both reads, its
+    counts did not change between them and all partitions together received as many
+    buckets as they sent, then at the moment between the two waves no partition worked
+    and no bucket was in flight, so none ever will: an idle partition works again only on
+    a delivery. No timing is assumed: a slow worker only delays the test."""
+    runs = [a.run(phase) for a in handles]
+    while True:
+        first = [f.result() for f in [a.settled() for a in handles]]  # each waits until its partition is idle
+        for f, (idle, _, _) in zip(runs, first):
+            if idle is None:  # ``run`` failed: the others stop, its error is raised
+                for g in [a.stop() for a in handles]:
+                    g.result()
+                f.result()
+        second = [f.result() for f in [a.status() for a in handles]]
+        now = [(s, r) for _, s, r in second]
+        if all(idle for idle, _, _ in second) and now == [(s, r) for _, s, r in first] and \
+                sum(s for s, _ in now) == sum(r for _, r in now):
+            break
+        time.sleep(POLL_SECONDS)
+    for f in [a.stop() for a in handles]:
+        f.result()
+    res = [f.result() for f in runs]
+    _tally(counts, res)
+    counts.messages = sum(s["messages"] for s in res)
+    counts.largest_message = max(s["largest"] for s in res)
+    counts.critical_path = max(s["expanded"] for s in res)
+    counts.work_seconds = max(s["work"] for s in res)
+    counts.cpu_path = max(s["cpu"] for s in res)
+    return max(s["steps"] for s in res)
 
 
 def _start(client, factory, args, kwargs, workers, keep, message_min, key):
@@ -616,7 +797,8 @@ def _search(client, factory, args, kwargs, workers, keep, message_min, key):
     started = _start(client, factory, args, kwargs, workers, keep, message_min, key)
     handles = started[0]
     counts = DistributedCounts(0, 0, 0, 0.0)
-    counts.levels = _remote_rounds(handles, "explore", counts)[0]
+    counts.levels = _remote_run(handles, "explore", counts) if len(handles) > 1 else \
+        _remote_rounds(handles, "explore", counts)[0]
     counts.per_partition = [f.result() for f in [a.n() for a in handles]]
     counts.states = sum(counts.per_partition)
     counts.seconds = time.perf_counter() - t0
@@ -657,6 +839,9 @@ def cluster(scheduler: "str | None" = None, workers: int = 2):
         with Client(scheduler, timeout=CONNECT_SECONDS) as client:
             yield client
         return
-    with LocalCluster(n_workers=workers, threads_per_worker=1, dashboard_address=None) as local, \
+    import dask
+
+    with dask.config.set(QUIET_WORKERS), \
+            LocalCluster(n_workers=workers, threads_per_worker=1, dashboard_address=None) as local, \
             Client(local) as client:
         yield client
