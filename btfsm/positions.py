@@ -31,7 +31,8 @@ from .errors import ModelError
 from .fsm import Edge
 from .expr import BoolOp, Compare, Const, Expr, Name, Unary, flat
 
-__all__ = ["split_by_entry", "split_history", "split_by_goal", "base_state", "entries_of", "SEP", "GOAL_SEP"]
+__all__ = ["split_by_entry", "split_history", "split_by_goal", "base_state", "entries_of", "widen_to_copies", "SEP",
+           "GOAL_SEP"]
 
 SEP = "@"  # a copy by entry: "<state>@<predecessor>"
 GOAL_SEP = "#"  # a copy by goal: "<state>#<class>"
@@ -44,6 +45,36 @@ def base_state(name: str) -> str:
     ('approach_bins', 'grasp_bins')
     """
     return name.split(SEP, 1)[0].split(GOAL_SEP, 1)[0]
+
+
+def widen_to_copies(x, model):
+    """``x`` (an expression, a ``Response``, any part of a model) with every ``F.state == 'X'``
+    (``!=``, ``in``) widened to the copies of X when FSM F of ``model`` has no state X but
+    states split from it: a copy ``X#c...`` or ``X@u...`` counts as X, and ``X#c`` names
+    the copies of goal copy ``X#c``. Names of states that exist are left alone. The split
+    functions widen the model's own expressions; this is for expressions written against
+    the unsplit model and given afterwards (``btfsm bound --response``, a counterexample's
+    requirement).
+
+    >>> from btfsm import FSM, Edge, Model, State, Primitive, running, success
+    >>> from btfsm.expr import parse, to_text
+    >>> f = FSM("arm", states=[State("a", "move"), State("b", "move")], initial="a", goals=("g",),
+    ...         edges=[Edge("a", "b", "g"), Edge("b", "a", "g")])
+    >>> m = Model("m", primitives=[Primitive("move", (running(), success()))], fsms=[f])
+    >>> s = split_by_entry(m, "arm", {"a": {"": (0, 1), "b": (0, 2)}})
+    >>> to_text(widen_to_copies(parse("arm.state == 'a' or arm.state == 'b'"), s))
+    "arm.state == 'a@start' or arm.state == 'a@b' or arm.state == 'b'"
+    """
+    for f in model.fsms:
+        ids = {s.id for s in f.states}
+        copies: dict = {}
+        for s in f.states:
+            for name in dict.fromkeys((base_state(s.id), s.id.split(SEP, 1)[0])):
+                if name != s.id and name not in ids:
+                    copies.setdefault(name, []).append(s.id)
+        if copies:
+            x = _rename_any(x, f"{f.name}.state", copies)
+    return x
 
 
 def entries_of(fsm) -> dict:

@@ -254,7 +254,7 @@ class Timing:
 
     ``classes``: ``{state: {class: goals}}``, the states whose runs go to different
     targets for different goals (``btfsm.positions.split_by_goal``); ``history``: the
-    states that move the arm, each split into one copy per entry (``split_history``);
+    states (instants too), each split into one copy per entry (``split_history``);
     ``table``: ``{copy s@u: {entry copy u@w: (min, max)}}`` for those copies, split again
     by the copy they are entered from (``split_by_entry``: two states of history);
     ``where``: ``{state: sorted poses}``, where the arm can be when
@@ -461,7 +461,7 @@ def derive(model, scene=None) -> Timing:
     # 3. where runs start: the fixed point on the FSM split by every entry (two states of
     # history: a copy s@u's runs start where u's own runs, from u's entries, left the arm)
     entries = entries_of(f)
-    timed_states = [s for s in entries if kind(base[s]) != "instant"]
+    timed_states = list(entries)  # instants too: a state after an instant knows what preceded it
     f2 = next(x for x in split_history(split_by_goal(model, d.fsm, classes), d.fsm, timed_states).fsms
               if x.name == d.fsm)
     for s2 in f2.states:

@@ -35,12 +35,13 @@ def proved():
 def test_worst_cases_are_proved_and_exceed_the_window(proved):
     # figures printed by `btfsm check ariac-{preemptive,baseline}-timed --property response --json`
     # (37.1 s and 51.1 s with the measured context-free durations, ``timed(m, "measured")``;
-    # 29.4 s and 42.9 s with one state of history in the position abstraction)
+    # 29.4 s and 42.9 s with one state of history in the position abstraction; 26.6 s and
+    # 33.8 s with two states of history that did not see through the instant states)
     assert proved["preemptive"][0] == pytest.approx(26.6)
-    assert proved["baseline"][0] == pytest.approx(33.8)
+    assert proved["baseline"][0] == pytest.approx(32.9)
     info = {v: proved[v][1].info["responses"]["reach"] for v in proved}
     assert info["preemptive"]["first_late_seconds"] == pytest.approx(25.1)
-    assert info["baseline"]["first_late_seconds"] == pytest.approx(31.4)
+    assert info["baseline"]["first_late_seconds"] == pytest.approx(30.5)
     for v in ("preemptive", "baseline"):
         res = proved[v][1]
         assert res.holds is False and res.counterexample is not None
@@ -73,6 +74,9 @@ def test_cli_prints_the_proved_worst_case(capsys, tmp_path):
     info = json.loads(capsys.readouterr().out)["properties"][0]["info"]["responses"]["reach"]
     assert info["worst_seconds"] == pytest.approx(26.6) and info["bound_ticks"] == 160
     out = tmp_path / "late.json"
+    # grasp_conveyor is split by entry (grasp_conveyor@enable_gripper_conveyor@...): the
+    # expression names its copies (positions.widen_to_copies)
+    assert not any(s.id == "grasp_conveyor" for s in load_builtin("ariac-preemptive-timed").fsms[0].states)
     assert main(["bound", "ariac-preemptive-timed", "--trigger", "event:arrive", "--response",
                  "arm.state == 'grasp_conveyor'", "--within", "16", "-o", str(out)]) == 0
     text = capsys.readouterr().out
@@ -146,19 +150,19 @@ def test_the_preemptive_first_late_scenario_is_not_a_run_of_the_cell():
     reach = dict(r.reaches)[r.injected[-1][2]]
     assert reach == pytest.approx(8.2, abs=0.3)  # the cell; the proof says 25.1 s
     # the spacing lifted (a diagnosis): the cell in the counterexample's situation reacts in
-    # 10.8 s; the decomposition says where the 14.3 s between them went
+    # 10.9 s; the decomposition says where the 14.2 s between them went
     r = replay_in_cell(m, ce, pace="phase", lift_spacing=True)
     assert len(r.injected) == 2 and not r.too_soon and not r.lost and not r.mismatch, r.text()
-    assert dict(r.responses)[r.injected[-1][2]] == pytest.approx(10.8, abs=0.3)
+    assert dict(r.responses)[r.injected[-1][2]] == pytest.approx(10.9, abs=0.3)
     parts = {st: (c, x) for st, c, x in r.decomposition}
     assert sum(c for c, _ in parts.values()) == pytest.approx(25.1)
-    assert parts["approach_conveyor"] == pytest.approx((10.0, 4.0), abs=0.25)
+    assert parts["approach_conveyor"] == pytest.approx((10.0, 4.2), abs=0.25)
     assert parts["bins_to_conveyor"] == pytest.approx((4.0, 1.7), abs=0.25)
 
 
 def test_the_baseline_first_late_scenario_loses_the_part_in_the_cell():
     """Issue 21.4: the baseline's violation is a run of the cell. Its worst first late
-    response (31.4 s) starts with a part detected as the arm leaves the tray for a bin
+    response (30.5 s) starts with a part detected as the arm leaves the tray for a bin
     pick; the cell, sent the part at that phase with the arm at its own speed (unpaced,
     no outcome forced), finishes the bin pick, puts the part back to free the gripper,
     and reaches the belt only after the part rode past the end of the belt: lost, 16 s
@@ -169,18 +173,19 @@ def test_the_baseline_first_late_scenario_loses_the_part_in_the_cell():
     from btfsm.sim.replay import replay_in_cell
 
     m, worst, ce = _first_late("ariac-baseline-timed")
-    assert worst == 314
+    assert worst == 305
     r = replay_in_cell(m, ce, pace="phase")
     assert r.at_phase and not r.too_soon and not r.mismatch, r.text()
     assert [pid for _, pid in r.lost] == [pid for _, _, pid in r.injected], r.text()
     assert 15.9 <= r.lost[0][0] - r.injected[0][0] <= 16.3 and "the cell shows the late response" in r.text()
-    assert [site for _, site, out in r.forced] == ["arm/grasp_bins"]  # the counterexample's missed grasp
+    assert [site.split("@")[0] for _, site, out in r.forced] == ["arm/grasp_bins"]  # the counterexample's missed grasp
     # the cell's response (its next belt grasp starts) 23.4 s after the detection: the proof
-    # (31.4 s) is 1.34 times it; where the 8 s went, per FSM state
+    # (30.5 s) is 1.30 times it; where the 7 s went, per FSM state
     assert dict(r.responses)[r.injected[0][2]] == pytest.approx(23.4, abs=0.3)
     parts = {st: (c, x) for st, c, x in r.decomposition}
-    assert sum(c for c, _ in parts.values()) == pytest.approx(31.4)
+    assert sum(c for c, _ in parts.values()) == pytest.approx(30.5)
     assert parts["approach_conveyor"] == pytest.approx((4.0, 0.2), abs=0.15)
+    assert parts["grasp_bins"] == pytest.approx((2.1, 1.3), abs=0.15)  # two grasps; 3.0 s before the instants' split
     assert parts["agv_to_bins"] == pytest.approx((6.3, 6.3), abs=0.15)
 
 
@@ -225,3 +230,33 @@ def test_pacing_holds_each_visit_at_least_as_long_as_the_counterexample():
     assert (p.v, p.c) == (1, 0) and not p.hold()
     p.after("x")  # the counterexample goes to 'c': pacing stops there
     assert p.diverged == (5, "c", "x") and not p.active() and not p.hold()
+
+
+def test_the_preemptive_worst_first_arrival_in_the_cell():
+    """A first arrival is a scenario the cell can always be put in (no spacing to keep):
+    the preemptive model with the arrival allowed once proves 21.3 s; the cell, sent the
+    part at the witness's phase, reaches it in 7.6 s (docs/verification.md 2.1: where the
+    time went). Issue 21.3's 10 % is far: measured, not met. BTFSM_LONG=1 (about 10 s)."""
+    import dataclasses
+
+    from btfsm.expr import to_text
+    from btfsm.sim.replay import replay_in_cell
+    from btfsm.verify.explore import explore
+    from btfsm.verify.properties.response import ResponseBound, counterexample
+    from btfsm.world import Bool
+
+    if os.environ.get("BTFSM_LONG") != "1":
+        pytest.skip("explores and replays for about 10 s (BTFSM_LONG=1)")
+    m = load_builtin("ariac-preemptive-timed")
+    ev = m.environment[0]
+    once = dataclasses.replace(ev, guard=f"({to_text(ev.guard)}) and not once",
+                               effects=tuple(ev.effects) + (("once", "true"),))
+    m = dataclasses.replace(m, variables=tuple(m.variables) + (Bool("once"),), environment=(once,))
+    rb = ResponseBound(explore(m), m.responses[0])
+    assert rb.worst == 213
+    path, k, loop = rb.worst_witness()
+    r = replay_in_cell(m, counterexample(rb, path, k, loop, "the worst first arrival", 160).to_json(), pace="phase")
+    assert r.at_phase and len(r.injected) == 1 and not r.too_soon and not r.lost and not r.mismatch, r.text()
+    assert dict(r.responses)[r.injected[0][2]] == pytest.approx(7.6, abs=0.3)
+    parts = {st: (c, x) for st, c, x in r.decomposition}
+    assert parts["approach_bins"] == pytest.approx((9.8, 2.2), abs=0.25)

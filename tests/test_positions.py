@@ -164,3 +164,33 @@ def test_a_user_scene_gets_derived_durations_and_a_response_verdict(capsys):
     assert durations_main(["--scene", scene, "--trigger", "event:arrive", "--response", "arm.goal == 'x'"]) == 2
     err = capsys.readouterr().err
     assert "responses.requirement.response: 'x' is not one of" in err and "Traceback" not in err
+
+
+def test_a_users_expression_names_a_split_states_copies(tmp_path, capsys):
+    """``btfsm bound``/``check --trigger/--response`` and replay read ``F.state == 'X'`` as
+    "the token is on a copy of X" when X was split (``X@u``, ``X#c``): an expression
+    written against the unsplit model keeps its meaning. A name that is neither a state nor
+    split is still an error."""
+    from btfsm import SkillRequest
+    from btfsm.cli import main
+    from btfsm.expr import parse
+    from btfsm.files.writing import dump_model
+    from btfsm.positions import widen_to_copies
+
+    f = FSM("arm", states=[State("a", "move"), State("b", "move")], initial="a", goals=("g",),
+            edges=[Edge("a", "b", "g"), Edge("b", "a", "g")])
+    m = Model("m", primitives=[Primitive("move", (running(), success()), duration=(0.1, 0.3))], fsms=[f],
+              tree=SkillRequest("go", fsm="arm", goal="g"), tick_rate=10.0)
+    s = split_by_entry(m, "arm", {"a": {"": (0, 0.2), "b": (0, 0.5)}})
+    assert str(widen_to_copies(parse("arm.state != 'a'"), s)) == str(parse("not (arm.state == 'a@start' or "
+                                                                           "arm.state == 'a@b')"))
+    path = tmp_path / "split.yaml"
+    dump_model(s, str(path))
+    out = tmp_path / "worst.json"
+    assert main(["bound", str(path), "--trigger", "arm.state == 'b'", "--response", "arm.state == 'a'",
+                 "-o", str(out)]) == 0
+    assert "worst case: 4 ticks = 0.4 s" in capsys.readouterr().out  # b's run, up to 0.3 s: a@b on its 4th tick
+    assert main(["replay", str(out), str(path)]) == 0
+    assert "first holds 4 tick(s)" in capsys.readouterr().out
+    assert main(["bound", str(path), "--trigger", "arm.state == 'b'", "--response", "arm.state == 'c'"]) == 2
+    assert "'c' is not one of" in capsys.readouterr().err

@@ -227,6 +227,7 @@ def _with_response(model, args):
     import dataclasses
 
     from btfsm.errors import ModelError, UsageError
+    from btfsm.positions import widen_to_copies
     from btfsm.timing import Response
 
     trig, resp, within = args.trigger, args.response, args.within
@@ -237,7 +238,7 @@ def _with_response(model, args):
     if trig is None or resp is None:
         raise UsageError("--trigger and --response go together")
     try:
-        req = Response("cli", trig, resp, within)
+        req = widen_to_copies(Response("cli", trig, resp, within), model)  # a split state's copies count as it
         return dataclasses.replace(model, responses=tuple(model.responses) + (req,))
     except (ModelError, SyntaxError, ValueError) as exc:
         raise UsageError(f"--trigger/--response: {getattr(exc, 'problem', None) or exc}") from None
@@ -262,6 +263,7 @@ def cli_bound(args) -> int:
     worst response time. Exit 0 when the worst case is bounded, 1 when some behaviour never
     responds (the lasso is written with -o), 2 bad input, 3 budget hit."""
     from btfsm.errors import ModelError, UsageError
+    from btfsm.positions import widen_to_copies
     from btfsm.timing import Response
 
     from .explore import explore
@@ -270,7 +272,7 @@ def cli_bound(args) -> int:
 
     model = _timed(_load(args), args)
     try:
-        req = Response("bound", args.trigger, args.response)
+        req = widen_to_copies(Response("bound", args.trigger, args.response), model)
     except (ModelError, SyntaxError, ValueError) as exc:
         raise UsageError(f"--trigger/--response: {getattr(exc, 'problem', None) or exc}") from None
     max_states = DEFAULT_MAX_STATES if args.max_states is None else args.max_states

@@ -401,17 +401,18 @@ def _confirm_response(ce, model, states) -> tuple:
     """A 'response' violation: the trigger occurs at step k and the response holds in no
     state from there on, for more ticks than the bound, or around the lasso's cycle."""
     from btfsm.expr import BOOL, as_expr, compile_fn
+    from btfsm.positions import widen_to_copies
 
     prog = model.program
     v = ce.violation
     k = int(v["trigger_step"])
-    resp = compile_fn(as_expr(v["response"]), prog.scope, "response", BOOL)
+    resp = compile_fn(widen_to_copies(as_expr(v["response"]), model), prog.scope, "response", BOOL)
     trig = v["trigger"]
     if trig.startswith("event:"):
         name = trig[len("event:"):]
         if k < 1 or ["env", name] not in [list(c[:2]) for c in ce.steps[k - 1].get("choices", [])]:
             return False, f"event '{name}' does not happen in step {k}"
-    elif not compile_fn(as_expr(trig), prog.scope, "trigger", BOOL)(list(states[k])):
+    elif not compile_fn(widen_to_copies(as_expr(trig), model), prog.scope, "trigger", BOOL)(list(states[k])):
         return False, f"the trigger '{trig}' does not hold after step {k}"
     held = [i for i in range(k, len(states)) if resp(list(states[i]))]
     n = len(states) - 1
