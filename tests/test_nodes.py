@@ -49,7 +49,7 @@ ELSEWHERE = {
     "Condition": {"btfsm/interop/btcpp_export.py", "btfsm/interop/pytrees.py", "btfsm/show.py", "verify/explore.py",
                   "verify/properties/lints.py", "verify/runlog.py"},
     "Action": {"btfsm/files/reading.py", "btfsm/interop/btcpp_export.py", "btfsm/interop/pytrees.py", "btfsm/model.py",
-               "btfsm/show.py", "verify/explore.py", "verify/properties/lints.py"},
+               "btfsm/show.py", "sim/durations.py", "verify/explore.py", "verify/properties/lints.py"},
     "SkillRequest": {"btfsm/interop/btcpp_export.py", "btfsm/interop/pytrees.py", "btfsm/model.py", "btfsm/show.py",
                      "sim/trial.py", "verify/explore.py", "verify/promela.py", "verify/properties/lints.py",
                      "verify/skills.py", "verify/smv.py", "verify/stepspec.py", "verify/treegoals.py"},

@@ -79,12 +79,13 @@ def test_every_cited_test_exists():
     """The doc's test column and this module agree (tests/test_expr.py is cited as a file);
     section 8's per-profile rows may cite tests of tests/test_profile_*.py and
     tests/test_peer_*.py, which run against the real engines; section 6.1 (time) cites
-    tests/test_durations.py."""
+    tests/test_durations.py, section 6 (the runtime's memo of ticks) tests/test_runtime.py."""
     cited = set(re.findall(r"`(test_\w+)`", DOC.read_text(encoding="utf-8")))
     assert len(cited) > 30
     elsewhere = set()
     for f in [*DOC.parent.parent.glob("tests/test_profile_*.py"), *DOC.parent.parent.glob("tests/test_peer_*.py"),
-              DOC.parent.parent / "tests" / "test_durations.py", DOC.parent.parent / "tests" / "test_nav2.py"]:
+              DOC.parent.parent / "tests" / "test_durations.py", DOC.parent.parent / "tests" / "test_nav2.py",
+              DOC.parent.parent / "tests" / "test_runtime.py"]:
         elsewhere |= set(re.findall(r"^def (test_\w+)\(", f.read_text(encoding="utf-8"), re.M))
     missing = sorted(name for name in cited if not callable(globals().get(name)) and name not in elsewhere)
     assert not missing, f"docs/semantics.md cites tests that do not exist here: {missing}"
