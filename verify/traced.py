@@ -35,6 +35,7 @@ a run of ``Program.step``.
 """
 from __future__ import annotations
 
+import sys
 import time
 from array import array
 from typing import TYPE_CHECKING, Any, Callable, Sequence
@@ -56,7 +57,7 @@ __all__ = ["search", "BatchSuccessors", "Untraceable", "TooManyPaths", "CHUNK", 
 CHUNK = 1 << 15  # states expanded per batch
 DENSE_LIMIT = 1 << 31  # code space up to which the visited set is a bitmap (256 MB at most), else a hash table
 TERMS_LIMIT = 1 << 22  # values of (term tuple, state) sums a batch may hold, else leaf by leaf
-STEP = 1 << 20  # codes numbered, hashed or ranked at a time (bounds the temporaries)
+STEP = 1 << 16  # codes numbered, hashed or ranked at a time (bounds the temporaries: they stay in cache)
 PATHS_MIN = 1 << 13  # paths traced before the trie must pay off (see ``search``)
 PATHS_RATIO = 4  # ... then at most one path per this many transitions found
 ROWS_LIMIT = 1 << 21  # (state, path) rows of one batch before it is split
@@ -270,22 +271,23 @@ class _Visited:
 
 
 def _popcount(words: np.ndarray) -> np.ndarray:
-    """Set bits of each uint64 (numpy >= 2: ``bitwise_count``; else a byte table)."""
+    """Set bits of each unsigned int (numpy >= 2: ``bitwise_count``; else a byte table)."""
     count = getattr(np, "bitwise_count", None)
     if count is not None:
         return count(words)
-    return _BYTE_BITS[words.view(np.uint8)].reshape(-1, 8).sum(axis=1, dtype=np.uint8)
+    return _BYTE_BITS[words.view(np.uint8)].reshape(-1, words.itemsize).sum(axis=1, dtype=np.uint8)
 
 
 _BYTE_BITS = np.array([bin(i).count("1") for i in range(256)], np.uint8)
 _BIT = np.left_shift(np.uint64(1), np.arange(64, dtype=np.uint64))  # bit b of a word
-_BELOW = _BIT - np.uint64(1)  # the bits below bit b
+_BELOW32 = np.left_shift(np.uint64(1), np.arange(32, dtype=np.uint64)) - np.uint64(1)  # the bits below bit b
 
 
 class _Bitmap(_Visited):
     """Visited codes as one bit per code of the code space (``total / 8`` bytes, pages
     touched only where states are). Ids at the end: a code's rank among the visited codes
-    (a prefix count per 64-bit word plus a popcount) indexes a rank-to-id table."""
+    (a prefix count per 32-bit word, packed beside the word, plus a popcount) indexes a
+    rank-to-id table."""
 
     def __init__(self, total, c0):
         super().__init__(total, c0)
@@ -304,26 +306,38 @@ class _Bitmap(_Visited):
         starts = np.flatnonzero(np.concatenate(([True], word[1:] != word[:-1])))
         self.bits[word[starts]] |= np.bitwise_or.reduceat(_BIT[codes & 63], starts)
 
-    def _rank(self, codes, prefix):
-        word = codes >> 6
-        return prefix[word] + _popcount(self.bits[word] & _BELOW[codes & 63])
-
     def ids(self, codes):
         if self.ranked is None:
+            # 32 codes a word, each word packed with the number of visited codes before it
+            # (high 32 bits) beside its bits (low 32 bits): a code's rank is one lookup and
+            # a popcount
+            words = self.bits.view(np.uint32) if sys.byteorder == "little" else np.stack(
+                [self.bits & np.uint64(0xFFFFFFFF), self.bits >> np.uint64(32)], axis=1).ravel().astype(np.uint32)
+            packed = np.empty(len(words), np.uint64)
+            before = np.uint64(0)
+            for a in range(0, len(words), STEP):
+                w = words[a:a + STEP]
+                count = _popcount(w)
+                p = packed[a:a + STEP]
+                np.cumsum(count, dtype=np.uint64, out=p)
+                p += before
+                before = p[-1]
+                p -= count
+                p <<= np.uint64(32)
+                p |= w
             dt = np.int32 if self.n < 1 << 31 else np.int64
-            counts = np.zeros(len(self.bits), dt)
-            for a in range(0, len(self.bits), STEP):
-                counts[a:a + STEP] = _popcount(self.bits[a:a + STEP])
-            exclusive = np.zeros(len(self.bits), dt)  # visited codes in the words before
-            np.cumsum(counts[:-1], out=exclusive[1:])
-            del counts
             by_rank = np.empty(self.n, dt)
+            self.ranked = (packed, by_rank)
             for a in range(0, self.n, STEP):
                 b = min(a + STEP, self.n)
-                by_rank[self._rank(self.codes[a:b], exclusive)] = np.arange(a, b, dtype=dt)
-            self.ranked = (exclusive, by_rank)
-        exclusive, by_rank = self.ranked
-        return by_rank[self._rank(codes, exclusive)]
+                by_rank[self._rank(self.codes[a:b])] = np.arange(a, b, dtype=dt)
+        return self.ranked[1][self._rank(codes)]
+
+    def _rank(self, codes):
+        p = self.ranked[0][codes >> 5]
+        r = p >> np.uint64(32)
+        r += _popcount(p & _BELOW32[codes & 31])
+        return r
 
 
 _GOLDEN = np.uint64(0x9E3779B97F4A7C15)
@@ -423,7 +437,7 @@ class _Column:
             wider = array(self.TYPES[self.k])
             wider.frombytes(self.view().astype(np.dtype(self.TYPES[self.k])).tobytes())
             self.buf = wider
-        self.buf.frombytes(np.ascontiguousarray(values, dtype=np.dtype(self.buf.typecode)).tobytes())
+        self.buf.frombytes(np.ascontiguousarray(values, dtype=np.dtype(self.buf.typecode)).view(np.uint8).data)
 
     def view(self) -> np.ndarray:
         dt = np.dtype(self.buf.typecode)
@@ -521,6 +535,14 @@ class _Engine:
         self.leaf_ord = np.zeros(0, np.int64)
         self.max_paths = PATHS_MIN
         self.budget = None
+        # the decisions of the trie, for ``successors``: expression node -> [kind, lowest value,
+        # number of values] (a switch's range grows as values come), in order of first use
+        self.decisions: dict = {}
+        self.groups: dict = {}  # decision key -> (ok leaf ids in script order, error leaves)
+        self.leaf_shift = np.zeros(0, np.int64)  # per leaf: its code change's constant ...
+        self.leaf_terms = np.zeros(0, np.int64)  # ... and its term tuple (0: none, else index + 1)
+        self.term_ids: dict = {}
+        self.term_list: list = []
 
     # ---- tracing
     def state_of(self, code: int) -> tuple:
@@ -599,6 +621,13 @@ class _Engine:
             holder, key = node[2], d[2]
         if holder.get(key) is not None:
             raise Untraceable("a traced path ends where another goes on")
+        for d in path:
+            if d[0] != "c" and d[1] not in self.decisions:
+                expr = self.g.nodes[d[1]]
+                k = expr[1] if expr[0] == "col" else None
+                self.decisions[d[1]] = [d[0], 0, 2] if d[0] == "b" else (
+                    [d[0], self.los[k], self.sizes[k]] if k is not None else [d[0], int(d[2]), 1])
+                self.groups.clear()  # the keys change
         label, goal = self.readable(tuple(o.picks))
         leaf = _Leaf(len(self.leaves), kind, code, status, label, goal, viol, o.taken)
         holder[key] = leaf
@@ -675,6 +704,150 @@ class _Engine:
                     kids[val] = None
                 push((kids, val, sub, script))
         return out, ev
+
+
+    # ---- one batch, grouped by decisions
+    def successors(self, codes: np.ndarray, cap: int = ROWS_LIMIT):
+        """The batch's transitions in the scalar engine's order (by source row, then choice
+        script): ``(rows, leaf ids, target codes, counts, error leaves [(leaf, rows)], the
+        leaf ids used)``, ``counts`` the transitions of each row. The same transitions as ``expand`` (then
+        sorted), found another way: every row's walk of the trie is fixed by the values
+        of the trie's decisions on it, so the rows are grouped by those values (one key,
+        mixed radix over ``decisions``) and the trie is walked once per group, with its
+        first row (a walk that meets a part not traced yet traces it from that row),
+        the walks kept across batches. Raises ``_Wide`` as ``expand`` does. None when the
+        keys would not fit one int64 (then ``expand``)."""
+        ev = _Values(codes, self.g.nodes, self.mults, self.sizes, self.los)
+        b = len(codes)
+        while True:
+            key = self._keys(ev, b)
+            if key is None:
+                return None
+            keyed = len(self.decisions)
+            if b == 1:
+                uniq, first, inv = key, np.zeros(1, np.int64), np.zeros(1, np.int64)
+            else:
+                uniq, first, inv = np.unique(key, return_index=True, return_inverse=True)
+            walks, whole = [], True
+            for u, r in zip(uniq.tolist(), first.tolist()):
+                w = self.groups.get(u)
+                if w is None:
+                    w = self._walk_row(codes, r, keyed)
+                    if w is None:  # a decision traced on the way is not in the key: key again
+                        whole = False
+                        break
+                    if len(self.decisions) == keyed:
+                        self.groups[u] = w
+                walks.append(w)
+            if whole:
+                break
+        nok = np.array([len(w[0]) for w in walks], np.int64)
+        counts = nok[inv]
+        total = int(counts.sum())
+        if b > 1 and total > cap:
+            raise _Wide()
+        bad: list = []
+        for g, w in enumerate(walks):
+            if w[1]:
+                rows_g = np.flatnonzero(inv == g)
+                bad.extend((leaf, rows_g) for leaf in w[1])
+        if len(self.leaf_shift) < len(self.leaves):
+            self._leaf_tables()
+        rows = np.repeat(np.arange(b), counts)
+        if not total:
+            return rows, rows, rows, counts, bad, rows
+        flat = np.concatenate([w[0] for w in walks]) if len(walks) > 1 else walks[0][0]
+        start = np.cumsum(counts) - counts
+        at = np.repeat((np.cumsum(nok) - nok)[inv] - start, counts)
+        at += np.arange(total)
+        lid = flat[at]
+        dst = self.leaf_shift[lid]
+        terms = self.leaf_terms[lid]
+        used = np.unique(self.leaf_terms[flat])
+        if len(used) == 1 and used[0] == 0:
+            dst += codes[rows]
+            return rows, lid, dst, counts, bad, flat
+        if len(used) * b <= TERMS_LIMIT:  # each term tuple's sum over the batch, one gather
+            sums = np.empty((len(used), b), np.int64)
+            local = np.zeros(int(used[-1]) + 1, np.int64)
+            for i, t in enumerate(used.tolist()):
+                local[t] = i
+                sums[i] = codes
+                for term in (self.term_list[t - 1] if t else ()):
+                    sums[i] += ev(term)
+            dst += sums.reshape(-1)[local[terms] * b + rows]
+            return rows, lid, dst, counts, bad, flat
+        dst += codes[rows]
+        for t in used.tolist():  # tuple by tuple, on its transitions only
+            if t:
+                sel = np.flatnonzero(terms == t)
+                v = np.zeros(b, np.int64)
+                for term in self.term_list[t - 1]:
+                    v += ev(term)
+                dst[sel] += v[rows[sel]]
+        return rows, lid, dst, counts, bad, flat
+
+    def _keys(self, ev, b):
+        """Each row's decision key: the values of ``decisions``, mixed radix (a switch
+        whose values leave its range widens it, and the kept walks go). None past int64."""
+        while True:
+            key = np.zeros(b, np.int64)
+            mult, again = 1, False
+            for n, d in self.decisions.items():
+                kind, lo, size = d
+                v = ev(n)
+                if mult * (2 if kind == "b" else size) >= 1 << 62:
+                    return None
+                if kind == "b":
+                    if isinstance(v, np.ndarray):
+                        np.add(key, mult, out=key, where=v if v.dtype == np.bool_ else v != 0)
+                    elif v:
+                        key += mult
+                    mult *= 2
+                else:
+                    if isinstance(v, np.ndarray):
+                        vmin, vmax = int(v.min()), int(v.max())
+                    else:
+                        vmin = vmax = int(v)
+                    if vmin < lo or vmax >= lo + size:
+                        new_lo = min(lo, vmin)
+                        d[1], d[2] = new_lo, max(lo + size, vmax + 1) - new_lo
+                        d[2] = max(d[2], 2 * size)  # (grown in steps)
+                        again = True
+                        break
+                    if size > 1:
+                        key += (v - lo) * mult
+                    mult *= size
+            if not again:
+                return key
+            self.groups.clear()
+
+    def _walk_row(self, codes, r, keyed):
+        """Row ``r``'s walk of the trie (``expand`` on it alone): ``(ok leaf ids in script
+        order, error leaves)``; None when paths traced on the way brought decisions past
+        the first ``keyed`` of ``decisions`` (the row's group may split on them)."""
+        out, _ = self.expand(codes[r:r + 1], 1 << 62)
+        if len(self.decisions) != keyed:
+            return None
+        ords = self.ordinals()
+        ok = sorted((leaf for leaf, _ in out if leaf.kind == "ok"), key=lambda leaf: ords[leaf.id])
+        return np.array([leaf.id for leaf in ok], np.int64), [leaf for leaf, _ in out if leaf.kind == "error"]
+
+    def _leaf_tables(self):
+        shift, terms = [], []
+        for leaf in self.leaves[len(self.leaf_shift):]:
+            code = leaf.code if leaf.kind == "ok" else (0, ())
+            shift.append(code[0])
+            if code[1]:
+                t = self.term_ids.get(code[1])
+                if t is None:
+                    t = self.term_ids[code[1]] = len(self.term_ids) + 1
+                terms.append(t)
+            else:
+                terms.append(0)
+        self.leaf_shift = np.concatenate([self.leaf_shift, np.array(shift, np.int64)])
+        self.leaf_terms = np.concatenate([self.leaf_terms, np.array(terms, np.int64)])
+        self.term_list = list(self.term_ids)
 
 
 # ---------------------------------------------------------------------- timed models: closure, then numbering
@@ -934,12 +1107,15 @@ def search(model, kind, fsm, kept, run, s0, budget, progress, op, fallback: bool
             break
         k = min(n - head, chunk)
         batch = visited.batch(head, k)
+        got = counts = used = None
         try:
             if staged is not None:  # one state's successors may stop early, once a budget is hit among them
                 rows, dst = staged.expand(batch, min(ROWS_LIMIT, tmax - nt + 1), lambda d: len(d) > tmax - nt or len(
                     np.unique(d[~visited.seen(d)])) > smax - n)
             else:
-                out, ev = eng.expand(batch, min(ROWS_LIMIT, tmax - nt + 1))
+                got = eng.successors(batch, min(ROWS_LIMIT, tmax - nt + 1))
+                if got is None:
+                    out, ev = eng.expand(batch, min(ROWS_LIMIT, tmax - nt + 1))
         except _Wide:  # split the batch: transitions are ordered by source state first
             chunk = max(1, k // 4)
             continue
@@ -951,13 +1127,17 @@ def search(model, kind, fsm, kept, run, s0, budget, progress, op, fallback: bool
         chunk = min(CHUNK, chunk * 2)
         if staged is None:
             ords = eng.ordinals()
-            # transitions of the batch, ordered as the generic engine makes them
-            ok = sorted(((leaf, rows) for leaf, rows in out if leaf.kind == "ok"), key=lambda x: ords[x[0].id])
-            rows, lid, dst = _transitions(ok, batch, ev)
-            # each leaf's rows are ascending and the leaves are in order: a stable sort by row
-            # (a radix sort on 16 bits) gives the (source, script) order
-            order = np.argsort(rows.astype(np.uint16) if k <= 1 << 16 else rows, kind="stable")
-            rows, lid, dst = rows[order], lid[order], dst[order]
+            if got is not None:  # transitions of the batch, ordered as the generic engine makes them
+                rows, lid, dst, counts, bad, used = got
+            else:
+                ok = sorted(((leaf, rows) for leaf, rows in out if leaf.kind == "ok"), key=lambda x: ords[x[0].id])
+                rows, lid, dst = _transitions(ok, batch, ev)
+                # each leaf's rows are ascending and the leaves are in order: a stable sort by row
+                # (a radix sort on 16 bits) gives the (source, script) order
+                order = np.argsort(rows.astype(np.uint16) if k <= 1 << 16 else rows, kind="stable")
+                rows, lid, dst = rows[order], lid[order], dst[order]
+                bad = [(leaf, r) for leaf, r in out if leaf.kind == "error"]
+                counts = used = None
         leaves = eng.leaves if staged is None else staged.leaves
         # new targets, numbered in order of first discovery
         cut = len(dst)
@@ -987,7 +1167,7 @@ def search(model, kind, fsm, kept, run, s0, budget, progress, op, fallback: bool
             grow = len(leaves) - len(leaf_kind)
             leaf_kind = np.concatenate([leaf_kind, np.full(grow, -1, np.int64)])
             leaf_viol = np.array([leaf.violations is not None for leaf in leaves], bool)
-        if len(named) and (leaf_kind[named] < 0).any():
+        if len(named) and (leaf_kind[named if used is None else used] < 0).any():  # (used: the batch's leaves)
             u, first = np.unique(named, return_index=True)
             for li in u[np.argsort(first)]:
                 if leaf_kind[li] < 0:
@@ -998,18 +1178,18 @@ def search(model, kind, fsm, kept, run, s0, budget, progress, op, fallback: bool
                         labels.append(leaf.label)
                         label_goal.append(leaf.goal)
                     leaf_kind[li] = kinds.setdefault((lab, leaf.status or 0), len(kinds))
-        offsets.extend(np.cumsum(np.bincount(rows, minlength=k)) + nt, nt + cut)
-        targets.frombytes(dst[:cut].astype(visited.codes.dtype).tobytes())
+        offsets.extend(np.cumsum(counts if complete and counts is not None else np.bincount(rows, minlength=k)) + nt,
+                       nt + cut)
+        targets.frombytes(dst[:cut].astype(visited.codes.dtype).view(np.uint8).data)  # (its buffer: no bytes copy)
         edge_c.extend(leaf_kind[lid], len(kinds))
-        for t in np.flatnonzero(leaf_viol[lid]).tolist():
-            violations.append((nt + t, leaves[int(lid[t])].violations))
+        if leaf_viol[lid if used is None else used].any():
+            for t in np.flatnonzero(leaf_viol[lid]).tolist():
+                violations.append((nt + t, leaves[int(lid[t])].violations))
         # domain errors, re-run on concrete states (reported exactly as the generic engine does)
         if staged is not None:
             errors.extend(staged.errors(batch, head, None if complete else cut))
-        else:
-            bad = [(leaf, r) for leaf, r in out if leaf.kind == "error"]
-            if bad:
-                errors.extend(_errors(eng, prog, bad, batch, head, ords, stop))
+        elif bad:
+            errors.extend(_errors(eng, prog, bad, batch, head, ords, stop))
         nt += cut
         if not complete:
             expanded = head + cut_row
