@@ -538,11 +538,11 @@ class _Engine:
         # the decisions of the trie, for ``successors``: expression node -> [kind, lowest value,
         # number of values] (a switch's range grows as values come), in order of first use
         self.decisions: dict = {}
-        self.groups: dict = {}  # decision key -> (ok leaf ids in script order, error leaves)
         self.leaf_shift = np.zeros(0, np.int64)  # per leaf: its code change's constant ...
         self.leaf_terms = np.zeros(0, np.int64)  # ... and its term tuple (0: none, else index + 1)
         self.term_ids: dict = {}
         self.term_list: list = []
+        self._forget()
 
     # ---- tracing
     def state_of(self, code: int) -> tuple:
@@ -625,9 +625,9 @@ class _Engine:
             if d[0] != "c" and d[1] not in self.decisions:
                 expr = self.g.nodes[d[1]]
                 k = expr[1] if expr[0] == "col" else None
-                self.decisions[d[1]] = [d[0], 0, 2] if d[0] == "b" else (
-                    [d[0], self.los[k], self.sizes[k]] if k is not None else [d[0], int(d[2]), 1])
-                self.groups.clear()  # the keys change
+                self.decisions[d[1]] = [d[0], 0, 2, False] if d[0] == "b" else (
+                    [d[0], self.los[k], self.sizes[k], False] if k is not None else [d[0], int(d[2]), 1, True])
+                self._forget()  # the keys change
         label, goal = self.readable(tuple(o.picks))
         leaf = _Leaf(len(self.leaves), kind, code, status, label, goal, viol, o.taken)
         holder[key] = leaf
@@ -709,118 +709,155 @@ class _Engine:
     # ---- one batch, grouped by decisions
     def successors(self, codes: np.ndarray, cap: int = ROWS_LIMIT):
         """The batch's transitions in the scalar engine's order (by source row, then choice
-        script): ``(rows, leaf ids, target codes, counts, error leaves [(leaf, rows)], the
-        leaf ids used)``, ``counts`` the transitions of each row. The same transitions as ``expand`` (then
-        sorted), found another way: every row's walk of the trie is fixed by the values
-        of the trie's decisions on it, so the rows are grouped by those values (one key,
-        mixed radix over ``decisions``) and the trie is walked once per group, with its
-        first row (a walk that meets a part not traced yet traces it from that row),
-        the walks kept across batches. Raises ``_Wide`` as ``expand`` does. None when the
-        keys would not fit one int64 (then ``expand``)."""
+        script): ``(rows, leaf ids, target codes, counts, error leaves [(leaf, rows)], leaf
+        ids)``, ``counts`` the transitions of each row, the last a superset of the leaves
+        of the batch. The same transitions as ``expand`` (then sorted), found another way:
+        a row's walk of the trie is fixed by the values of the trie's decisions on it, so
+        each row gets a key (those values, mixed radix over ``decisions``), each key new
+        to the engine is walked once (``_walk_row`` on one of its rows; a walk that meets a
+        part not traced yet traces it from that row) and kept as a group, and the batch's
+        transitions are gathered from its rows' groups. Raises ``_Wide`` as ``expand``
+        does. None when the keys would not fit one int64 (then ``expand``)."""
         ev = _Values(codes, self.g.nodes, self.mults, self.sizes, self.los)
         b = len(codes)
+        key = None
         while True:
-            key = self._keys(ev, b)
             if key is None:
-                return None
-            keyed = len(self.decisions)
-            if b == 1:
-                uniq, first, inv = key, np.zeros(1, np.int64), np.zeros(1, np.int64)
+                key = self._keys(ev, b)
+                if key is None:
+                    return None
+                keyed = len(self.decisions)
+            if len(self.known):
+                at = np.searchsorted(self.known, key)
+                np.minimum(at, len(self.known) - 1, out=at)
+                miss = self.known[at] != key
             else:
-                uniq, first, inv = np.unique(key, return_index=True, return_inverse=True)
-            walks, whole = [], True
-            for u, r in zip(uniq.tolist(), first.tolist()):
-                w = self.groups.get(u)
-                if w is None:
-                    w = self._walk_row(codes, r, keyed)
-                    if w is None:  # a decision traced on the way is not in the key: key again
-                        whole = False
-                        break
-                    if len(self.decisions) == keyed:
-                        self.groups[u] = w
-                walks.append(w)
-            if whole:
+                at, miss = None, np.ones(b, bool)
+            if not miss.any():
+                gid = self.known_gid[at]
                 break
-        nok = np.array([len(w[0]) for w in walks], np.int64)
-        counts = nok[inv]
+            rows = np.flatnonzero(miss)
+            uniq, first = np.unique(key[rows], return_index=True)
+            new = []
+            for u, r in zip(uniq.tolist(), rows[first].tolist()):
+                w = self._walk_row(codes, r, keyed)
+                if w is None:  # a decision traced on the way is not in the keys: key again
+                    key = None
+                    break
+                new.append((u, *w))
+            if key is not None:
+                self._add_groups(new)
+        counts = self.g_nok[gid]
         total = int(counts.sum())
         if b > 1 and total > cap:
             raise _Wide()
+        present = np.flatnonzero(np.bincount(gid, minlength=len(self.g_nok)))
         bad: list = []
-        for g, w in enumerate(walks):
-            if w[1]:
-                rows_g = np.flatnonzero(inv == g)
-                bad.extend((leaf, rows_g) for leaf in w[1])
-        if len(self.leaf_shift) < len(self.leaves):
-            self._leaf_tables()
+        if self.g_has_bad[present].any():
+            for g in present[self.g_has_bad[present]].tolist():
+                rows_g = np.flatnonzero(gid == g)
+                bad.extend((leaf, rows_g) for leaf in self.g_bad[g])
         rows = np.repeat(np.arange(b), counts)
         if not total:
-            return rows, rows, rows, counts, bad, rows
-        flat = np.concatenate([w[0] for w in walks]) if len(walks) > 1 else walks[0][0]
+            return rows, rows, rows, counts, bad, self.g_flat
         start = np.cumsum(counts) - counts
-        at = np.repeat((np.cumsum(nok) - nok)[inv] - start, counts)
+        at = np.repeat(self.g_off[gid] - start, counts)
         at += np.arange(total)
-        lid = flat[at]
-        dst = self.leaf_shift[lid]
-        terms = self.leaf_terms[lid]
-        used = np.unique(self.leaf_terms[flat])
-        if len(used) == 1 and used[0] == 0:
+        lid = self.g_flat[at]
+        dst = self.f_shift[at]
+        used = sorted(set().union(*(self.g_terms[g] for g in present.tolist())))
+        if used == [0]:
             dst += codes[rows]
-            return rows, lid, dst, counts, bad, flat
-        if len(used) * b <= TERMS_LIMIT:  # each term tuple's sum over the batch, one gather
+        elif len(used) * b <= TERMS_LIMIT:  # each term tuple's sum over the batch, one gather
             sums = np.empty((len(used), b), np.int64)
-            local = np.zeros(int(used[-1]) + 1, np.int64)
-            for i, t in enumerate(used.tolist()):
-                local[t] = i
+            local = np.zeros(len(self.term_list) + 1, np.int64)
+            for i, t in enumerate(used):
+                local[t] = i * b
                 sums[i] = codes
                 for term in (self.term_list[t - 1] if t else ()):
                     sums[i] += ev(term)
-            dst += sums.reshape(-1)[local[terms] * b + rows]
-            return rows, lid, dst, counts, bad, flat
-        dst += codes[rows]
-        for t in used.tolist():  # tuple by tuple, on its transitions only
-            if t:
-                sel = np.flatnonzero(terms == t)
-                v = np.zeros(b, np.int64)
-                for term in self.term_list[t - 1]:
-                    v += ev(term)
-                dst[sel] += v[rows[sel]]
-        return rows, lid, dst, counts, bad, flat
+            idx = local[self.f_term][at]
+            idx += rows
+            dst += sums.reshape(-1)[idx]
+        else:
+            dst += codes[rows]
+            terms = self.f_term[at]
+            for t in used:  # tuple by tuple, on its transitions only
+                if t:
+                    sel = np.flatnonzero(terms == t)
+                    v = np.zeros(b, np.int64)
+                    for term in self.term_list[t - 1]:
+                        v += ev(term)
+                    dst[sel] += v[rows[sel]]
+        return rows, lid, dst, counts, bad, self.g_flat
 
     def _keys(self, ev, b):
         """Each row's decision key: the values of ``decisions``, mixed radix (a switch
-        whose values leave its range widens it, and the kept walks go). None past int64."""
+        whose values leave its range widens it, and the kept groups go). None past int64."""
         while True:
             key = np.zeros(b, np.int64)
             mult, again = 1, False
             for n, d in self.decisions.items():
-                kind, lo, size = d
+                kind, lo, size, check = d
                 v = ev(n)
                 if mult * (2 if kind == "b" else size) >= 1 << 62:
                     return None
                 if kind == "b":
                     if isinstance(v, np.ndarray):
-                        np.add(key, mult, out=key, where=v if v.dtype == np.bool_ else v != 0)
+                        key += (v if v.dtype == np.bool_ else v != 0) * mult
                     elif v:
                         key += mult
                     mult *= 2
-                else:
+                    continue
+                if check:  # (a column's values stay in its domain)
                     if isinstance(v, np.ndarray):
                         vmin, vmax = int(v.min()), int(v.max())
                     else:
                         vmin = vmax = int(v)
                     if vmin < lo or vmax >= lo + size:
                         new_lo = min(lo, vmin)
-                        d[1], d[2] = new_lo, max(lo + size, vmax + 1) - new_lo
-                        d[2] = max(d[2], 2 * size)  # (grown in steps)
+                        d[1], d[2] = new_lo, max(max(lo + size, vmax + 1) - new_lo, 2 * size)  # (grown in steps)
                         again = True
                         break
-                    if size > 1:
-                        key += (v - lo) * mult
-                    mult *= size
+                if size > 1:
+                    key += (v - lo) * mult
+                mult *= size
             if not again:
                 return key
-            self.groups.clear()
+            self._forget()
+
+    def _forget(self):
+        """No group kept (the keys change): ``known`` (the groups' keys, sorted) and
+        ``known_gid`` (their group ids), and per group its ok leaves (``g_flat[g_off:g_off + g_nok]``,
+        in script order, with their code changes ``f_shift`` and term tuples ``f_term``),
+        its error leaves and the term tuples it uses."""
+        self.known = self.known_gid = self.g_nok = self.g_off = self.g_flat = np.zeros(0, np.int64)
+        self.f_shift = self.f_term = self.g_flat
+        self.g_has_bad = np.zeros(0, bool)
+        self.g_bad: list = []
+        self.g_terms: list = []
+
+    def _add_groups(self, new):
+        """Keep the groups ``[(key, ok leaf ids, error leaves)]``."""
+        if not new:
+            return
+        first = len(self.g_nok)
+        keys = np.array([k for k, _, _ in new], np.int64)
+        nok = np.array([len(ok) for _, ok, _ in new], np.int64)
+        self.g_off = np.concatenate([self.g_off, len(self.g_flat) + np.cumsum(nok) - nok])
+        self.g_nok = np.concatenate([self.g_nok, nok])
+        self.g_flat = np.concatenate([self.g_flat, *(ok for _, ok, _ in new)])
+        self.g_bad.extend(bad for _, _, bad in new)
+        self.g_has_bad = np.concatenate([self.g_has_bad, np.array([bool(bad) for _, _, bad in new], bool)])
+        keys = np.concatenate([self.known, keys])
+        gids = np.concatenate([self.known_gid, np.arange(first, first + len(new), dtype=np.int64)])
+        order = np.argsort(keys)
+        self.known, self.known_gid = keys[order], gids[order]
+        if len(self.leaf_shift) < len(self.leaves):
+            self._leaf_tables()
+        self.f_shift = self.leaf_shift[self.g_flat]
+        self.f_term = self.leaf_terms[self.g_flat]
+        self.g_terms.extend(set(self.leaf_terms[ok].tolist()) for _, ok, _ in new)
 
     def _walk_row(self, codes, r, keyed):
         """Row ``r``'s walk of the trie (``expand`` on it alone): ``(ok leaf ids in script
