@@ -56,11 +56,13 @@ __all__ = ["search", "BatchSuccessors", "Untraceable", "TooManyPaths", "CHUNK", 
 
 CHUNK = 1 << 15  # states expanded per batch
 DENSE_LIMIT = 1 << 31  # code space up to which the visited set is a bitmap (256 MB at most), else a hash table
+DENSE_IDS = 1 << 25  # ... and up to which it is a table of state ids (128 MB at most; no numbering at the end)
 TERMS_LIMIT = 1 << 22  # values of (term tuple, state) sums a batch may hold, else leaf by leaf
-STEP = 1 << 16  # codes numbered, hashed or ranked at a time (bounds the temporaries: they stay in cache)
+STEP = 1 << 20  # codes numbered, hashed or ranked at a time (bounds the temporaries)
 PATHS_MIN = 1 << 13  # paths traced before the trie must pay off (see ``search``)
 PATHS_RATIO = 4  # ... then at most one path per this many transitions found
 ROWS_LIMIT = 1 << 21  # (state, path) rows of one batch before it is split
+KEY_LIMIT = 1 << 62  # decision keys (``_Engine.successors``) up to this, else the trie walked row set by row set
 _CONTROL = ("token", "goal", "flag", "memory", "param")  # decided when first read
 _LAST = 1 << 20  # choice answer c > 0 sorts as _LAST - c: answers 0, n-1, ..., 1 (DFS order)
 
@@ -237,6 +239,8 @@ class _Visited:
     search the set only answers "seen or not" (``seen``); transitions keep their targets'
     codes, and ``number`` turns those into state ids once, at the end."""
 
+    direct = False  # True: ``ids`` answers during the search (``_Ids``)
+
     def __init__(self, total, c0):
         self.codes = np.zeros(1024, code_dtype(total))
         self.codes[0] = c0
@@ -338,6 +342,31 @@ class _Bitmap(_Visited):
         r = p >> np.uint64(32)
         r += _popcount(p & _BELOW32[codes & 31])
         return r
+
+
+class _Ids(_Visited):
+    """Visited codes as a table of state ids over the whole code space (id + 1 per code,
+    0: not seen; 4 bytes per code, pages touched only where states are), for code spaces
+    up to ``DENSE_IDS``: a target's id is known once its batch is done, so transitions
+    keep ids from the start and nothing is numbered at the end (``direct``)."""
+
+    direct = True
+
+    def __init__(self, total, c0):
+        super().__init__(total, c0)
+        self.table = np.zeros(total, np.int32)
+        self.table[c0] = 1
+
+    def seen(self, codes):
+        return self.table[codes] != 0
+
+    def index(self, codes):
+        self.table[codes] = np.arange(self.n - len(codes) + 1, self.n + 1, dtype=np.int32)
+
+    def ids(self, codes):
+        out = self.table[codes]
+        out -= 1
+        return out
 
 
 _GOLDEN = np.uint64(0x9E3779B97F4A7C15)
@@ -793,14 +822,14 @@ class _Engine:
 
     def _keys(self, ev, b):
         """Each row's decision key: the values of ``decisions``, mixed radix (a switch
-        whose values leave its range widens it, and the kept groups go). None past int64."""
+        whose values leave its range widens it, and the kept groups go). None past ``KEY_LIMIT``."""
         while True:
             key = np.zeros(b, np.int64)
             mult, again = 1, False
             for n, d in self.decisions.items():
                 kind, lo, size, check = d
                 v = ev(n)
-                if mult * (2 if kind == "b" else size) >= 1 << 62:
+                if mult * (2 if kind == "b" else size) > KEY_LIMIT:
                     return None
                 if kind == "b":
                     if isinstance(v, np.ndarray):
@@ -1123,12 +1152,12 @@ def search(model, kind, fsm, kept, run, s0, budget, progress, op, fallback: bool
             return ts
         eng = _Engine(model, run, kept, s0, op)  # the ordinary search, with a trie of its own
 
-    visited = (_Bitmap if total <= DENSE_LIMIT else _Hashed)(total, c0)
+    visited = (_Ids if total <= DENSE_IDS else _Bitmap if total <= DENSE_LIMIT else _Hashed)(total, c0)
     n, head, nt, complete, expanded = 1, 0, 0, True, None
     # the system in compact columns (see TransitionSystem): CSR row pointer, targets (their
-    # codes until the end, then ids), edge codes (one per distinct label and status), BFS parents
+    # codes until the end, then ids; ids at once when ``visited.direct``), edge codes (one per distinct label and status), BFS parents
     offsets, edge_c, parent = _Column("i"), _Column("b"), _Column("i")
-    targets = array("I" if visited.codes.dtype == np.uint32 else "q")
+    targets = array("i" if visited.direct else "I" if visited.codes.dtype == np.uint32 else "q")
     offsets.extend(np.array([0]), 0)
     parent.extend(np.array([-1]), 0)
     labels: list = []
@@ -1217,7 +1246,8 @@ def search(model, kind, fsm, kept, run, s0, budget, progress, op, fallback: bool
                     leaf_kind[li] = kinds.setdefault((lab, leaf.status or 0), len(kinds))
         offsets.extend(np.cumsum(counts if complete and counts is not None else np.bincount(rows, minlength=k)) + nt,
                        nt + cut)
-        targets.frombytes(dst[:cut].astype(visited.codes.dtype).view(np.uint8).data)  # (its buffer: no bytes copy)
+        ends = visited.ids(dst[:cut]) if visited.direct else dst[:cut].astype(visited.codes.dtype)
+        targets.frombytes(ends.view(np.uint8).data)  # (its buffer: no bytes copy)
         edge_c.extend(leaf_kind[lid], len(kinds))
         if leaf_viol[lid if used is None else used].any():
             for t in np.flatnonzero(leaf_viol[lid]).tolist():
@@ -1238,7 +1268,10 @@ def search(model, kind, fsm, kept, run, s0, budget, progress, op, fallback: bool
     if expanded is None:
         expanded = head
     codes = visited.codes[:n]
-    dst = visited.number(np.frombuffer(targets, visited.codes.dtype) if nt else np.zeros(0, np.int64))
+    if visited.direct:
+        dst = _view(targets, np.int32)
+    else:
+        dst = visited.number(np.frombuffer(targets, visited.codes.dtype) if nt else np.zeros(0, np.int64))
     del visited  # the index goes; the codes stay
     if len(offsets.buf) < n + 1:  # states not expanded have no transitions
         offsets.extend(np.full(n + 1 - len(offsets.buf), nt, np.int64), nt)
