@@ -13,15 +13,19 @@ and parameters are decided as soon as they are read (a switch on the slot's valu
 world variables stay symbolic, so one path covers every value of a counter it only
 compares or increments.
 
-Paths share prefixes and form a decision trie. To expand a batch of states the trie is
-walked once with numpy: a decision splits the batch's rows by the expression's value (each
-expression is evaluated once per batch), a choice point sends the rows down every answer,
-a leaf turns its rows into transitions (next-state codes from one expression). A row
-that reaches a part of the trie not traced yet is traced there (its own state is the
-representative) and the walk goes on. Transitions are then ordered by (source, choice
+Paths share prefixes and form a decision trie. A state's walk of the trie (a decision
+goes the way of the expression's value, a choice point down every answer, a leaf makes a
+transition: next-state code from one expression) is fixed by the values of the trie's
+decisions on it. So a batch of states is expanded by key (``_Engine.successors``): each
+row's key is those values (every expression evaluated once per batch with numpy), a key
+met for the first time is walked once on one of its rows (a part of the trie not traced
+yet is traced there, that row's state the representative) and kept as a group, and the
+batch's transitions are gathered from its rows' groups, ordered by (source, choice
 script in the order ``btfsm.verify.explore``'s depth-first search takes them), so states,
 labels and transitions are numbered exactly as the generic engine numbers them (tests
-compare the two systems field by field). Domain errors are re-run with the real step on
+compare the two systems field by field). ``_Engine.expand`` walks the trie with row sets
+instead (keys past ``KEY_LIMIT``, the timed closure, the staged tries, the distributed
+search). Domain errors are re-run with the real step on
 concrete states to report them exactly.
 
 Nothing here re-states the semantics: every decision, expression and constant comes from
