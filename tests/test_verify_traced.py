@@ -80,6 +80,9 @@ def test_bitmap_numbering_in_slices(monkeypatch):
 def test_decision_keys_past_their_limit_walk_the_trie(monkeypatch):
     monkeypatch.setattr(traced, "KEY_LIMIT", 4)  # (keys of more than two decisions: the row-set walk)
     assert_same(*both(load_builtin("pickplace3"), max_states=2000))
+    monkeypatch.setattr(traced, "KEY_LIMIT", 1 << 62)
+    monkeypatch.setattr(traced, "NEW_KEYS", 0)  # batches with many new keys walk it too, the others by key
+    assert_same(*both(load_builtin("pickplace3"), max_states=2000))
 
 
 def test_a_switch_on_a_computed_value_widens_its_key():

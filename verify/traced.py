@@ -67,6 +67,7 @@ PATHS_MIN = 1 << 13  # paths traced before the trie must pay off (see ``search``
 PATHS_RATIO = 4  # ... then at most one path per this many transitions found
 ROWS_LIMIT = 1 << 21  # (state, path) rows of one batch before it is split
 KEY_LIMIT = 1 << 62  # decision keys (``_Engine.successors``) up to this, else the trie walked row set by row set
+NEW_KEYS = 64  # ... and so is a batch with more new keys than this and than a quarter of its rows
 _CONTROL = ("token", "goal", "flag", "memory", "param")  # decided when first read
 _LAST = 1 << 20  # choice answer c > 0 sorts as _LAST - c: answers 0, n-1, ..., 1 (DFS order)
 
@@ -750,7 +751,9 @@ class _Engine:
         to the engine is walked once (``_walk_row`` on one of its rows; a walk that meets a
         part not traced yet traces it from that row) and kept as a group, and the batch's
         transitions are gathered from its rows' groups. Raises ``_Wide`` as ``expand``
-        does. None when the keys would not fit one int64 (then ``expand``)."""
+        does. None (then ``expand``) when the keys would pass ``KEY_LIMIT``, or the batch
+        brings more new keys than ``NEW_KEYS`` and than a quarter of its rows (states
+        that share few keys: one walk per key would cost more than the row-set walk)."""
         ev = _Values(codes, self.g.nodes, self.mults, self.sizes, self.los)
         b = len(codes)
         key = None
@@ -771,6 +774,8 @@ class _Engine:
                 break
             rows = np.flatnonzero(miss)
             uniq, first = np.unique(key[rows], return_index=True)
+            if len(uniq) > max(NEW_KEYS, b // 4):  # the rows share few keys: a walk per key would not pay
+                return None
             new = []
             for u, r in zip(uniq.tolist(), rows[first].tolist()):
                 w = self._walk_row(codes, r, keyed)
