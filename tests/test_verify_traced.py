@@ -58,7 +58,8 @@ def test_budget_cut_is_the_generic_engines(budget):
 
 def test_small_batches_and_hashed_visited_set(monkeypatch):
     monkeypatch.setattr(traced, "CHUNK", 7)
-    monkeypatch.setattr(traced, "DENSE_LIMIT", 0)  # a hash table, not a bitmap
+    monkeypatch.setattr(traced, "DENSE_IDS", 0)  # not a table of ids ...
+    monkeypatch.setattr(traced, "DENSE_LIMIT", 0)  # ... nor a bitmap: a hash table
     monkeypatch.setattr(visited.Hashed, "FIRST", 4)  # grown many times
     monkeypatch.setattr(traced, "STEP", 5)  # re-hashing and numbering in many slices
     monkeypatch.setattr(traced, "TERMS_LIMIT", 0)  # target codes summed leaf by leaf
@@ -70,9 +71,45 @@ def test_small_batches_and_hashed_visited_set(monkeypatch):
 
 
 def test_bitmap_numbering_in_slices(monkeypatch):
+    monkeypatch.setattr(traced, "DENSE_IDS", 0)  # a bitmap, not a table of ids
     monkeypatch.setattr(traced, "STEP", 3)  # ranks and target ids computed a few at a time
     for name in ("pickplace3", "two-area"):
         assert_same(*both(load_builtin(name)))
+    assert_same(*both(load_builtin("pickplace3"), max_states=777))  # a state budget cuts it as the scalar engine does
+
+
+def test_decision_keys_past_their_limit_walk_the_trie(monkeypatch):
+    monkeypatch.setattr(traced, "KEY_LIMIT", 4)  # (keys of more than two decisions: the row-set walk)
+    assert_same(*both(load_builtin("pickplace3"), max_states=2000))
+    monkeypatch.setattr(traced, "KEY_LIMIT", 1 << 62)
+    monkeypatch.setattr(traced, "NEW_KEYS", 0)  # batches with many new keys walk it too, the others by key
+    assert_same(*both(load_builtin("pickplace3"), max_states=2000))
+
+
+def test_a_switch_on_a_computed_value_widens_its_key():
+    """A decision on an int that is no slot's value (a list index computed from a variable)
+    has no known range: the traced engine's decision keys widen it as its values come
+    (forgetting the groups kept), and the system stays the scalar engine's."""
+    from btfsm import Int, Model
+    from btfsm.verify import scalar
+    from btfsm.verify.search import Budget
+
+    m = Model("hop", variables=[Int("x", 0, 9)])
+    hops = (3, 5, 7, 9, 1, 2, 4, 6, 8, 0, 1, 2)
+
+    class Step:
+        status, violations = 0, None
+
+        def __init__(self, state):
+            self.state = state
+
+    def run(s, o):
+        c = o.choose(("input", 0), (1, 2))
+        return Step((hops[s[0] + c + 1],))  # the index: a switch on x + c + 1
+
+    a, b = (e.search(m, "model", None, (0,), run, (0,), Budget(), None, None) for e in (scalar, traced))
+    assert b.n_states == 9 and b.n_transitions == 18
+    assert_same(a, b)
 
 
 def test_compact_storage_derives_the_same_arrays():

@@ -332,8 +332,13 @@ def explore_fsm(model, fsm, *, goals=None, max_states=None, max_transitions=None
 #: ``engine="auto"``: systems up to this many states are explored by the scalar engine. The
 #: traced engine pays for tracing each path once; below a few thousand states that costs
 #: more than it saves (ARIAC, 1,605 states: scalar 0.04 s, traced 0.14 s; pick/place at 3,
-#: 10,288 states: scalar 0.32 s, traced 0.06 s).
-AUTO_SCALAR_STATES = 4096
+#: 10,288 states: scalar 0.32 s, traced 0.06 s). The probe is what a larger system pays
+#: first (1,024 states of pick/place: about 0.02 s; it was 4,096 states, 0.1 s, until
+#: issue 24): 1,024 states tell a wide system from a narrow one as 4,096 did on every
+#: built-in model, and a narrow one goes on with the scalar engine anyway.
+AUTO_SCALAR_STATES = 1024
+#: ... a model whose kept timers alone span more values than this skips the probe (``_long_timers``)
+AUTO_TIMER_SPAN = 4096
 #: ... and past the probe, systems whose breadth-first levels hold fewer states than this on
 #: average (over the probe) stay with the scalar engine: the traced engine pays numpy's
 #: per-call costs once per level (ARIAC with 40 tray parts and a queue of 8, 11,319 states
@@ -344,14 +349,14 @@ AUTO_NARROW_LEVEL = 32
 
 def _long_timers(prog, kept) -> bool:
     """Whether the kept timers' domains (docs/semantics.md 6.1) multiply past
-    ``AUTO_SCALAR_STATES``: timers count one tick at a time, so such a system is
+    ``AUTO_TIMER_SPAN``: timers count one tick at a time, so such a system is
     expected to be large and ``auto`` goes to the traced engine without the scalar probe
     (a guess about speed only: both engines give the same system)."""
     span = 1
     for k in kept:
         if prog.slots[k].kind == "timer":
             span *= max(prog.slots[k].size, 1)
-    return span > AUTO_SCALAR_STATES
+    return span > AUTO_TIMER_SPAN
 
 
 def _explore_with(engine, task: SearchTask, budget: Budget) -> TransitionSystem:

@@ -13,15 +13,19 @@ and parameters are decided as soon as they are read (a switch on the slot's valu
 world variables stay symbolic, so one path covers every value of a counter it only
 compares or increments.
 
-Paths share prefixes and form a decision trie. To expand a batch of states the trie is
-walked once with numpy: a decision splits the batch's rows by the expression's value (each
-expression is evaluated once per batch), a choice point sends the rows down every answer,
-a leaf turns its rows into transitions (next-state codes from one expression). A row
-that reaches a part of the trie not traced yet is traced there (its own state is the
-representative) and the walk goes on. Transitions are then ordered by (source, choice
+Paths share prefixes and form a decision trie. A state's walk of the trie (a decision
+goes the way of the expression's value, a choice point down every answer, a leaf makes a
+transition: next-state code from one expression) is fixed by the values of the trie's
+decisions on it. So a batch of states is expanded by key (``_Engine.successors``): each
+row's key is those values (every expression evaluated once per batch with numpy), a key
+met for the first time is walked once on one of its rows (a part of the trie not traced
+yet is traced there, that row's state the representative) and kept as a group, and the
+batch's transitions are gathered from its rows' groups, ordered by (source, choice
 script in the order ``btfsm.verify.explore``'s depth-first search takes them), so states,
 labels and transitions are numbered exactly as the generic engine numbers them (tests
-compare the two systems field by field). Domain errors are re-run with the real step on
+compare the two systems field by field). ``_Engine.expand`` walks the trie with row sets
+instead (keys past ``KEY_LIMIT``, the timed closure, the staged tries, the distributed
+search). Domain errors are re-run with the real step on
 concrete states to report them exactly.
 
 Nothing here re-states the semantics: every decision, expression and constant comes from
@@ -55,7 +59,7 @@ from .codec import code_dtype, codec
 from .labels import readable
 from .search import DEFAULT_MAX_STATES, Budget, EnumOracle, Search, SearchTask
 from .system import DomainViolation, TransitionSystem
-from .visited import STEP, Bitmap, Hashed
+from .visited import STEP, Bitmap, Hashed, Ids
 
 if TYPE_CHECKING:
     from btfsm.semantics import Site
@@ -64,10 +68,13 @@ __all__ = ["search", "BatchSuccessors", "Untraceable", "TooManyPaths", "CHUNK", 
 
 CHUNK = 1 << 15  # states expanded per batch
 DENSE_LIMIT = 1 << 31  # code space up to which the visited set is a bitmap (256 MB at most), else a hash table
+DENSE_IDS = 1 << 25  # ... and up to which it is a table of state ids (128 MB at most; no numbering at the end)
 TERMS_LIMIT = 1 << 22  # values of (term tuple, state) sums a batch may hold, else leaf by leaf
 PATHS_MIN = 1 << 13  # paths traced before the trie must pay off (see ``search``)
 PATHS_RATIO = 4  # ... then at most one path per this many transitions found
 ROWS_LIMIT = 1 << 21  # (state, path) rows of one batch before it is split
+KEY_LIMIT = 1 << 62  # decision keys (``_Engine.successors``) up to this, else the trie walked row set by row set
+NEW_KEYS = 64  # ... and so is a batch with more new keys than this and than a quarter of its rows
 _CONTROL = ("token", "goal", "flag", "memory", "param")  # decided when first read
 _LAST = 1 << 20  # choice answer c > 0 sorts as _LAST - c: answers 0, n-1, ..., 1 (DFS order)
 
@@ -259,7 +266,7 @@ class _Column:
             wider = array(self.TYPES[self.k])
             wider.frombytes(self.view().astype(np.dtype(self.TYPES[self.k])).tobytes())
             self.buf = wider
-        self.buf.frombytes(np.ascontiguousarray(values, dtype=np.dtype(self.buf.typecode)).tobytes())
+        self.buf.frombytes(np.ascontiguousarray(values, dtype=np.dtype(self.buf.typecode)).view(np.uint8).data)
 
     def view(self) -> np.ndarray:
         dt = np.dtype(self.buf.typecode)
@@ -357,6 +364,14 @@ class _Engine:
         self.leaf_ord = np.zeros(0, np.int64)
         self.max_paths = PATHS_MIN
         self.budget = None
+        # the decisions of the trie, for ``successors``: expression node -> [kind, lowest value,
+        # number of values] (a switch's range grows as values come), in order of first use
+        self.decisions: dict = {}
+        self.leaf_shift = np.zeros(0, np.int64)  # per leaf: its code change's constant ...
+        self.leaf_terms = np.zeros(0, np.int64)  # ... and its term tuple (0: none, else index + 1)
+        self.term_ids: dict = {}
+        self.term_list: list = []
+        self._forget()
 
     # ---- tracing
     def state_of(self, code: int) -> tuple:
@@ -435,6 +450,13 @@ class _Engine:
             holder, key = node[2], d[2]
         if holder.get(key) is not None:
             raise Untraceable("a traced path ends where another goes on")
+        for d in path:
+            if d[0] != "c" and d[1] not in self.decisions:
+                expr = self.g.nodes[d[1]]
+                k = expr[1] if expr[0] == "col" else None
+                self.decisions[d[1]] = [d[0], 0, 2, False] if d[0] == "b" else (
+                    [d[0], self.los[k], self.sizes[k], False] if k is not None else [d[0], int(d[2]), 1, True])
+                self._forget()  # the keys change
         label, goal = self.readable(tuple(o.picks))
         leaf = _Leaf(len(self.leaves), kind, code, status, label, goal, viol, o.taken)
         holder[key] = leaf
@@ -511,6 +533,191 @@ class _Engine:
                     kids[val] = None
                 push((kids, val, sub, script))
         return out, ev
+
+
+    # ---- one batch, grouped by decisions
+    def successors(self, codes: np.ndarray, cap: int = ROWS_LIMIT):
+        """The batch's transitions in the scalar engine's order (by source row, then choice
+        script): ``(rows, leaf ids, target codes, counts, error leaves [(leaf, rows)], leaf
+        ids)``, ``counts`` the transitions of each row, the last a superset of the leaves
+        of the batch. The same transitions as ``expand`` (then sorted), found another way:
+        a row's walk of the trie is fixed by the values of the trie's decisions on it, so
+        each row gets a key (those values, mixed radix over ``decisions``), each key new
+        to the engine is walked once (``_walk_row`` on one of its rows; a walk that meets a
+        part not traced yet traces it from that row) and kept as a group, and the batch's
+        transitions are gathered from its rows' groups. Raises ``_Wide`` as ``expand``
+        does. None (then ``expand``) when the keys would pass ``KEY_LIMIT``, or the batch
+        brings more new keys than ``NEW_KEYS`` and than a quarter of its rows (states
+        that share few keys: one walk per key would cost more than the row-set walk)."""
+        ev = _Values(codes, self.g.nodes, self.mults, self.sizes, self.los)
+        b = len(codes)
+        key = None
+        while True:
+            if key is None:
+                key = self._keys(ev, b)
+                if key is None:
+                    return None
+                keyed = len(self.decisions)
+            if len(self.known):
+                at = np.searchsorted(self.known, key)
+                np.minimum(at, len(self.known) - 1, out=at)
+                miss = self.known[at] != key
+            else:
+                at, miss = None, np.ones(b, bool)
+            if not miss.any():
+                gid = self.known_gid[at]
+                break
+            rows = np.flatnonzero(miss)
+            uniq, first = np.unique(key[rows], return_index=True)
+            if len(uniq) > max(NEW_KEYS, b // 4):  # the rows share few keys: a walk per key would not pay
+                return None
+            new = []
+            for u, r in zip(uniq.tolist(), rows[first].tolist()):
+                w = self._walk_row(codes, r, keyed)
+                if w is None:  # a decision traced on the way is not in the keys: key again
+                    key = None
+                    break
+                new.append((u, *w))
+            if key is not None:
+                self._add_groups(new)
+        counts = self.g_nok[gid]
+        total = int(counts.sum())
+        if b > 1 and total > cap:
+            raise _Wide()
+        present = np.flatnonzero(np.bincount(gid, minlength=len(self.g_nok)))
+        bad: list = []
+        if self.g_has_bad[present].any():
+            for g in present[self.g_has_bad[present]].tolist():
+                rows_g = np.flatnonzero(gid == g)
+                bad.extend((leaf, rows_g) for leaf in self.g_bad[g])
+        rows = np.repeat(np.arange(b), counts)
+        if not total:
+            return rows, rows, rows, counts, bad, self.g_flat
+        start = np.cumsum(counts) - counts
+        at = np.repeat(self.g_off[gid] - start, counts)
+        at += np.arange(total)
+        lid = self.g_flat[at]
+        dst = self.f_shift[at]
+        used = sorted(set().union(*(self.g_terms[g] for g in present.tolist())))
+        if used == [0]:
+            dst += codes[rows]
+        elif len(used) * b <= TERMS_LIMIT:  # each term tuple's sum over the batch, one gather
+            sums = np.empty((len(used), b), np.int64)
+            local = np.zeros(len(self.term_list) + 1, np.int64)
+            for i, t in enumerate(used):
+                local[t] = i * b
+                sums[i] = codes
+                for term in (self.term_list[t - 1] if t else ()):
+                    sums[i] += ev(term)
+            idx = local[self.f_term][at]
+            idx += rows
+            dst += sums.reshape(-1)[idx]
+        else:
+            dst += codes[rows]
+            terms = self.f_term[at]
+            for t in used:  # tuple by tuple, on its transitions only
+                if t:
+                    sel = np.flatnonzero(terms == t)
+                    v = np.zeros(b, np.int64)
+                    for term in self.term_list[t - 1]:
+                        v += ev(term)
+                    dst[sel] += v[rows[sel]]
+        return rows, lid, dst, counts, bad, self.g_flat
+
+    def _keys(self, ev, b):
+        """Each row's decision key: the values of ``decisions``, mixed radix (a switch
+        whose values leave its range widens it, and the kept groups go). None past ``KEY_LIMIT``."""
+        while True:
+            key = np.zeros(b, np.int64)
+            mult, again = 1, False
+            for n, d in self.decisions.items():
+                kind, lo, size, check = d
+                v = ev(n)
+                if mult * (2 if kind == "b" else size) > KEY_LIMIT:
+                    return None
+                if kind == "b":
+                    if isinstance(v, np.ndarray):
+                        key += (v if v.dtype == np.bool_ else v != 0) * mult
+                    elif v:
+                        key += mult
+                    mult *= 2
+                    continue
+                if check:  # (a column's values stay in its domain)
+                    if isinstance(v, np.ndarray):
+                        vmin, vmax = int(v.min()), int(v.max())
+                    else:
+                        vmin = vmax = int(v)
+                    if vmin < lo or vmax >= lo + size:
+                        new_lo = min(lo, vmin)
+                        d[1], d[2] = new_lo, max(max(lo + size, vmax + 1) - new_lo, 2 * size)  # (grown in steps)
+                        again = True
+                        break
+                if size > 1:
+                    key += (v - lo) * mult
+                mult *= size
+            if not again:
+                return key
+            self._forget()
+
+    def _forget(self):
+        """No group kept (the keys change): ``known`` (the groups' keys, sorted) and
+        ``known_gid`` (their group ids), and per group its ok leaves (``g_flat[g_off:g_off + g_nok]``,
+        in script order, with their code changes ``f_shift`` and term tuples ``f_term``),
+        its error leaves and the term tuples it uses."""
+        self.known = self.known_gid = self.g_nok = self.g_off = self.g_flat = np.zeros(0, np.int64)
+        self.f_shift = self.f_term = self.g_flat
+        self.g_has_bad = np.zeros(0, bool)
+        self.g_bad: list = []
+        self.g_terms: list = []
+
+    def _add_groups(self, new):
+        """Keep the groups ``[(key, ok leaf ids, error leaves)]``."""
+        if not new:
+            return
+        first = len(self.g_nok)
+        keys = np.array([k for k, _, _ in new], np.int64)
+        nok = np.array([len(ok) for _, ok, _ in new], np.int64)
+        self.g_off = np.concatenate([self.g_off, len(self.g_flat) + np.cumsum(nok) - nok])
+        self.g_nok = np.concatenate([self.g_nok, nok])
+        self.g_flat = np.concatenate([self.g_flat, *(ok for _, ok, _ in new)])
+        self.g_bad.extend(bad for _, _, bad in new)
+        self.g_has_bad = np.concatenate([self.g_has_bad, np.array([bool(bad) for _, _, bad in new], bool)])
+        keys = np.concatenate([self.known, keys])
+        gids = np.concatenate([self.known_gid, np.arange(first, first + len(new), dtype=np.int64)])
+        order = np.argsort(keys)
+        self.known, self.known_gid = keys[order], gids[order]
+        if len(self.leaf_shift) < len(self.leaves):
+            self._leaf_tables()
+        self.f_shift = self.leaf_shift[self.g_flat]
+        self.f_term = self.leaf_terms[self.g_flat]
+        self.g_terms.extend(set(self.leaf_terms[ok].tolist()) for _, ok, _ in new)
+
+    def _walk_row(self, codes, r, keyed):
+        """Row ``r``'s walk of the trie (``expand`` on it alone): ``(ok leaf ids in script
+        order, error leaves)``; None when paths traced on the way brought decisions past
+        the first ``keyed`` of ``decisions`` (the row's group may split on them)."""
+        out, _ = self.expand(codes[r:r + 1], 1 << 62)
+        if len(self.decisions) != keyed:
+            return None
+        ords = self.ordinals()
+        ok = sorted((leaf for leaf, _ in out if leaf.kind == "ok"), key=lambda leaf: ords[leaf.id])
+        return np.array([leaf.id for leaf in ok], np.int64), [leaf for leaf, _ in out if leaf.kind == "error"]
+
+    def _leaf_tables(self):
+        shift, terms = [], []
+        for leaf in self.leaves[len(self.leaf_shift):]:
+            code = leaf.code if leaf.kind == "ok" else (0, ())
+            shift.append(code[0])
+            if code[1]:
+                t = self.term_ids.get(code[1])
+                if t is None:
+                    t = self.term_ids[code[1]] = len(self.term_ids) + 1
+                terms.append(t)
+            else:
+                terms.append(0)
+        self.leaf_shift = np.concatenate([self.leaf_shift, np.array(shift, np.int64)])
+        self.leaf_terms = np.concatenate([self.leaf_terms, np.array(terms, np.int64)])
+        self.term_list = list(self.term_ids)
 
 
 # ---------------------------------------------------------------------- timed models: closure, then numbering
@@ -752,12 +959,12 @@ def search(task: SearchTask, budget: "Budget | None", fallback: bool = True) -> 
             return ts
         eng = _Engine(model, run, kept, s0, op)  # the ordinary search, with a trie of its own
 
-    visited = (Bitmap if total <= DENSE_LIMIT else Hashed)(total, c0)
+    visited = (Ids if total <= DENSE_IDS else Bitmap if total <= DENSE_LIMIT else Hashed)(total, c0)
     n, head, nt, complete, expanded = 1, 0, 0, True, None
     # the system in compact columns (see TransitionSystem): CSR row pointer, targets (their
-    # codes until the end, then ids), edge codes (one per distinct label and status), BFS parents
+    # codes until the end, then ids; ids at once when ``visited.direct``), edge codes (one per distinct label and status), BFS parents
     offsets, edge_c, parent = _Column("i"), _Column("b"), _Column("i")
-    targets = array("I" if visited.codes.dtype == np.uint32 else "q")
+    targets = array("i" if visited.direct else "I" if visited.codes.dtype == np.uint32 else "q")
     offsets.extend(np.array([0]), 0)
     parent.extend(np.array([-1]), 0)
     labels: list = []
@@ -773,12 +980,15 @@ def search(task: SearchTask, budget: "Budget | None", fallback: bool = True) -> 
             break
         k = min(n - head, chunk)
         batch = visited.batch(head, k)
+        got = counts = used = None
         try:
             if staged is not None:  # one state's successors may stop early, once a budget is hit among them
                 rows, dst = staged.expand(batch, min(ROWS_LIMIT, tmax - nt + 1), lambda d: len(d) > tmax - nt or len(
                     np.unique(d[~visited.seen(d)])) > smax - n)
             else:
-                out, ev = eng.expand(batch, min(ROWS_LIMIT, tmax - nt + 1))
+                got = eng.successors(batch, min(ROWS_LIMIT, tmax - nt + 1))
+                if got is None:
+                    out, ev = eng.expand(batch, min(ROWS_LIMIT, tmax - nt + 1))
         except _Wide:  # split the batch: transitions are ordered by source state first
             chunk = max(1, k // 4)
             continue
@@ -790,13 +1000,17 @@ def search(task: SearchTask, budget: "Budget | None", fallback: bool = True) -> 
         chunk = min(CHUNK, chunk * 2)
         if staged is None:
             ords = eng.ordinals()
-            # transitions of the batch, ordered as the generic engine makes them
-            ok = sorted(((leaf, rows) for leaf, rows in out if leaf.kind == "ok"), key=lambda x: ords[x[0].id])
-            rows, lid, dst = _transitions(ok, batch, ev)
-            # each leaf's rows are ascending and the leaves are in order: a stable sort by row
-            # (a radix sort on 16 bits) gives the (source, script) order
-            order = np.argsort(rows.astype(np.uint16) if k <= 1 << 16 else rows, kind="stable")
-            rows, lid, dst = rows[order], lid[order], dst[order]
+            if got is not None:  # transitions of the batch, ordered as the generic engine makes them
+                rows, lid, dst, counts, bad, used = got
+            else:
+                ok = sorted(((leaf, rows) for leaf, rows in out if leaf.kind == "ok"), key=lambda x: ords[x[0].id])
+                rows, lid, dst = _transitions(ok, batch, ev)
+                # each leaf's rows are ascending and the leaves are in order: a stable sort by row
+                # (a radix sort on 16 bits) gives the (source, script) order
+                order = np.argsort(rows.astype(np.uint16) if k <= 1 << 16 else rows, kind="stable")
+                rows, lid, dst = rows[order], lid[order], dst[order]
+                bad = [(leaf, r) for leaf, r in out if leaf.kind == "error"]
+                counts = used = None
         leaves = eng.leaves if staged is None else staged.leaves
         # new targets, numbered in order of first discovery
         cut = len(dst)
@@ -826,7 +1040,7 @@ def search(task: SearchTask, budget: "Budget | None", fallback: bool = True) -> 
             grow = len(leaves) - len(leaf_kind)
             leaf_kind = np.concatenate([leaf_kind, np.full(grow, -1, np.int64)])
             leaf_viol = np.array([leaf.violations is not None for leaf in leaves], bool)
-        if len(named) and (leaf_kind[named] < 0).any():
+        if len(named) and (leaf_kind[named if used is None else used] < 0).any():  # (used: the batch's leaves)
             u, first = np.unique(named, return_index=True)
             for li in u[np.argsort(first)]:
                 if leaf_kind[li] < 0:
@@ -837,18 +1051,19 @@ def search(task: SearchTask, budget: "Budget | None", fallback: bool = True) -> 
                         labels.append(leaf.label)
                         label_goal.append(leaf.goal)
                     leaf_kind[li] = kinds.setdefault((lab, leaf.status or 0), len(kinds))
-        offsets.extend(np.cumsum(np.bincount(rows, minlength=k)) + nt, nt + cut)
-        targets.frombytes(dst[:cut].astype(visited.codes.dtype).tobytes())
+        offsets.extend(np.cumsum(counts if complete and counts is not None else np.bincount(rows, minlength=k)) + nt,
+                       nt + cut)
+        ends = visited.ids(dst[:cut]) if visited.direct else dst[:cut].astype(visited.codes.dtype)
+        targets.frombytes(ends.view(np.uint8).data)  # (its buffer: no bytes copy)
         edge_c.extend(leaf_kind[lid], len(kinds))
-        for t in np.flatnonzero(leaf_viol[lid]).tolist():
-            violations.append((nt + t, leaves[int(lid[t])].violations))
+        if leaf_viol[lid if used is None else used].any():
+            for t in np.flatnonzero(leaf_viol[lid]).tolist():
+                violations.append((nt + t, leaves[int(lid[t])].violations))
         # domain errors, re-run on concrete states (reported exactly as the generic engine does)
         if staged is not None:
             errors.extend(staged.errors(batch, head, None if complete else cut))
-        else:
-            bad = [(leaf, r) for leaf, r in out if leaf.kind == "error"]
-            if bad:
-                errors.extend(_errors(eng, prog, bad, batch, head, ords, stop))
+        elif bad:
+            errors.extend(_errors(eng, prog, bad, batch, head, ords, stop))
         nt += cut
         if not complete:
             expanded = head + cut_row
@@ -860,7 +1075,10 @@ def search(task: SearchTask, budget: "Budget | None", fallback: bool = True) -> 
     if expanded is None:
         expanded = head
     codes = visited.codes[:n]
-    dst = visited.number(np.frombuffer(targets, visited.codes.dtype) if nt else np.zeros(0, np.int64))
+    if visited.direct:
+        dst = _view(targets, np.int32)
+    else:
+        dst = visited.number(np.frombuffer(targets, visited.codes.dtype) if nt else np.zeros(0, np.int64))
     del visited  # the index goes; the codes stay
     if len(offsets.buf) < n + 1:  # states not expanded have no transitions
         offsets.extend(np.full(n + 1 - len(offsets.buf), nt, np.int64), nt)

@@ -1,17 +1,20 @@
 """The visited set of the traced engine (``btfsm.verify.traced``): the codes of the states
-found so far, in discovery order, and a set of them: a bitmap over the code space
-(``Bitmap``) or, past ``btfsm.verify.traced.DENSE_LIMIT`` codes, an open-addressing hash
-table (``Hashed``). During the search the set only answers "seen or not"; ``number`` turns
-the transitions' target codes into state ids once, at the end."""
+found so far, in discovery order, and a set of them: a table of state ids over the code
+space (``Ids``, up to ``btfsm.verify.traced.DENSE_IDS`` codes: targets are ids at once), a
+bitmap over the code space (``Bitmap``) or, past ``btfsm.verify.traced.DENSE_LIMIT`` codes,
+an open-addressing hash table (``Hashed``). During the search the bitmap and the table only
+answer "seen or not"; ``number`` turns the transitions' target codes into state ids once, at
+the end."""
 from __future__ import annotations
 
+import sys
 from typing import Any, Callable
 
 import numpy as np
 
 from .codec import code_dtype
 
-__all__ = ["Visited", "Bitmap", "Hashed", "STEP"]
+__all__ = ["Visited", "Ids", "Bitmap", "Hashed", "STEP"]
 
 STEP = 1 << 20  # codes numbered, hashed or ranked at a time (bounds the temporaries)
 
@@ -21,6 +24,8 @@ class Visited:
     code, in the smallest type that holds the code space) and a set of codes. During the
     search the set only answers "seen or not" (``seen``); transitions keep their targets'
     codes, and ``number`` turns those into state ids once, at the end."""
+
+    direct = False  # True: ``ids`` answers during the search (``Ids``)
 
     def __init__(self, total, c0):
         self.codes = np.zeros(1024, code_dtype(total))
@@ -56,22 +61,23 @@ class Visited:
 
 
 def _popcount(words: np.ndarray) -> np.ndarray:
-    """Set bits of each uint64 (numpy >= 2: ``bitwise_count``; else a byte table)."""
+    """Set bits of each unsigned int (numpy >= 2: ``bitwise_count``; else a byte table)."""
     count = getattr(np, "bitwise_count", None)
     if count is not None:
         return count(words)
-    return _BYTE_BITS[words.view(np.uint8)].reshape(-1, 8).sum(axis=1, dtype=np.uint8)
+    return _BYTE_BITS[words.view(np.uint8)].reshape(-1, words.itemsize).sum(axis=1, dtype=np.uint8)
 
 
 _BYTE_BITS = np.array([bin(i).count("1") for i in range(256)], np.uint8)
 _BIT = np.left_shift(np.uint64(1), np.arange(64, dtype=np.uint64))  # bit b of a word
-_BELOW = _BIT - np.uint64(1)  # the bits below bit b
+_BELOW32 = np.left_shift(np.uint64(1), np.arange(32, dtype=np.uint64)) - np.uint64(1)  # the bits below bit b
 
 
 class Bitmap(Visited):
     """Visited codes as one bit per code of the code space (``total / 8`` bytes, pages
     touched only where states are). Ids at the end: a code's rank among the visited codes
-    (a prefix count per 64-bit word plus a popcount) indexes a rank-to-id table."""
+    (a prefix count per 32-bit word, packed beside the word, plus a popcount) indexes a
+    rank-to-id table."""
 
     def __init__(self, total, c0):
         super().__init__(total, c0)
@@ -90,26 +96,63 @@ class Bitmap(Visited):
         starts = np.flatnonzero(np.concatenate(([True], word[1:] != word[:-1])))
         self.bits[word[starts]] |= np.bitwise_or.reduceat(_BIT[codes & 63], starts)
 
-    def _rank(self, codes, prefix):
-        word = codes >> 6
-        return prefix[word] + _popcount(self.bits[word] & _BELOW[codes & 63])
-
     def ids(self, codes):
         if self.ranked is None:
+            # 32 codes a word, each word packed with the number of visited codes before it
+            # (high 32 bits) beside its bits (low 32 bits): a code's rank is one lookup and
+            # a popcount
+            words = self.bits.view(np.uint32) if sys.byteorder == "little" else np.stack(
+                [self.bits & np.uint64(0xFFFFFFFF), self.bits >> np.uint64(32)], axis=1).ravel().astype(np.uint32)
+            packed = np.empty(len(words), np.uint64)
+            before = np.uint64(0)
+            for a in range(0, len(words), STEP):
+                w = words[a:a + STEP]
+                count = _popcount(w)
+                p = packed[a:a + STEP]
+                np.cumsum(count, dtype=np.uint64, out=p)
+                p += before
+                before = p[-1]
+                p -= count
+                p <<= np.uint64(32)
+                p |= w
             dt = np.int32 if self.n < 1 << 31 else np.int64
-            counts = np.zeros(len(self.bits), dt)
-            for a in range(0, len(self.bits), STEP):
-                counts[a:a + STEP] = _popcount(self.bits[a:a + STEP])
-            exclusive = np.zeros(len(self.bits), dt)  # visited codes in the words before
-            np.cumsum(counts[:-1], out=exclusive[1:])
-            del counts
             by_rank = np.empty(self.n, dt)
+            self.ranked = (packed, by_rank)
             for a in range(0, self.n, STEP):
                 b = min(a + STEP, self.n)
-                by_rank[self._rank(self.codes[a:b], exclusive)] = np.arange(a, b, dtype=dt)
-            self.ranked = (exclusive, by_rank)
-        exclusive, by_rank = self.ranked
-        return by_rank[self._rank(codes, exclusive)]
+                by_rank[self._rank(self.codes[a:b])] = np.arange(a, b, dtype=dt)
+        return self.ranked[1][self._rank(codes)]
+
+    def _rank(self, codes):
+        p = self.ranked[0][codes >> 5]
+        r = p >> np.uint64(32)
+        r += _popcount(p & _BELOW32[codes & 31])
+        return r
+
+
+class Ids(Visited):
+    """Visited codes as a table of state ids over the whole code space (id + 1 per code,
+    0: not seen; 4 bytes per code, pages touched only where states are), for code spaces
+    up to ``DENSE_IDS``: a target's id is known once its batch is done, so transitions
+    keep ids from the start and nothing is numbered at the end (``direct``)."""
+
+    direct = True
+
+    def __init__(self, total, c0):
+        super().__init__(total, c0)
+        self.table = np.zeros(total, np.int32)
+        self.table[c0] = 1
+
+    def seen(self, codes):
+        return self.table[codes] != 0
+
+    def index(self, codes):
+        self.table[codes] = np.arange(self.n - len(codes) + 1, self.n + 1, dtype=np.int32)
+
+    def ids(self, codes):
+        out = self.table[codes]
+        out -= 1
+        return out
 
 
 _GOLDEN = np.uint64(0x9E3779B97F4A7C15)
