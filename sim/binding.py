@@ -71,6 +71,9 @@ class Dialect:
         return args["frame"].split("/")[1]  # "arm1/<area>/<pose>"
 
 
+PHYSICS_WINDOW = 30.0  # s of world time a mismatch's report looks back for incidents
+
+
 ARIAC = Dialect("arm", "move", "gripper", "grasp", ("record_pose", "detach", "query_queue"),
                 "gripper_full", True, "tray", "_",
                 (("raise_", "lift"), ("escape_", "lift"), ("put_back_", "put_back"), ("put_", "put")),
@@ -184,6 +187,7 @@ class KittingBinding(Binding):
         self._bin_turn = 0
         self._moving_to = None
         self._grasping = None
+        self.picked_other: list = []  # (time, part held, part aimed at): the cup took a part it was not sent for
         qvar = model.var("queue")
         self.queue_max = qvar.hi
         self.n_tray = model.var(self.d.tray_var).hi
@@ -265,7 +269,20 @@ class KittingBinding(Binding):
         if ((g if d.gripper_var_means_full else not g) == (self.r.holding is not None)
                 and tv.decode(state[ts]) == self.tray_count() and qv.decode(state[qs]) == len(self.delivered)):
             return []
-        return self.abstraction_errors(rt.vars, *rt.fsm_state(d.fsm))
+        out = self.abstraction_errors(rt.vars, *rt.fsm_state(d.fsm))
+        if out:
+            out += self.physics_since(self.world.time - PHYSICS_WINDOW)
+        return out
+
+    def physics_since(self, t0: float) -> list:
+        """What physics did uncommanded since world time ``t0`` (the world's incidents, and
+        grasps in which the cup took a part it was not sent for), as one line, or nothing."""
+        seen = [(t, f"{kind} of part {pid}: {cause}") for t, kind, pid, cause in self.world.incidents if t >= t0]
+        seen += [(t, f"the cup took part {held} on its way to part {aim}")
+                 for t, held, aim in self.picked_other if t >= t0]
+        if not seen:
+            return []
+        return [f"physics in the last {PHYSICS_WINDOW:g} s: " + "; ".join(f"t={t:.2f} s {what}" for t, what in sorted(seen))]
 
     # ------------------------------------------------------------------ world queries
     def place_of(self, pid: int) -> Place:
@@ -491,6 +508,9 @@ class KittingBinding(Binding):
         area = self.d.area(call.args)
         running, success, failure = (self._answer(call, s) for s in ("RUNNING", "SUCCESS", "FAILURE"))
         if self.r.holding is not None:
+            if self._grasping is not None and self.r.holding != self._grasping:
+                self.picked_other.append((self.world.time, self.r.holding, self._grasping))
+                self._grasping = None
             return success
         if call.first:
             tgt = self._target(area, "pick") if self.d.goal(call.goal)[1] == area else self.targets.get(area)

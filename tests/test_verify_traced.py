@@ -92,7 +92,7 @@ def test_a_switch_on_a_computed_value_widens_its_key():
     (forgetting the groups kept), and the system stays the scalar engine's."""
     from btfsm import Int, Model
     from btfsm.verify import scalar
-    from btfsm.verify.search import Budget
+    from btfsm.verify.search import Budget, SearchTask
 
     m = Model("hop", variables=[Int("x", 0, 9)])
     hops = (3, 5, 7, 9, 1, 2, 4, 6, 8, 0, 1, 2)
@@ -107,7 +107,8 @@ def test_a_switch_on_a_computed_value_widens_its_key():
         c = o.choose(("input", 0), (1, 2))
         return Step((hops[s[0] + c + 1],))  # the index: a switch on x + c + 1
 
-    a, b = (e.search(m, "model", None, (0,), run, (0,), Budget(), None, None) for e in (scalar, traced))
+    task = SearchTask(m, "model", None, (0,), run, (0,))
+    a, b = (e.search(task, Budget()) for e in (scalar, traced))
     assert b.n_states == 9 and b.n_transitions == 18
     assert_same(a, b)
 
