@@ -35,7 +35,8 @@ transcript; a block that shows something else is tagged (```` ```text ````, ``ya
 
 **Markers**: an HTML comment on the line just before a fence: ``<!-- transcript: slow -->``
 marks a transcript whose commands take too long for the default test run (its test runs
-only with ``BTFSM_SLOW_DOCS=1``); ``<!-- file: PATH -->`` says that the block's text is
+only with ``BTFSM_SLOW_DOCS=1``, as in CI); ``<!-- transcript: long -->`` one too long for
+CI as well (its test runs only with ``BTFSM_LONG=1``); ``<!-- file: PATH -->`` says that the block's text is
 the repository file PATH (a test compares them; the update copies the file into the block);
 ``<!-- excerpt: PATH -->`` says that the block's lines appear, consecutively, in that file
 (a test checks it; the update leaves such blocks alone).
@@ -102,7 +103,13 @@ class Block:
 
     @property
     def slow(self) -> bool:
-        return self.markers.get("transcript") == "slow"
+        """Marked slow or long: not in the default test run (nor in ``--fast`` updates)."""
+        return self.markers.get("transcript") in ("slow", "long")
+
+    @property
+    def long(self) -> bool:
+        """Marked long: run by the tests only with ``BTFSM_LONG=1`` (CI runs the slow ones)."""
+        return self.markers.get("transcript") == "long"
 
 
 @dataclass

@@ -5,7 +5,8 @@
   ``$ python ...``) in README.md and docs/*.md is run and compared with what it shows,
   by the rules of scripts/update_doc_outputs.py (which also regenerates them:
   ``python scripts/update_doc_outputs.py``). Transcripts marked ``<!-- transcript: slow -->``
-  run only with ``BTFSM_SLOW_DOCS=1``.
+  run only with ``BTFSM_SLOW_DOCS=1`` (CI sets it), those marked ``<!-- transcript: long -->``
+  only with ``BTFSM_LONG=1``.
 * Every untagged fenced block is a transcript (a block showing anything else is tagged),
   every block marked ``<!-- file: PATH -->`` is that repository file, and every block
   marked ``<!-- excerpt: PATH -->`` is a run of consecutive lines of it.
@@ -29,7 +30,8 @@ _spec.loader.exec_module(dox)
 
 TRANSCRIPTS = dox.transcripts()
 FAST = [b for b in TRANSCRIPTS if not b.slow]
-SLOW = [b for b in TRANSCRIPTS if b.slow]
+SLOW = [b for b in TRANSCRIPTS if b.slow and not b.long]
+LONG = [b for b in TRANSCRIPTS if b.long]
 
 
 def _example():
@@ -68,10 +70,18 @@ def test_slow_transcript(block):
     assert not problems, "\n".join(problems) + "\n(regenerate: python scripts/update_doc_outputs.py)"
 
 
+@pytest.mark.slow
+@pytest.mark.skipif(os.environ.get("BTFSM_LONG") != "1", reason="set BTFSM_LONG=1 to run long transcripts")
+@pytest.mark.parametrize("block", LONG, ids=[b.id for b in LONG])
+def test_long_transcript(block):
+    problems = dox.check_transcript(block)
+    assert not problems, "\n".join(problems) + "\n(regenerate: python scripts/update_doc_outputs.py)"
+
+
 def test_every_output_block_is_a_tested_transcript():
     """Lists every fenced block: an untagged one must be a transcript, and every transcript
-    is one of the parametrised cases above (fast or slow)."""
-    tested = {b.id for b in FAST} | {b.id for b in SLOW}
+    is one of the parametrised cases above (fast, slow or long)."""
+    tested = {b.id for b in FAST} | {b.id for b in SLOW} | {b.id for b in LONG}
     blocks = [b for p in dox.doc_files() for b in dox.find_blocks(p)]
     untagged = [f"{b.id}: {b.lines[0] if b.lines else ''!r}" for b in blocks
                 if b.info in ("", "console") and not b.is_transcript]
