@@ -56,26 +56,28 @@ def test_readme_example_runs():
 
 
 # ------------------------------------------------------------------------ transcripts
-@pytest.mark.parametrize("block", FAST, ids=[b.id for b in FAST])
-def test_transcript(block):
+def _check(block) -> None:
     problems = dox.check_transcript(block)
     assert not problems, "\n".join(problems) + "\n(regenerate: python scripts/update_doc_outputs.py)"
+
+
+@pytest.mark.parametrize("block", FAST, ids=[b.id for b in FAST])
+def test_transcript(block):
+    _check(block)
 
 
 @pytest.mark.slow
 @pytest.mark.skipif(os.environ.get("BTFSM_SLOW_DOCS") != "1", reason="set BTFSM_SLOW_DOCS=1 to run slow transcripts")
 @pytest.mark.parametrize("block", SLOW, ids=[b.id for b in SLOW])
 def test_slow_transcript(block):
-    problems = dox.check_transcript(block)
-    assert not problems, "\n".join(problems) + "\n(regenerate: python scripts/update_doc_outputs.py)"
+    _check(block)
 
 
 @pytest.mark.slow
 @pytest.mark.skipif(os.environ.get("BTFSM_LONG") != "1", reason="set BTFSM_LONG=1 to run long transcripts")
 @pytest.mark.parametrize("block", LONG, ids=[b.id for b in LONG])
 def test_long_transcript(block):
-    problems = dox.check_transcript(block)
-    assert not problems, "\n".join(problems) + "\n(regenerate: python scripts/update_doc_outputs.py)"
+    _check(block)
 
 
 def test_every_output_block_is_a_tested_transcript():
