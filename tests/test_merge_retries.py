@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import os
 
-from hypothesis import HealthCheck, given, settings
+from hypothesis import HealthCheck, given, reject, settings
 from hypothesis import strategies as st
 
 from btfsm import Bool, Int, Model
@@ -22,6 +22,10 @@ from btfsm.verify.labels import readable
 from btfsm.verify.search import EnumOracle
 
 EXAMPLES = 400 if os.environ.get("BTFSM_LONG") else 25
+# The brute force enumerates every answer of a tick: nested in-tick retries multiply them,
+# and a drawn tree may have millions (one took 9 GB and minutes in CI). Trees past this many
+# runs from one state are rejected: the comparison is made on the trees it can afford.
+MAX_RUNS = 20_000
 
 OUTCOMES = [lambda: running(), lambda: success(), lambda: failure(), lambda: success("inc", n="min(n + 1, 2)"),
             lambda: failure("flip", b="not b")]
@@ -69,7 +73,10 @@ def roots(draw):
 def _full(prog, state):
     """Every answer of one tick from ``state``, nothing merged (an EnumOracle without ``seen``)."""
     out = []
-    for taken, step, o in all_choices(lambda s, o: prog.step(s, o, True), state, EnumOracle, (DomainError,)):
+    for k, (taken, step, o) in enumerate(all_choices(lambda s, o: prog.step(s, o, True), state, EnumOracle,
+                                                     (DomainError,))):
+        if k >= MAX_RUNS:
+            reject()  # too many runs in one tick for the brute force (see MAX_RUNS)
         if isinstance(step, DomainError) or step.state is None:
             continue
         out.append((step, o))
