@@ -28,7 +28,7 @@ from typing import cast
 from btfsm.errors import ModelError
 
 from .protocol import Binding
-from .scene import Place
+from .scene import Place, incident_text
 
 __all__ = ["KittingBinding", "Dialect", "ARIAC", "ORIGINAL", "DIALECTS", "dialect_of", "unsupported",
            "check_outcomes"]
@@ -277,12 +277,12 @@ class KittingBinding(Binding):
     def physics_since(self, t0: float) -> list:
         """What physics did uncommanded since world time ``t0`` (the world's incidents, and
         grasps in which the cup took a part it was not sent for), as one line, or nothing."""
-        seen = [(t, f"{kind} of part {pid}: {cause}") for t, kind, pid, cause in self.world.incidents if t >= t0]
-        seen += [(t, f"the cup took part {held} on its way to part {aim}")
+        seen = [(inc[0], incident_text(inc)) for inc in self.world.incidents if inc[0] >= t0]
+        seen += [(t, f"t={t:.2f} s the cup took part {held} on its way to part {aim}")
                  for t, held, aim in self.picked_other if t >= t0]
         if not seen:
             return []
-        return [f"physics in the last {PHYSICS_WINDOW:g} s: " + "; ".join(f"t={t:.2f} s {what}" for t, what in sorted(seen))]
+        return [f"physics in the last {PHYSICS_WINDOW:g} s: " + "; ".join(text for _, text in sorted(seen))]
 
     # ------------------------------------------------------------------ world queries
     def place_of(self, pid: int) -> Place:

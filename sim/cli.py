@@ -142,6 +142,7 @@ def _scene_of(args, model):
 def _sim_scene(args, model, scene) -> int:
     from btfsm.outputs import atomic_path
 
+    from .scene import incident_text
     from .scene_trial import run_scene
 
     frames: list
@@ -161,8 +162,8 @@ def _sim_scene(args, model, scene) -> int:
     if run.mismatch is not None:
         print(f"conformance: {run.mismatch}")
     incidents = seen["world"].incidents if "world" in seen else []
-    for time, kind, pid, cause in incidents[:20]:  # what physics did uncommanded
-        print(f"incident: t={time:.2f} s {kind} of part {pid}: {cause}")
+    for incident in incidents[:20]:  # what physics did uncommanded
+        print(f"incident: {incident_text(incident)}")
     if len(incidents) > 20:
         print(f"incident: ... {len(incidents) - 20} more")
     if args.render:

@@ -59,6 +59,7 @@ from btfsm.errors import DomainError, ModelError
 from btfsm.status import FAILURE, RUNNING, SUCCESS
 
 from .protocol import Binding
+from .scene import incident_text
 
 __all__ = ["LIBRARY", "bind_model", "SceneBinding"]
 
@@ -383,7 +384,7 @@ class SceneBinding(Binding):
         new = self.world.incidents[self._incidents:]
         self._incidents = len(self.world.incidents)
         if out and new:
-            out.append("physics: " + "; ".join(f"t={t:.2f} s {kind} of part {pid}: {cause}" for t, kind, pid, cause in new))
+            out.append("physics: " + "; ".join(map(incident_text, new)))
         return out
 
     def check(self, vars: dict) -> list:

@@ -397,6 +397,16 @@ def _horizon(m: int, margins, e: float) -> int:
 # --------------------------------------------------------------------------- world
 _PART, _WALL = 1, 2  # collision types of parts and walls
 INCIDENTS = ("slip", "drop", "collision", "fell_off", "pushed_off", "pushed_out_of_slot", "off_target")
+
+
+def incident_text(incident: tuple) -> str:
+    """One of ``World.incidents``, ``(time, kind, part id, cause)``, as the reports print it.
+
+    >>> incident_text((8.54, "slip", 0, "slipped from arm's gripper"))
+    "t=8.54 s slip of part 0: slipped from arm's gripper"
+    """
+    t, kind, pid, cause = incident
+    return f"t={t:.2f} s {kind} of part {pid}: {cause}"
 class _Part:
     __slots__ = ("id", "type", "radius", "height", "x", "y", "place", "s", "body", "shape", "joints", "mass",
                  "friction", "slot", "pushed_by", "cb")

@@ -333,23 +333,19 @@ class _Builder:
         raise self.fail(node, f"unsupported YAML tag {tag}", path)
 
 
+_KINDS = ((bool, "a boolean"), (int, "an integer"), (float, "a number"), (str, "a string"),
+          (dict, "a mapping"), (list, "a list"))  # bool before int: a bool is an int
+
+
 def kind_of(x) -> str:
-    """What ``x`` is, for messages: "a mapping", "an integer", "null"..."""
+    """What ``x`` is, for messages: "a mapping", "an integer", "null"...
+
+    >>> kind_of(None), kind_of(True), kind_of(3), kind_of([]), kind_of(b"")
+    ('null', 'a boolean', 'an integer', 'a list', 'bytes')
+    """
     if x is None:
         return "null"
-    if isinstance(x, bool):
-        return "a boolean"
-    if isinstance(x, int):
-        return "an integer"
-    if isinstance(x, float):
-        return "a number"
-    if isinstance(x, str):
-        return "a string"
-    if isinstance(x, dict):
-        return "a mapping"
-    if isinstance(x, list):
-        return "a list"
-    return type(x).__name__
+    return next((name for t, name in _KINDS if isinstance(x, t)), type(x).__name__)
 
 
 def where_of(obj, key=None) -> str:
