@@ -90,8 +90,15 @@ def entries_of(fsm) -> dict:
     return out
 
 
-def _groups(table: dict, entries: dict) -> dict:
-    """{state: [(copy name, duration, predecessors)]} for the states of ``table``."""
+def _widest(durations: dict, s: str, preds) -> tuple:
+    """The widest interval ``durations[s]`` gives the entries ``preds``."""
+    ivs = [tuple(durations[s][u]) for u in preds]
+    return (min(iv[0] for iv in ivs), max(iv[1] for iv in ivs))
+
+
+def _groups(table: dict, entries: dict, durations: "dict | None" = None) -> dict:
+    """{state: [(copy name, duration, predecessors)]} for the states of ``table``; with
+    ``durations``, a copy declares the widest interval it gives the copy's entries."""
     out = {}
     for s, by_entry in table.items():
         if s not in entries:
@@ -104,12 +111,13 @@ def _groups(table: dict, entries: dict) -> dict:
             groups.setdefault(("own", u) if by_entry[u] is None else tuple(by_entry[u]), []).append(u)
         if len(groups) == 1:
             (dur, preds), = groups.items()
-            out[s] = [(s, None if dur[0] == "own" else dur, preds)]
+            dur = None if dur[0] == "own" else dur if durations is None else _widest(durations, s, preds)
+            out[s] = [(s, dur, preds)]
             continue
         named = []
         for dur, preds in groups.items():
             tag = preds[0] or "start"
-            dur = None if dur[0] == "own" else dur
+            dur = None if dur[0] == "own" else dur if durations is None else _widest(durations, s, preds)
             named.append((f"{s}{SEP}{tag}" + (f"+{len(preds) - 1}" if len(preds) > 1 else ""), dur, preds))
         out[s] = named
     return out
@@ -153,13 +161,25 @@ def _rename_any(x, field: str, copies: dict):
     return x
 
 
-def split_by_entry(model, fsm: str, table: dict):
-    """``model`` with FSM ``fsm``'s states of ``table`` split by entry (see the module text)."""
+def split_by_entry(model, fsm: str, table: dict, durations: "dict | None" = None):
+    """``model`` with FSM ``fsm``'s states of ``table`` split by entry (see the module text).
+    ``durations`` (the same shape as ``table``): the copies are still ``table``'s, each
+    declaring the widest interval ``durations`` gives its entries (two tables on one split:
+    the same state names, e.g. durations derived under an assumption beside the plain ones).
+
+    >>> from btfsm import FSM, Edge, Model, State, Primitive, running, success
+    >>> f = FSM("arm", states=[State("a", "move"), State("b", "move"), State("c", "move")], initial="a",
+    ...         goals=("g",), edges=[Edge("a", "b", "g"), Edge("c", "b", "g"), Edge("b", "a", "g"), Edge("a", "c", "g")])
+    >>> m = Model("m", primitives=[Primitive("move", (running(), success()))], fsms=[f])
+    >>> s = split_by_entry(m, "arm", {"b": {"a": (0, 2), "c": (0, 2)}}, {"b": {"a": (0, 1), "c": (0, 1.5)}})
+    >>> [(st.id, st.duration) for st in s.fsms[0].states]
+    [('a', None), ('b', (0.0, 1.5)), ('c', None)]
+    """
     f = next((x for x in model.fsms if x.name == fsm), None)
     if f is None:
         raise ModelError("positions", f"no FSM named '{fsm}'")
     entries = entries_of(f)
-    groups = _groups(table, entries)
+    groups = _groups(table, entries, durations)
     copies = {s.id: [n for n, _, _ in groups[s.id]] if s.id in groups else [s.id] for s in f.states}
     entered = {}  # (state, predecessor) -> copy name
     for s, named in groups.items():

@@ -39,7 +39,8 @@ from btfsm.timing import Response
 
 __all__ = ["AREAS", "ROTATIONS", "SKILLS", "PRIMITIVES", "ARM_REQUESTS", "generate_fsm", "unite", "arm_fsm",
            "tree", "preemptive", "baseline", "states_of", "HUBS", "ARM_DURATIONS", "ARRIVAL_MIN_INTERVAL",
-           "PICK_WINDOW", "TIMING_FILE", "derived_timing", "timed", "preemptive_timed", "baseline_timed"]
+           "PICK_WINDOW", "TIMING_FILE", "TIMING_FILE_NO_LOSS", "NO_LOSS", "derived_timing", "timed", "preemptive_timed",
+           "baseline_timed", "preemptive_timed_no_loss", "baseline_timed_no_loss"]
 
 AREAS = ("agv", "bins", "conveyor")
 # the authors' rotation order: (area, area before, area after)
@@ -302,19 +303,26 @@ PICK_WINDOW = 16.0
 
 
 TIMING_FILE = "ariac_timing.json"  # written by ``python -m btfsm.sim.durations --write``
+#: the same derived under "no part lost yet" (``derive(model, no_loss=True)``; ``--write-no-loss``)
+TIMING_FILE_NO_LOSS = "ariac_timing_no_loss.json"
+#: what ``timed(m, assume="no_loss")`` assumes, in words (``btfsm bound`` prints it)
+NO_LOSS = ("no part lost yet: sound up to the first detected part that leaves the belt ungrasped, so for the first "
+           "late response within dt* (arrivals spaced more than dt*), not for figures past dt*")
 
 
-def derived_timing() -> dict:
+def derived_timing(assume: "str | None" = None) -> dict:
     """The position abstraction with the durations derived from the ARIAC scene
-    (``btfsm.sim.durations.derive``): ``{"classes": .., "table": .., "where": ..}``."""
+    (``btfsm.sim.durations.derive``): ``{"classes": .., "table": .., "where": ..}``;
+    ``assume="no_loss"``: derived under "no part lost yet" (``models/ariac_timing_no_loss.json``)."""
     import json
     from pathlib import Path
 
-    return json.loads((Path(__file__).resolve().parent / TIMING_FILE).read_text(encoding="utf-8"))
+    name = {None: TIMING_FILE, "no_loss": TIMING_FILE_NO_LOSS}[assume]
+    return json.loads((Path(__file__).resolve().parent / name).read_text(encoding="utf-8"))
 
 
 def timed(model: Model, durations: str = "derived", *, timing: "dict | None" = None,
-          window: float = PICK_WINDOW) -> Model:
+          window: float = PICK_WINDOW, assume: "str | None" = None) -> Model:
     """``model`` (an ARIAC variant) with the arm's durations, the arrivals' minimum
     interval and the requirement ``reach``: every detected belt part is reached (the arm
     starts grasping at the conveyor) within dt* = 16 s. Picking it cannot be bounded in this
@@ -325,19 +333,34 @@ def timed(model: Model, durations: str = "derived", *, timing: "dict | None" = N
     ``"measured"``: one context-free maximum per state, measured in trials
     (``ARM_DURATIONS``). ``timing``: another derivation (``Timing.to_data()``, e.g. at
     another belt speed) instead of ``models/ariac_timing.json``; ``window``: the bound of
-    ``reach`` in seconds (dt*)."""
+    ``reach`` in seconds (dt*). ``assume="no_loss"``: the durations derived under "no
+    part lost yet" (``NO_LOSS``; named ``...-timed-no-loss``): every run of this model is
+    a run of the unconditioned one, and every run of the cell up to its first lost part
+    is a run of this one, so its first late response decides ``reach``
+    (docs/verification.md 2.1); its figures past dt* are not bounds of the cell's."""
     import dataclasses
 
     from btfsm.positions import split_by_entry, split_by_goal, split_history
 
     f = model.fsms[0]
+    if assume not in (None, "no_loss") or (assume and timing is not None):
+        raise ValueError(f"assume: None or 'no_loss' (with the stored derivation), not {assume!r}")
     if durations == "derived":
         t = derived_timing() if timing is None else timing
         table = {s: {u: tuple(iv) for u, iv in rows.items()} for s, rows in t["table"].items()}
         split = split_history(split_by_goal(model, f.name, t["classes"]), f.name, t["history"])
-        model = split_by_entry(split, f.name, table)
-        how = "derived from the scene per goal class and entry (models/ariac_timing.json)"
-    elif durations == "measured":
+        if assume is None:
+            model = split_by_entry(split, f.name, table)
+        else:  # the same copies (state names) as without the assumption, each with its conditioned maximum
+            cond = derived_timing(assume)
+            if (cond["classes"], cond["history"]) != (t["classes"], t["history"]):
+                raise ValueError(f"{TIMING_FILE_NO_LOSS} splits the FSM unlike {TIMING_FILE}: derive both again")
+            model = split_by_entry(split, f.name, table, cond["table"])
+        how = "derived from the scene per goal class and entry (models/" + \
+            (TIMING_FILE if assume is None else f"{TIMING_FILE}, maxima from {TIMING_FILE_NO_LOSS}") + ")"
+        if assume:
+            how += "; conditioned on " + NO_LOSS
+    elif durations == "measured" and assume is None:
         states = tuple(dataclasses.replace(s, duration=(0.0, ARM_DURATIONS[s.id])) if s.id in ARM_DURATIONS else s
                        for s in f.states)
         model = dataclasses.replace(model, fsms=(dataclasses.replace(f, states=states),))
@@ -347,7 +370,8 @@ def timed(model: Model, durations: str = "derived", *, timing: "dict | None" = N
     env = tuple(dataclasses.replace(cast(EnvEvent, e), min_interval=ARRIVAL_MIN_INTERVAL) for e in model.environment)
     grasp = [s.id for s in model.fsms[0].states if s.id.split("#")[0].split("@")[0] == "grasp_conveyor"]
     reach = Response("reach", "event:arrive", " or ".join(f"arm.state == '{g}'" for g in grasp), window)
-    return dataclasses.replace(model, name=f"{model.name}-timed", environment=env, responses=(reach,),
+    suffix = "-timed" if assume is None else "-timed-no-loss"
+    return dataclasses.replace(model, name=model.name + suffix, environment=env, responses=(reach,),
                                description=model.description + "; durations " + how)
 
 
@@ -359,3 +383,13 @@ def preemptive_timed(n_tray: int = 2) -> Model:
 def baseline_timed(n_tray: int = 2) -> Model:
     """The baseline variant with time (``timed``); 2 tray parts keep the check small."""
     return timed(baseline(n_tray=n_tray))
+
+
+def preemptive_timed_no_loss(n_tray: int = 2) -> Model:
+    """``preemptive_timed`` with the durations conditioned on no part lost yet (``NO_LOSS``)."""
+    return timed(preemptive(n_tray=n_tray), assume="no_loss")
+
+
+def baseline_timed_no_loss(n_tray: int = 2) -> Model:
+    """``baseline_timed`` with the durations conditioned on no part lost yet (``NO_LOSS``)."""
+    return timed(baseline(n_tray=n_tray), assume="no_loss")

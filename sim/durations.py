@@ -18,6 +18,7 @@ fails instead of passing silently.
 stays for ``timed(model, durations="measured")``.
 
     python -m btfsm.sim.durations [--trials N] [--write models/ariac_timing.json]
+        [--write-no-loss models/ariac_timing_no_loss.json]
 
 ``derive_scene(model, scene)`` (a scene with a ``bind`` table): every call site (FSM state
 or Action) the table drives that can answer RUNNING gets its slowest run from the scene,
@@ -103,15 +104,19 @@ def main(argv=None) -> int:
                    "(k = 1..N; 40 for the whole experiment; 0: none)")
     p.add_argument("--workers", type=int, default=2)
     p.add_argument("--write", metavar="JSON", help="write the derived abstraction (models/ariac_timing.json)")
+    p.add_argument("--write-no-loss", metavar="JSON", help="write the abstraction derived under 'no part lost yet' "
+                   "(models/ariac_timing_no_loss.json)")
     args = p.parse_args(argv)
     from btfsm.models import ariac
 
     timing = derive(ariac.preemptive())
-    if args.write:
-        with open(args.write, "w", encoding="utf-8") as fh:
-            json.dump(timing.to_data(), fh, indent=1, sort_keys=True)
-            fh.write("\n")
-    slowest = timing.slowest()
+    no_loss = derive(ariac.preemptive(), no_loss=True)
+    for path, t in ((args.write, timing), (args.write_no_loss, no_loss)):
+        if path:
+            with open(path, "w", encoding="utf-8") as fh:
+                json.dump(t.to_data(), fh, indent=1, sort_keys=True)
+                fh.write("\n")
+    slowest, slowest_nl = timing.slowest(), no_loss.slowest()
     specs = [TrialSpec(v, k) for v in VARIANTS for k in range(1, args.trials + 1)]
     maxima = measure(specs, args.workers) if specs else {}
     from btfsm.positions import base_state
@@ -123,13 +128,15 @@ def main(argv=None) -> int:
             copies[base_state(st.id)] = copies.get(base_state(st.id), 0) + 1
     print(f"derived from the scene: {sum(copies.values())} timed copies of {len(slowest)} states "
           f"({len(split.states)} states in the split FSM); measured: {len(specs)} trial(s)")
-    print(f"{'state':22s} {'copies':>6s} {'derived s':>14s} {'measured s':>10s} {'was declared':>12s}")
+    print(f"{'state':22s} {'copies':>6s} {'derived s':>14s} {'no loss s':>10s} {'measured s':>10s} {'was declared':>12s}")
     for state in sorted(set(slowest) | set(maxima)):
         n = maxima.get(state)
         meas = "-" if n is None else f"{(n - 1) / 10:.1f}"
         have = ariac.ARM_DURATIONS.get(state)
         der = f"[0, {slowest[state]:.2f}]" if state in slowest else "-"
-        print(f"{state:22s} {copies.get(state, 0):6d} {der:>14s} {meas:>10s} {have if have is not None else '-':>12}")
+        nl = f"{slowest_nl[state]:.2f}" if state in slowest_nl else "-"
+        print(f"{state:22s} {copies.get(state, 0):6d} {der:>14s} {nl:>10s} {meas:>10s} "
+              f"{have if have is not None else '-':>12}")
     return 0
 
 
@@ -262,16 +269,21 @@ class Timing:
     approach pose), ``above:A:G`` / ``contact:A:G`` / ``lifted:A:G`` (above, at, or lifted
     from the target of goal G at A; G ``*``: any target there, after the gripper let go)."""
 
-    def __init__(self, fsm, classes, table, where, history=()):
+    def __init__(self, fsm, classes, table, where, history=(), assume=None):
         self.fsm, self.classes, self.table, self.where = fsm, classes, table, where
         self.history = list(history)
+        self.assume = assume  # None, or "no_loss": derived under "no part lost yet" (``derive``)
 
     def to_data(self) -> dict:
-        """The JSON form (``models/ariac_timing.json``): classes, history, table and poses."""
-        return {"fsm": self.fsm, "classes": {s: {c: list(g) for c, g in cl.items()} for s, cl in self.classes.items()},
-                "history": self.history,
-                "table": {s: {u: list(iv) for u, iv in rows.items()} for s, rows in self.table.items()},
-                "where": self.where}
+        """The JSON form (``models/ariac_timing.json``): classes, history, table and poses
+        (and ``assume`` for a conditioned derivation, ``models/ariac_timing_no_loss.json``)."""
+        out = {"fsm": self.fsm, "classes": {s: {c: list(g) for c, g in cl.items()} for s, cl in self.classes.items()},
+               "history": self.history,
+               "table": {s: {u: list(iv) for u, iv in rows.items()} for s, rows in self.table.items()},
+               "where": self.where}
+        if self.assume:
+            out["assume"] = self.assume
+        return out
 
     def apply(self, model):
         from btfsm.positions import split_by_entry, split_by_goal, split_history
@@ -290,7 +302,7 @@ class Timing:
         return out
 
 
-def derive(model, scene=None) -> Timing:
+def derive(model, scene=None, no_loss: bool = False) -> Timing:
     """The position abstraction of a kitting model's arm FSM with each state's duration
     derived from the scene, per goal class and per entry, two states deep: a copy's
     duration depends on the copy it was entered from, and on the state that one was
@@ -303,7 +315,14 @@ def derive(model, scene=None) -> Timing:
     anywhere on its path when the entry was left by a direct edge (halted); a halted run
     of the copy itself restarts on its own path toward the same target, which is no
     farther. The slowest run is the longest move from those poses (``Derivation``);
-    every declared minimum is 0 (a restarted run may start next to its target)."""
+    every declared minimum is 0 (a restarted run may start next to its target).
+
+    ``no_loss``: conditioned on "no detected part has left the belt ungrasped yet": a
+    pursuit of the first belt part in the queue ends above it (the part is still on the
+    belt), never at the belt's hub (no part there) nor where a part left the belt. Sound
+    for runs up to the first lost part, so for the first late response's verdict when
+    arrivals are spaced by more than the pick window (docs/verification.md 2.1), not for
+    figures past the window."""
     from btfsm.positions import entries_of, split_by_goal, split_history
 
     scene, binding = _kitting(model, scene)
@@ -420,6 +439,8 @@ def derive(model, scene=None) -> Timing:
         if t[0] == "above" and x == "conveyor":
             if same(p, t):
                 return geo.dt + geo.TRACK_MARGIN, {t}
+            if no_loss:  # the part is on the belt until it is grasped: the pursuit reaches it
+                return geo.track(box(p), box(t)[0][2]), {t}
             # ended where the part left the belt (lost, or taken), or at the hub when none was there
             slow = max(geo.track(box(p), box(t)[0][2]), rest(p, ("hub", x)))
             return slow, {t, ("hub", x), p}
@@ -499,7 +520,7 @@ def derive(model, scene=None) -> Timing:
             table.setdefault(s2, {})[u] = (0.0, round(hi + geo.dt + 1e-3, 3))
             where.setdefault(s1, set()).update(starts)
     where = {s: sorted(":".join("*" if v is None else str(v) for v in p) for p in ps) for s, ps in where.items()}
-    return Timing(d.fsm, classes, table, where, history=sorted(timed_states))
+    return Timing(d.fsm, classes, table, where, history=sorted(timed_states), assume="no_loss" if no_loss else None)
 
 
 class Derived(NamedTuple):

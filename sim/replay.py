@@ -65,10 +65,12 @@ class CellReplay:
                 lines.append(f"  pacing stopped at tick {t}: the counterexample is at '{want}', the cell at '{got}'")
         for t, st in self.too_soon:
             lines.append(f"  t = {t:6.1f} s: the arm FSM is at the counterexample's phase of '{st}' before the "
-                         "arrivals' minimum interval allows a part: not sent")
+                         "arrivals' minimum interval allows a part: not sent yet (it waits while the phase lasts, "
+                         "or for its next visit)")
         for t, st, pid in self.injected:
             how = ("at the counterexample's tick" if self.at_ticks else
-                   "at the counterexample's phase: its state, as many ticks into the visit" if self.at_phase else
+                   "at the counterexample's phase: its state, as many ticks into the visit, the model's variables "
+                   "as there" if self.at_phase else
                    "as in the counterexample")
             lines.append(f"  t = {t:6.1f} s: belt part {pid} sent to the sensor (arm FSM at '{st}', {how})")
         for t, site, outcome in self.forced:
@@ -150,16 +152,19 @@ def decomposition(ce: dict, fsm: str, result: "CellReplay", rate: float) -> list
             for st in list(ce_side) + [x for x in cell_side if x not in ce_side]]
 
 
-def phases_of(ce: dict, fsm: str, event: str = "arrive") -> list:
-    """[(FSM state, ticks the FSM had been in it)] before each step of ``ce`` with ``event``."""
+def phases_of(ce: dict, fsm: str, event: str = "arrive", variables=()) -> list:
+    """[(FSM state, ticks the FSM had been in it, {variable: value})] before each step of
+    ``ce`` with ``event``; the values of the model's ``variables`` (names) then."""
     states = fsm_states_of(ce, fsm)
     out = []
+    values = {k: ce["initial"].get(k) for k in variables}
     for i, step in enumerate(ce["steps"]):
         if event in step.get("env", ()):
             c = 0
             while c < i and states[i - c - 1] == states[i]:
                 c += 1
-            out.append((states[i], c))
+            out.append((states[i], c, dict(values)))
+        values.update({k: v for k, v in step.get("state", {}).items() if k in values})
     return out
 
 
@@ -300,8 +305,9 @@ class _CellHooks(Hooks):
         self.arrive_at, self.frames, self.settle, self.on_tick = arrive_at, frames, settle, on_tick
         self.last, self.since, self.done_at = None, 0.0, None
         self.binding, self.arrive_ticks = binding, arrive_ticks
-        self.phases, self.spacing = phases, spacing  # [(state, ticks into its visit)], the arrivals' minimum interval
+        self.phases, self.spacing = phases, spacing  # [(state, ticks into its visit, variables)], the arrivals' minimum interval
         self.in_state = 0  # ticks the FSM has been in its current state (before this tick)
+        self.vars: dict = {}  # the model's variables before this tick (phases)
         self.missed = False  # the cell left the phase's state before its tick: send on the next tick
         self.refused: "float | None" = None  # the visit (its start time) whose phase came too soon
         self.forced: "_Forced | None" = None
@@ -330,6 +336,7 @@ class _CellHooks(Hooks):
                 self.since = world.time
             self.last = (st, goal)
         if self.phases is not None:  # at the counterexample's phase, the arm at its own speed
+            self.vars = rt.vars
             due = self._phase_due(st, world)
         elif self.arrive_ticks is not None:  # at the counterexample's ticks, the arm at its own speed
             due = bool(pending) and rt.clock.tick >= self.arrive_ticks[len(result.injected)]
@@ -345,6 +352,11 @@ class _CellHooks(Hooks):
         if pacer is not None:
             pacer.now = st
 
+    def _values_are(self, values: dict) -> bool:
+        """The model's variables hold the counterexample's values (the phase's other half:
+        the nth visit of a state is told from the first by the tray's count, say)."""
+        return all(self.vars.get(k) == v for k, v in values.items())
+
     def _phase_due(self, st, world) -> bool:
         """A part is due: the FSM is in the next phase's state, as many ticks into its visit
         as in the counterexample (or it has just left that state before that tick), and
@@ -352,10 +364,10 @@ class _CellHooks(Hooks):
         result = self.result
         if not self.pending:
             return False
-        want, c = self.phases[len(result.injected)]
-        here = st == want and self.in_state >= c
+        want, c, values = self.phases[len(result.injected)]
+        here = st == want and self.in_state >= c and self._values_are(values)
         left = self.missed and st != want
-        self.missed = st == want and self.in_state < c
+        self.missed = st == want and self.in_state < c and self._values_are(values)
         if not (here or left):
             return False
         if result.injected and world.time - result.injected[-1][0] < self.spacing - 1e-9:
@@ -413,7 +425,8 @@ def replay_in_cell(model, ce, *, time_limit: float = 120.0, render: "str | None"
     the parts are sent at the counterexample's ticks, the arm unpaced; ``pace="phase"``: a
     part is sent when the cell's FSM is in the state the counterexample had at that
     arrival, as many ticks into the visit (on the next tick when the cell leaves the state
-    sooner), the arm unpaced; a phase reached before the arrivals' minimum interval allows
+    sooner) with the model's variables as there (the tray's count, the gripper, the queue), the arm
+    unpaced; a phase reached before the arrivals' minimum interval allows
     a part is listed in ``too_soon`` and the part waits for the phase's next visit; the
     counterexample's failures after its last arrival are forced on the cell (``_Forced``),
     and ``decomposition`` says where the response time went, per FSM state, there and in
@@ -445,7 +458,7 @@ def replay_in_cell(model, ce, *, time_limit: float = 120.0, render: "str | None"
     if pace == "phase":  # the counterexample's FSM phase at each arrival, its failures, the arm unpaced
         from .binding import Dialect, dialect_of
 
-        phases = phases_of(ce, cast(Dialect, dialect_of(model)).fsm)
+        phases = phases_of(ce, cast(Dialect, dialect_of(model)).fsm, variables=[v.name for v in model.variables])
         forced = _Forced(ce, model)
     elif pace == "times":  # the counterexample's arrival ticks, the arm unpaced
         arrive_ticks = [i - 1 for i, step in enumerate(ce["steps"], start=1) for ev in step.get("env", ()) if ev == "arrive"]

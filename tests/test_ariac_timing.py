@@ -82,21 +82,32 @@ def test_cli_prints_the_proved_worst_case(capsys, tmp_path):
     text = capsys.readouterr().out
     assert "worst case: 266 ticks = 26.6 s" in text
     assert "worst first late response (every earlier trigger answered within 16 s): 251 ticks = 25.1 s" in text
+    # the figure that decides dt*: the same model with the durations derived under "no part lost yet"
+    assert ("worst first late response, durations conditioned on no part lost yet (ariac-preemptive-timed-no-loss, "
+            "303,063 states; it decides --within 16, a figure above 16 s is a run of the model, not a bound): "
+            "180 ticks = 18 s") in text
     assert json.loads(out.read_text())["violation"]["kind"] == "response"
     assert main(["replay", str(out), "ariac-preemptive-timed"]) == 0  # a run of the model, as it says
     assert "first holds 251 tick(s)" in capsys.readouterr().out
     assert main(["replay", str(out), "ariac-preemptive-timed", "--cell", "--pace", "phase", "--time", "60"]) == 0
     text = capsys.readouterr().out
-    assert "before the arrivals' minimum interval allows a part: not sent" in text  # not a run of the cell
+    assert "before the arrivals' minimum interval allows a part: not sent yet" in text  # never sent: not a run of the cell
+    assert "belt part 19" not in text
 
 
 def _trial(args):
     from btfsm.sim.protocol import TrialSpec
-    from btfsm.sim.trial import run_trial
+    from btfsm.sim.scene import LOST
+    from btfsm.sim.trial import run_kitting, trial_result
 
-    v, k = args
-    r = run_trial(TrialSpec(v, k), model=ariac.timed(getattr(ariac, v)(n_tray=18)))
-    return v, k, r.reaction_times, r.lost, r.conformance_error
+    v, k, assume = args
+    spec = TrialSpec(v, k)
+    world, binding, h, end = run_kitting(spec, ariac.timed(getattr(ariac, v)(n_tray=18), assume=assume))
+    r = trial_result(spec, world, binding, h.starts, h.halts, end.ticks, str(end.mismatch or ""))
+    detected = dict(binding.detections)
+    lost_at = min((t for t, pid, _src, dst in world.log if dst is LOST and pid in detected), default=None)
+    refused = None if end.ended_by is None else (round(world.time, 2), str(end.ended_by))
+    return v, k, assume, r.reaction_times, r.lost, r.conformance_error, lost_at, refused
 
 
 def test_every_reaction_of_the_trials_is_within_the_proved_worst_case(proved):
@@ -104,22 +115,54 @@ def test_every_reaction_of_the_trials_is_within_the_proved_worst_case(proved):
     answers outside its derived duration (the runtime would raise a ConformanceError),
     and every measured reaction (detection to the part attached) is at most the proved
     worst-case reach plus the two grasp attempts' declared durations and their gripper
-    ticks (reach ends where the grasp starts). One trial per variant (k = 1); all 80 with
-    BTFSM_LONG=1 (docs/verification.md 2.1 gives their figures)."""
+    ticks (reach ends where the grasp starts). The durations derived under "no part lost
+    yet" (``assume="no_loss"``, at most the plain ones copy by copy) hold in every run up
+    to the first lost part: the preemptive trials (no part lost) run on them without a
+    refusal, which covers the plain durations too; the baseline's run on both, the
+    conditioned ones refused, if ever, only after a part was lost. k = 1; all 40 per
+    variant with BTFSM_LONG=1 (docs/verification.md 2.1 gives their figures)."""
     table = ariac.derived_timing()["table"]
     grasp = max(hi for c, rows in table.items() if c.startswith("grasp_conveyor") for _, hi in rows.values())
     grasps = 2 * (grasp + 0.2)
     ks = range(1, 41) if os.environ.get("BTFSM_LONG") == "1" else (1,)
-    jobs = [(v, k) for v in ("preemptive", "baseline") for k in ks]
+    jobs = [(v, k, a) for k in ks for v, a in (("preemptive", "no_loss"), ("baseline", None), ("baseline", "no_loss"))]
     with mp.get_context("fork").Pool(2) as pool:
         results = pool.map(_trial, jobs)
-    for v, k, reactions, lost, error in results:
-        assert not error, (v, k, error)
+    for v, k, assume, reactions, lost, error, lost_at, refused in results:
+        if assume is None or refused is None:
+            assert not error and refused is None, (v, k, assume, error)
+        else:  # the assumption broke first: a part left the belt ungrasped before the refusal
+            assert lost_at is not None and lost_at <= refused[0] and "the declared duration" in refused[1], \
+                (v, k, lost_at, refused)
         assert all(t <= proved[v][0] + grasps for t in reactions), (v, k, max(reactions))
-    assert sum(r[3] for r in results if r[0] == "preemptive") == 0  # the paper's headline, with time declared
+    assert sum(r[4] for r in results if r[0] == "preemptive") == 0  # the paper's headline, with time declared
+
+
+def test_the_no_loss_durations_are_at_most_the_plain_ones():
+    """``models/ariac_timing_no_loss.json`` (derived under "no part lost yet") splits the
+    arm FSM as ``models/ariac_timing.json`` does, and bounds every copy's run, entry by
+    entry, at most as the plain derivation: the conditioned model has the same states (one
+    split, two tables) and a subset of the runs, so its first late response is a first late
+    response of the plain model. Shorter only where a belt pursuit starts or ends (the part
+    is still on the belt)."""
+    plain, cond = ariac.derived_timing(), ariac.derived_timing("no_loss")
+    assert (cond["classes"], cond["history"], cond["assume"]) == (plain["classes"], plain["history"], "no_loss")
+    shorter = set()
+    for s, rows in plain["table"].items():
+        assert rows.keys() == cond["table"][s].keys()
+        for u, (lo, hi) in rows.items():
+            c_lo, c_hi = cond["table"][s][u]
+            assert c_lo == lo and c_hi <= hi, (s, u)
+            if c_hi < hi:
+                shorter.add(s.split("@")[0].split("#")[0])
+    assert shorter == {"agv_to_conveyor", "approach_conveyor", "bins_to_conveyor", "grasp_conveyor", "put_back_conveyor"}
+    m, p = load_builtin("ariac-preemptive-timed-no-loss"), load_builtin("ariac-preemptive-timed")
+    assert [s.id for s in m.fsms[0].states] == [s.id for s in p.fsms[0].states]
+    assert all(a.duration[1] <= b.duration[1] for a, b in zip(m.fsms[0].states, p.fsms[0].states) if b.duration)
 
 
 def _first_late(name):
+    """(model, the worst first late response in ticks, its run) of built-in model ``name``."""
     from btfsm.verify.explore import explore
     from btfsm.verify.properties.response import ResponseBound, counterexample
 
@@ -129,63 +172,59 @@ def _first_late(name):
     return m, worst, counterexample(rb, path, k, None, "first late", 160).to_json()
 
 
-def test_the_preemptive_first_late_scenario_is_not_a_run_of_the_cell():
+def test_the_preemptive_first_late_scenario_in_the_cell():
     """Issue 21.3, measured and NOT met (docs/verification.md 2.1 decomposes the gap). The
-    worst first late response (25.1 s) answers a part that arrives while the arm carries
-    the previous belt part to the tray, 30 s after that part's detection: the checker got
-    there by taking every earlier state's slowest run and a missed grasp. The cell, sent
-    the parts at the counterexample's FSM phase (its state, as many ticks into the visit;
-    the arm unpaced), is in that phase 13 s after the first part, before the arrivals'
-    30 s spacing allows the second: the scenario is not a run of the cell. Sent at the
-    counterexample's ticks instead, the cell reaches the second part in 8.2 s."""
+    worst first late response with the durations conditioned on no part lost yet (18.0 s;
+    25.1 s without the condition, whose run the cell cannot be driven into) answers a part
+    B that arrives 30 s after part A, as the arm, holding A with the 2-part tray full,
+    starts to rescue it into the bins. The cell, sent each part at the counterexample's
+    phase (the FSM's state, as many ticks into the visit, the model's variables as there;
+    the arm unpaced), idles holding A in that phase before the arrivals' 30 s spacing
+    allows B and gets B when it does: a run of the cell, which reaches B in 12.5 s and
+    loses nothing (so no refutation either). The cell runs the plain timed model (the same
+    states): it may lose a part without a refusal."""
     from btfsm.sim.replay import replay_in_cell
 
-    m, worst, ce = _first_late("ariac-preemptive-timed")
-    assert worst == 251
-    r = replay_in_cell(m, ce, pace="phase")
-    assert r.at_phase and len(r.injected) == 1 and r.too_soon and not r.lost and not r.mismatch, r.text()
-    assert r.too_soon[0][0] < 30.0 and "before the arrivals' minimum interval allows a part" in r.text()
-    r = replay_in_cell(m, ce, pace="times")
-    assert r.at_ticks and not r.lost and not r.mismatch, r.text()
-    reach = dict(r.reaches)[r.injected[-1][2]]
-    assert reach == pytest.approx(8.2, abs=0.3)  # the cell; the proof says 25.1 s
-    # the spacing lifted (a diagnosis): the cell in the counterexample's situation reacts in
-    # 10.9 s; the decomposition says where the 14.2 s between them went
-    r = replay_in_cell(m, ce, pace="phase", lift_spacing=True)
-    assert len(r.injected) == 2 and not r.too_soon and not r.lost and not r.mismatch, r.text()
-    assert dict(r.responses)[r.injected[-1][2]] == pytest.approx(10.9, abs=0.3)
+    _m, worst, ce = _first_late("ariac-preemptive-timed-no-loss")
+    assert worst == 180
+    r = replay_in_cell(load_builtin("ariac-preemptive-timed"), ce, pace="phase")
+    assert r.at_phase and len(r.injected) == 2 and not r.lost and not r.mismatch, r.text()
+    assert r.injected[1][0] - r.injected[0][0] == pytest.approx(30.0, abs=0.05)  # as soon as the spacing allows
+    assert dict(r.responses)[r.injected[-1][2]] == pytest.approx(12.5, abs=0.3)
     parts = {st: (c, x) for st, c, x in r.decomposition}
-    assert sum(c for c, _ in parts.values()) == pytest.approx(25.1)
-    assert parts["approach_conveyor"] == pytest.approx((10.0, 4.2), abs=0.25)
-    assert parts["bins_to_conveyor"] == pytest.approx((4.0, 1.7), abs=0.25)
+    assert sum(c for c, _ in parts.values()) == pytest.approx(18.0)
+    assert parts["approach_conveyor"] == pytest.approx((4.3, 1.4), abs=0.25)
+    assert parts["approach_bins"] == pytest.approx((3.3, 1.9), abs=0.25)
+    assert parts["bins_to_conveyor"] == pytest.approx((2.6, 1.7), abs=0.25)
 
 
 def test_the_baseline_first_late_scenario_loses_the_part_in_the_cell():
     """Issue 21.4: the baseline's violation is a run of the cell. Its worst first late
-    response (30.5 s) starts with a part detected as the arm leaves the tray for a bin
-    pick; the cell, sent the part at that phase with the arm at its own speed (unpaced,
-    no outcome forced), finishes the bin pick, puts the part back to free the gripper,
-    and reaches the belt only after the part rode past the end of the belt: lost, 16 s
-    after its detection. The counterexample's missed grasp after the part's arrival is
-    forced on the cell (the gripper lets the bin part go). The baseline's loss (the
-    paper's point) is a run the checker found and the cell makes, not only a figure of
-    random trials."""
+    response with the durations conditioned on no part lost yet (25.5 s; 30.5 s without
+    the condition, the same scenario) starts with a part detected as the arm leaves the
+    tray for a bin pick; the cell, sent the part at that phase with the arm at its own
+    speed (unpaced, no outcome forced), finishes the bin pick, puts the part back to free
+    the gripper, and reaches the belt only after the part rode past the end of the belt:
+    lost, 16 s after its detection. The counterexample's missed grasp after the part's
+    arrival is forced on the cell (the gripper lets the bin part go). The cell runs the
+    plain timed model (the same states), whose durations hold after the loss too."""
     from btfsm.sim.replay import replay_in_cell
 
-    m, worst, ce = _first_late("ariac-baseline-timed")
-    assert worst == 305
-    r = replay_in_cell(m, ce, pace="phase")
+    _m, worst, ce = _first_late("ariac-baseline-timed-no-loss")
+    assert worst == 255
+    r = replay_in_cell(load_builtin("ariac-baseline-timed"), ce, pace="phase")
     assert r.at_phase and not r.too_soon and not r.mismatch, r.text()
     assert [pid for _, pid in r.lost] == [pid for _, _, pid in r.injected], r.text()
     assert 15.9 <= r.lost[0][0] - r.injected[0][0] <= 16.3 and "the cell shows the late response" in r.text()
     assert [site.split("@")[0] for _, site, out in r.forced] == ["arm/grasp_bins"]  # the counterexample's missed grasp
-    # the cell's response (its next belt grasp starts) 23.4 s after the detection: the proof
-    # (30.5 s) is 1.30 times it; where the 7 s went, per FSM state
+    # the cell's response (its next belt grasp starts) 23.4 s after the detection: the
+    # conditioned figure (25.5 s) is 1.09 times it; where the 2.1 s went, per FSM state
     assert dict(r.responses)[r.injected[0][2]] == pytest.approx(23.4, abs=0.3)
     parts = {st: (c, x) for st, c, x in r.decomposition}
-    assert sum(c for c, _ in parts.values()) == pytest.approx(30.5)
-    assert parts["approach_conveyor"] == pytest.approx((4.0, 0.2), abs=0.15)
-    assert parts["grasp_bins"] == pytest.approx((2.1, 1.3), abs=0.15)  # two grasps; 3.0 s before the instants' split
+    assert sum(c for c, _ in parts.values()) == pytest.approx(25.5)
+    assert parts["approach_bins"] == pytest.approx((6.8, 4.7), abs=0.15)
+    assert parts["grasp_bins"] == pytest.approx((2.1, 1.3), abs=0.15)  # two grasps
+    assert parts["bins_to_conveyor"] == pytest.approx((2.6, 4.0), abs=0.15)  # the cell's part was lost: no pursuit
     assert parts["agv_to_bins"] == pytest.approx((6.3, 6.3), abs=0.15)
 
 

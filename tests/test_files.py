@@ -18,6 +18,7 @@ from hypothesis import strategies as st
 from btfsm import ModelError
 from btfsm.files import (builtin_models, dump_model, dumps_model, expand_templates, load_data, load_model,
                          loads_data, loads_model, model_from_data, model_to_data)
+from btfsm.models.registry import SAME_FORM
 
 from strategies import random_models
 
@@ -122,7 +123,7 @@ def test_round_trip_random_models(model, fmt):
     assert list(VALIDATOR.iter_errors(model_to_data(model))) == []
 
 
-@pytest.mark.parametrize("name", sorted(builtin_models()))
+@pytest.mark.parametrize("name", sorted(set(builtin_models()) - SAME_FORM))  # another model's states, other numbers
 def test_builtin_models_round_trip(name):
     model = load_model(name)
     for fmt in ("yaml", "json"):

@@ -315,6 +315,9 @@ def cli_bound(args) -> int:
                              "min_interval exceeds the bound")
         out.update(first_late_ticks=figure(first[0]),
                    first_late_seconds=None if figure(first[0]) is None else rb.seconds(first[0]))
+    conditioned = _conditioned_first_late(args, within, first, max_states, max_transitions, max_seconds)
+    if conditioned is not None:
+        out["conditioned"] = conditioned
     written = None
     if args.output and first is not None:
         _w, path, k = first
@@ -354,6 +357,13 @@ def cli_bound(args) -> int:
             if first is not None:
                 print(f"worst first late response (every earlier trigger answered within {within:g} s): "
                       f"{fmt(first[0])}")
+            if conditioned is not None:
+                c = conditioned
+                shown = "unbounded" if c["first_late_ticks"] is None else \
+                    f"{c['first_late_ticks']} ticks = {c['first_late_seconds']:g} s"
+                print(f"worst first late response, durations conditioned on {c['assumption']} ({c['model']}, "
+                      f"{c['states']:,} states; it decides --within {within:g}, a figure above {within:g} s is a run "
+                      f"of the model, not a bound): {shown}")
         if written:
             print(f"{'first late' if first is not None else 'worst-case'} run written: {written} "
                   f"(btfsm replay {written} {args.model})")
@@ -362,6 +372,39 @@ def cli_bound(args) -> int:
         print(f"({hit} hit: the figures cover the {ts.n_states:,} states explored; not decided)", file=sys.stderr)
         return 3
     return 1 if worst == INF else 0
+
+
+def _conditioned_first_late(args, within, first, max_states, max_transitions, max_seconds) -> "dict | None":
+    """The worst first late response of the built-in model's conditioned companion
+    (``btfsm.models.registry.CONDITIONED``: its durations hold in every run up to the first
+    late response, so its first late response decides the bound) when ``--within`` is at
+    most what the assumption covers; None otherwise."""
+    from btfsm.files import load_model
+    from btfsm.positions import widen_to_copies
+    from btfsm.timing import Response
+
+    from .explore import explore
+    from .properties.response import INF, ResponseBound
+
+    try:
+        from btfsm.models.registry import CONDITIONED
+    except ImportError:  # the models are not installed
+        return None
+    entry = CONDITIONED.get(args.model)
+    if first is None or entry is None or args.timed or within > entry[2] + 1e-9:
+        return None
+    name, assumption, _covers = entry
+    model = load_model(name, semantics=args.semantics, tick=args.tick)
+    ts = explore(model, max_states=max_states, max_transitions=max_transitions, max_seconds=max_seconds)
+    if not ts.complete:
+        return None
+    rb = ResponseBound(ts, widen_to_copies(Response("bound", args.trigger, args.response), model))
+    late = rb.first_late(int(round(within * model.tick_rate)))
+    if late is None:
+        return None
+    ticks = None if late[0] == INF else late[0]
+    return {"model": name, "assumption": assumption, "states": ts.n_states, "first_late_ticks": ticks,
+            "first_late_seconds": None if ticks is None else rb.seconds(ticks)}
 
 
 def _budgets(args, default_transitions=None):
