@@ -358,7 +358,7 @@ def timed(model: Model, durations: str = "derived", *, timing: "dict | None" = N
             model = split_by_entry(split, f.name, table, cond["table"])
         how = "derived from the scene per goal class and entry (models/" + \
             (TIMING_FILE if assume is None else f"{TIMING_FILE}, maxima from {TIMING_FILE_NO_LOSS}") + ")"
-        if assume:
+        if assume or t.get("assume"):
             how += "; conditioned on " + NO_LOSS
     elif durations == "measured" and assume is None:
         states = tuple(dataclasses.replace(s, duration=(0.0, ARM_DURATIONS[s.id])) if s.id in ARM_DURATIONS else s

@@ -86,7 +86,7 @@ def test_the_rest_to_rest_time_is_the_worlds():
 
 
 def test_the_stored_table_is_the_derivation(tmp_path):
-    """models/ariac_timing.json is what ``derive`` gives for the moves that need no belt
+    """models/ariac_timing.json (and ariac_timing_no_loss.json) is what ``derive`` gives for the moves that need no belt
     tracking (the pursuit samples make the whole derivation take a minute: BTFSM_LONG=1)."""
     import os
 
@@ -97,6 +97,8 @@ def test_the_stored_table_is_the_derivation(tmp_path):
         pytest.skip("the derivation runs a minute of pursuits (BTFSM_LONG=1)")
     got = durations.derive(ariac.preemptive()).to_data()
     assert got["classes"] == stored["classes"] and got["table"] == stored["table"]
+    got = durations.derive(ariac.preemptive(), no_loss=True).to_data()  # models/ariac_timing_no_loss.json
+    assert got == ariac.derived_timing("no_loss")
 
 
 def _first_late_oracle(ts, rb, bound: int):
