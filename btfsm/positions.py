@@ -47,14 +47,15 @@ def base_state(name: str) -> str:
     return name.split(SEP, 1)[0].split(GOAL_SEP, 1)[0]
 
 
-def widen_to_copies(x, model):
+def widen_to_copies(x: Any, model: Any) -> Any:
     """``x`` (an expression, a ``Response``, any part of a model) with every ``F.state == 'X'``
     (``!=``, ``in``) widened to the copies of X when FSM F of ``model`` has no state X but
     states split from it: a copy ``X#c...`` or ``X@u...`` counts as X, and ``X#c`` names
     the copies of goal copy ``X#c``. Names of states that exist are left alone. The split
-    functions widen the model's own expressions; this is for expressions written against
-    the unsplit model and given afterwards (``btfsm bound --response``, a counterexample's
-    requirement).
+    functions widen the model's own expressions, and a ``Model`` widens its requirements
+    (``responses``, from a model file too) when built; this is also for expressions
+    written against the unsplit model and given afterwards (``btfsm bound --response``, a
+    counterexample's requirement).
 
     >>> from btfsm import FSM, Edge, Model, State, Primitive, running, success
     >>> from btfsm.expr import parse, to_text
