@@ -190,8 +190,8 @@ def test_a_users_expression_names_a_split_states_copies(tmp_path, capsys):
     assert main(["bound", str(path), "--trigger", "arm.state == 'b'", "--response", "arm.state == 'a'",
                  "-o", str(out)]) == 0
     assert "worst case: 4 ticks = 0.4 s" in capsys.readouterr().out  # b's run, up to 0.3 s: a@b on its 4th tick
-    assert main(["replay", str(out), str(path)]) == 0
-    assert "first holds 4 tick(s)" in capsys.readouterr().out
+    assert main(["replay", str(out), str(path)]) == 0  # shows the expression as written, not its copies
+    assert "confirmed: 'arm.state == 'a'' (2 split copies) first holds 4 tick(s)" in capsys.readouterr().out
     assert main(["bound", str(path), "--trigger", "arm.state == 'b'", "--response", "arm.state == 'c'"]) == 2
     assert "'c' is not one of" in capsys.readouterr().err
 
@@ -216,15 +216,17 @@ def _split_file(tmp_path, response="arm.state == 'a'"):
 
 def test_a_model_files_response_names_a_split_states_copies(tmp_path, capsys):
     """A requirement in a model file's ``responses:`` naming a split state names its copies,
-    as ``--trigger/--response`` does: both routes give the same figures, and replay
-    confirms the counterexample."""
+    as ``--trigger/--response`` does: both routes give the same figures and counterexample,
+    which shows the requirement as written; replay confirms it, printing the expression as
+    written and how many copies it stands for."""
     import json
 
     from btfsm.cli import main
     from btfsm.files import load_model
 
     path = _split_file(tmp_path)
-    assert "a@b" in str(load_model(str(path)).responses[0].response)
+    req = load_model(str(path)).responses[0]
+    assert req.response_text == "arm.state == 'a'" and "a@b" in str(req.response)
     found = {}
     for name, args in (("file", []), ("cli", ["--trigger", "arm.state == 'b'", "--response", "arm.state == 'a'",
                                               "--within", "0.3"])):
@@ -233,11 +235,14 @@ def test_a_model_files_response_names_a_split_states_copies(tmp_path, capsys):
                     + args) == 1
         doc = json.loads(capsys.readouterr().out)["properties"][0]
         entry = doc["info"]["responses"]["back" if name == "file" else "cli"]
-        assert entry["worst_ticks"] == 4
+        assert entry["response"] == "arm.state == 'a'" and entry["worst_ticks"] == 4
         ce_file, = ce_dir.iterdir()
-        found[name] = {k: v for k, v in entry.items() if k != "response"}
+        assert json.loads(ce_file.read_text())["violation"]["response"] == "arm.state == 'a'"
+        found[name] = {k: v for k, v in entry.items()}
         assert main(["replay", str(ce_file), str(path)]) == 0
-        assert "still does not hold" in capsys.readouterr().out
+        out = capsys.readouterr().out
+        assert "confirmed: 'arm.state == 'a'' (2 split copies) still does not hold" in out, out
+        assert "a@start" not in out
     assert found["file"] == found["cli"]
 
 
