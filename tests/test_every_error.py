@@ -5,9 +5,12 @@ gets five errors (up to 20), none that follows from another."""
 from __future__ import annotations
 
 import json
+import os
 from pathlib import Path
 
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from btfsm import cli
 from btfsm.errors import ModelError, ModelErrors
@@ -150,3 +153,57 @@ def test_at_most_twenty_errors(tmp_path, capsys):
     err = capsys.readouterr().err.splitlines()
     assert len(err) == 21 and err[-1].startswith("btfsm validate: 20 errors (the first ones")
     assert err[0].startswith(f"btfsm validate: error: {path}: variables.v0.init: expected an integer")
+
+
+#: typos of first_model.yaml, each one problem of the model's checks, independent of the others
+NAME_TYPOS = [("{from: home, to: reach, goals: fetch}", "{from: home, to: raech, goals: fetch}"),
+              ("{from: reach, to: grasp, goals: fetch}", "{from: reach, to: grasp, goals: fecth}"),
+              ("{state: grasp, goals: fetch}", "{state: grasps, goals: fetch}"),
+              ("expr: holding}", "expr: holdin}"),
+              ("goal: stow, post", "goal: stwo, post"),
+              ("fsm: arm, goal: fetch", "fsm: amr, goal: fetch"),
+              ("guard: not cup_seen", "guard: not cupseen"),
+              ("{success: {holding: true}}", "{success: {holdig: true}}"),
+              ("{state: put_away, goals: stow}", "{state: put_away, goals: stw}"),
+              ("{from: put_away, to: home, goals: [stow, fetch]}", "{from: put_away, to: home, goals: [stow, fetch], guard: n > 1}")]
+#: typos of its shape (misspelt fields, types, node types)
+SHAPE_TYPOS = [("cup_seen: bool ", "cup_seen: bol "),
+               ("{from: home, to: reach, goals: fetch}", "{form: home, to: reach, goals: fetch}"),
+               ("{state: put_away, goals: stow}", "{state: put_away, goals: stow, gaurd: holding}"),
+               ("{Condition: has_cup, expr: holding}", "{Condtion: has_cup, expr: holding}"),
+               ("effects: {cup_seen: true}}", "efects: {cup_seen: true}}"),
+               ("{id: reach, outcomes: [running, success]}", "{id: reach, outcomes: [runing, success]}")]
+
+
+def _messages(text) -> list:
+    from btfsm.files import loads_model
+
+    try:
+        loads_model(text, file_name="m.yaml")
+    except ModelErrors as exc:
+        return [str(e) for e in exc.errors]
+    except ModelError as exc:
+        return [str(exc)]
+    return []
+
+
+@pytest.mark.parametrize("typos", [NAME_TYPOS, SHAPE_TYPOS], ids=["names", "shape"])
+def test_any_set_of_typos_gives_exactly_their_errors(typos):
+    """For any subset of independent typos, the loader reports exactly the errors each
+    typo gives alone: nothing missing, nothing that follows from another (a
+    hypothesis-drawn subset per example; 6 of them, 200 with BTFSM_LONG=1)."""
+    alone = []
+    for old, new in typos:
+        one = _messages(FIRST.replace(old, new, 1))
+        assert len(one) == 1, one
+        alone.append(one[0])
+
+    @settings(max_examples=200 if os.environ.get("BTFSM_LONG") else 6, deadline=None, derandomize=True, database=None)
+    @given(st.sets(st.integers(0, len(typos) - 1), min_size=1))
+    def run(chosen):
+        text = FIRST
+        for i in sorted(chosen):
+            text = text.replace(*typos[i], 1)
+        assert sorted(_messages(text)) == sorted(alone[i] for i in chosen)
+
+    run()
