@@ -195,6 +195,7 @@ def _describe(exc: BaseException, command: str) -> dict:
         if isinstance(exc, ModelErrors):  # every problem found in one pass: one line each, and the list
             info["errors"] = [{"file": e.file, "element": e.element or None, "problem": str(e.problem)}
                               for e in exc.errors]
+            info["errors_stopped"] = exc.stopped  # the search stopped at its cap: more may follow
     elif isinstance(exc, UsageError):
         info.update(kind="usage", exit_code=EXIT_INPUT)
     elif isinstance(exc, (DomainError, ConformanceError)):
@@ -224,7 +225,8 @@ def _message(info: dict) -> str:
     if info.get("errors"):
         lines = [_one_line(head + label + "".join(f"{part}: " for part in (e["file"], e["element"]) if part)
                            + e["problem"]) for e in info["errors"]]
-        return "\n".join(lines + [f"{head}{len(lines)} errors"])
+        more = " (the first ones: the search stopped there, more may follow)" if info.get("errors_stopped") else ""
+        return "\n".join(lines + [f"{head}{len(lines)} errors{more}"])
     where = "".join(f"{part}: " for part in (info["file"], info["element"]) if part)
     return _one_line(head + label + where + info["problem"])
 

@@ -25,16 +25,18 @@ class ModelErrors(ModelError):
     in the order found). It reads as the first one (``element``, ``problem``, ``file``);
     its text is one line listing them all (the command line prints one line each)."""
 
-    def __init__(self, errors: "list[ModelError]") -> None:
+    def __init__(self, errors: "list[ModelError]", stopped: bool = False) -> None:
         self.errors = list(errors)
+        self.stopped = stopped  # the search stopped at a cap: there may be more
         first = self.errors[0]
         super().__init__(first.element, first.problem, first.file)
 
     def _text(self) -> str:
-        return f"{len(self.errors)} problems: " + "; ".join(e._text() for e in self.errors)
+        more = " (the first ones: more may follow)" if getattr(self, "stopped", False) else ""
+        return f"{len(self.errors)} problems{more}: " + "; ".join(e._text() for e in self.errors)
 
     def at(self, prefix: str = "", file: "str | None" = None) -> "ModelErrors":
-        return ModelErrors([e.at(prefix, file) for e in self.errors])
+        return ModelErrors([e.at(prefix, file) for e in self.errors], self.stopped)
 
 
 def collected(errors: "list[ModelError]") -> "ModelError | None":

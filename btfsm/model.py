@@ -24,6 +24,7 @@ from .bt import Action, Node, SkillRequest, walk
 from .errors import ModelError
 from .expr import Expr, ExprLike, as_expr
 from .fsm import FSM
+from .positions import widen_to_copies
 from .profiles import PROFILES, TICKS
 from .primitives import PASS, EffectsLike, Outcome, Primitive, effects_of
 from .timing import responses_of
@@ -246,6 +247,8 @@ class Model:
                     raise ModelError(f"fsms.{f.name}.states.{st.id}.primitive", f"unknown primitive '{st.primitive}'")
             statuses = {name: p.statuses() for name, p in prims.items()}
             warnings += f.validate(statuses)
+        if self.responses:  # a split state named in a requirement names its copies, on every route
+            object.__setattr__(self, "responses", widen_to_copies(self.responses, self))
         self._check_reentrant_requests()
         self.program  # compiles and type-checks every expression
         return warnings + resource_warnings

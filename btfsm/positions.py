@@ -31,7 +31,7 @@ from .errors import ModelError
 from .fsm import Edge
 from .expr import BoolOp, Compare, Const, Expr, Name, Unary, flat
 
-__all__ = ["split_by_entry", "split_history", "split_by_goal", "base_state", "entries_of", "widen_to_copies", "SEP",
+__all__ = ["split_by_entry", "split_history", "split_by_goal", "base_state", "entries_of", "widen_to_copies", "copies_named", "SEP",
            "GOAL_SEP"]
 
 SEP = "@"  # a copy by entry: "<state>@<predecessor>"
@@ -47,14 +47,15 @@ def base_state(name: str) -> str:
     return name.split(SEP, 1)[0].split(GOAL_SEP, 1)[0]
 
 
-def widen_to_copies(x, model):
+def widen_to_copies(x: Any, model: Any) -> Any:
     """``x`` (an expression, a ``Response``, any part of a model) with every ``F.state == 'X'``
     (``!=``, ``in``) widened to the copies of X when FSM F of ``model`` has no state X but
     states split from it: a copy ``X#c...`` or ``X@u...`` counts as X, and ``X#c`` names
     the copies of goal copy ``X#c``. Names of states that exist are left alone. The split
-    functions widen the model's own expressions; this is for expressions written against
-    the unsplit model and given afterwards (``btfsm bound --response``, a counterexample's
-    requirement).
+    functions widen the model's own expressions, and a ``Model`` widens its requirements
+    (``responses``, from a model file too) when built; this is also for expressions
+    written against the unsplit model and given afterwards (``btfsm bound --response``, a
+    counterexample's requirement).
 
     >>> from btfsm import FSM, Edge, Model, State, Primitive, running, success
     >>> from btfsm.expr import parse, to_text
@@ -75,6 +76,34 @@ def widen_to_copies(x, model):
         if copies:
             x = _rename_any(x, f"{f.name}.state", copies)
     return x
+
+
+def copies_named(x: Any, model: Any) -> list:
+    """The split copies that ``widen_to_copies(x, model)`` names in place of the split
+    states ``x`` names (empty when ``x`` names none), in the order found.
+
+    >>> from btfsm import FSM, Edge, Model, State, Primitive, running, success
+    >>> from btfsm.expr import parse
+    >>> f = FSM("arm", states=[State("a", "move"), State("b", "move")], initial="a", goals=("g",),
+    ...         edges=[Edge("a", "b", "g"), Edge("b", "a", "g")])
+    >>> m = Model("m", primitives=[Primitive("move", (running(), success()))], fsms=[f])
+    >>> s = split_by_entry(m, "arm", {"a": {"": (0, 1), "b": (0, 2)}})
+    >>> copies_named(parse("arm.state == 'a'"), s), copies_named(parse("arm.state == 'b'"), s)
+    (['a@start', 'a@b'], [])
+    """
+    before = set(_constants(x))
+    return [c for c in dict.fromkeys(_constants(widen_to_copies(x, model))) if c not in before]
+
+
+def _constants(x) -> list:
+    """The constants of an expression, in the order found."""
+    if isinstance(x, Const):
+        return [x.value]
+    if isinstance(x, tuple):
+        return [c for v in x for c in _constants(v)]
+    if isinstance(x, Expr):
+        return [c for f in dataclasses.fields(cast(Any, x)) for c in _constants(getattr(x, f.name))]
+    return []
 
 
 def entries_of(fsm) -> dict:

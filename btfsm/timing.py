@@ -23,7 +23,7 @@ ticks (docs/semantics.md section 6.1):
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 from .errors import ModelError
@@ -82,12 +82,22 @@ class Response:
 
     ``trigger``: an expression (it occurs in every state where it holds) or ``event:NAME``
     (it occurs in the tick in which environment event NAME happens). ``response``: an
-    expression. ``within``: seconds, or None to measure only (``btfsm bound``)."""
+    expression. ``within``: seconds, or None to measure only (``btfsm bound``).
+    ``trigger_text``, ``response_text``: the two as written (set when built); a model
+    widens an expression that names a split state to its copies
+    (``btfsm.positions.widen_to_copies``), and messages show what was written.
+
+    >>> r = Response("r", "event:go", "arm.state == 'a'")
+    >>> r.response_text, r.trigger_text
+    ("arm.state == 'a'", 'event:go')
+    """
 
     name: str
     trigger: Any  # an expression (text, then an Expr once built) or "event:<name>"
     response: Any  # an expression (an Expr once built)
     within: "float | None" = None
+    trigger_text: str = field(default="", compare=False, repr=False)
+    response_text: str = field(default="", compare=False, repr=False)
 
     def __post_init__(self):
         t = self.trigger
@@ -96,6 +106,9 @@ class Response:
         else:
             object.__setattr__(self, "trigger", as_expr(t))
         object.__setattr__(self, "response", as_expr(self.response))
+        if not self.response_text:
+            object.__setattr__(self, "trigger_text", str(self.trigger))
+            object.__setattr__(self, "response_text", str(self.response))
         w = self.within
         if w is not None and (isinstance(w, bool) or not isinstance(w, (int, float)) or not 0 <= w < math.inf):
             raise ModelError(f"responses.{self.name}.within", f"expected a finite number of seconds >= 0, got {w!r}")

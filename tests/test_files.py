@@ -371,9 +371,11 @@ def test_template_recursion_and_error_origin():
     assert "template 'a' uses itself (a -> b -> a)" in _error(loop)
     bad = _fsm(head=TEMPLATE_HEAD.replace('edges: [{from: "at_${X}", to: home, goals: "go_${X}"}]',
                                           'edges: [{from: "at_${X}", to: home, goals: "go_${X}", guard: "${X} > 1"}]'))
-    msg = _error(bad)
-    assert msg == ("m.yaml: fsms.f.edges[0].guard: unknown name 'a' in 'a > 1' "
-                   "(line 7, in template 'chain' used at line 14 with X=a)")
+    msg = _error(bad)  # both uses of the template, each with its origin
+    assert msg == ("2 problems: m.yaml: fsms.f.edges[0].guard: unknown name 'a' in 'a > 1' "
+                   "(line 7, in template 'chain' used at line 14 with X=a); "
+                   "m.yaml: fsms.f.edges[1].guard: unknown name 'b' in 'b > 1' "
+                   "(line 7, in template 'chain' used at line 14 with X=b)")
 
 
 # ---------------------------------------------------------------- load_model and the registry

@@ -192,7 +192,66 @@ def test_a_users_expression_names_a_split_states_copies(tmp_path, capsys):
     assert main(["bound", str(path), "--trigger", "arm.state == 'b'", "--response", "arm.state == 'a'",
                  "-o", str(out)]) == 0
     assert "worst case: 4 ticks = 0.4 s" in capsys.readouterr().out  # b's run, up to 0.3 s: a@b on its 4th tick
-    assert main(["replay", str(out), str(path)]) == 0
-    assert "first holds 4 tick(s)" in capsys.readouterr().out
+    assert main(["replay", str(out), str(path)]) == 0  # shows the expression as written, not its copies
+    assert "confirmed: 'arm.state == 'a'' (2 split copies) first holds 4 tick(s)" in capsys.readouterr().out
     assert main(["bound", str(path), "--trigger", "arm.state == 'b'", "--response", "arm.state == 'c'"]) == 2
     assert "'c' is not one of" in capsys.readouterr().err
+
+
+def _split_file(tmp_path, response="arm.state == 'a'"):
+    """A timed model file with arm state 'a' split by entry (a@start, a@b) and a
+    requirement, written against the unsplit model, that names 'a'."""
+    from btfsm import SkillRequest
+    from btfsm.files.writing import dumps_model
+
+    f = FSM("arm", states=[State("a", "move"), State("b", "move")], initial="a", goals=("g",),
+            edges=[Edge("a", "b", "g"), Edge("b", "a", "g")])
+    m = Model("m", primitives=[Primitive("move", (running(), success()), duration=(0.1, 0.3))], fsms=[f],
+              tree=SkillRequest("go", fsm="arm", goal="g"), tick_rate=10.0)
+    text = dumps_model(split_by_entry(m, "arm", {"a": {"": (0, 0.2), "b": (0, 0.5)}}))
+    assert "id: a@b" in text and "id: a\n" not in text
+    path = tmp_path / "split.yaml"
+    path.write_text(text + f"responses:\n  back: {{trigger: \"arm.state == 'b'\", response: \"{response}\", "
+                           "within: 0.3}\n")
+    return path
+
+
+def test_a_model_files_response_names_a_split_states_copies(tmp_path, capsys):
+    """A requirement in a model file's ``responses:`` naming a split state names its copies,
+    as ``--trigger/--response`` does: both routes give the same figures and counterexample,
+    which shows the requirement as written; replay confirms it, printing the expression as
+    written and how many copies it stands for."""
+    import json
+
+    from btfsm.cli import main
+    from btfsm.files import load_model
+
+    path = _split_file(tmp_path)
+    req = load_model(str(path)).responses[0]
+    assert req.response_text == "arm.state == 'a'" and "a@b" in str(req.response)
+    found = {}
+    for name, args in (("file", []), ("cli", ["--trigger", "arm.state == 'b'", "--response", "arm.state == 'a'",
+                                              "--within", "0.3"])):
+        ce_dir = tmp_path / name
+        assert main(["check", str(path), "--property", "response", "--json", "--counterexample-dir", str(ce_dir)]
+                    + args) == 1
+        doc = json.loads(capsys.readouterr().out)["properties"][0]
+        entry = doc["info"]["responses"]["back" if name == "file" else "cli"]
+        assert entry["response"] == "arm.state == 'a'" and entry["worst_ticks"] == 4
+        ce_file, = ce_dir.iterdir()
+        assert json.loads(ce_file.read_text())["violation"]["response"] == "arm.state == 'a'"
+        found[name] = {k: v for k, v in entry.items()}
+        assert main(["replay", str(ce_file), str(path)]) == 0
+        out = capsys.readouterr().out
+        assert "confirmed: 'arm.state == 'a'' (2 split copies) still does not hold" in out, out
+        assert "a@start" not in out
+    assert found["file"] == found["cli"]
+
+
+def test_a_requirement_naming_no_state_is_still_an_error(tmp_path, capsys):
+    from btfsm.cli import main
+
+    path = _split_file(tmp_path, "arm.state == 'c'")
+    assert main(["validate", str(path)]) == 2
+    err = capsys.readouterr().err
+    assert "responses.back.response: 'c' is not one of a@start, a@b, b" in err and "Traceback" not in err

@@ -227,7 +227,6 @@ def _with_response(model, args):
     import dataclasses
 
     from btfsm.errors import ModelError, UsageError
-    from btfsm.positions import widen_to_copies
     from btfsm.timing import Response
 
     trig, resp, within = args.trigger, args.response, args.within
@@ -238,7 +237,7 @@ def _with_response(model, args):
     if trig is None or resp is None:
         raise UsageError("--trigger and --response go together")
     try:
-        req = widen_to_copies(Response("cli", trig, resp, within), model)  # a split state's copies count as it
+        req = Response("cli", trig, resp, within)  # the model widens a split state to its copies
         return dataclasses.replace(model, responses=tuple(model.responses) + (req,))
     except (ModelError, SyntaxError, ValueError) as exc:
         raise UsageError(f"--trigger/--response: {getattr(exc, 'problem', None) or exc}") from None

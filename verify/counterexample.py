@@ -401,12 +401,15 @@ def _confirm_response(ce, model, states) -> tuple:
     """A 'response' violation: the trigger occurs at step k and the response holds in no
     state from there on, for more ticks than the bound, or around the lasso's cycle."""
     from btfsm.expr import BOOL, as_expr, compile_fn
-    from btfsm.positions import widen_to_copies
+    from btfsm.positions import copies_named, widen_to_copies
 
     prog = model.program
     v = ce.violation
     k = int(v["trigger_step"])
-    resp = compile_fn(widen_to_copies(as_expr(v["response"]), model), prog.scope, "response", BOOL)
+    written = as_expr(v["response"])
+    resp = compile_fn(widen_to_copies(written, model), prog.scope, "response", BOOL)
+    copies = copies_named(written, model)  # the response as written, and how many split copies it names
+    shown = f"'{v['response']}'" + (f" ({len(copies)} split cop{'y' if len(copies) == 1 else 'ies'})" if copies else "")
     trig = v["trigger"]
     if trig.startswith("event:"):
         name = trig[len("event:"):]
@@ -419,24 +422,24 @@ def _confirm_response(ce, model, states) -> tuple:
     bound = v.get("bound_ticks")
     if bound is None and ce.loop is None and v.get("worst_ticks") is not None:  # a worst-case witness (btfsm bound)
         if held == [n] and n - k == v["worst_ticks"]:
-            return True, (f"confirmed: '{v['response']}' first holds {n - k} tick(s) ({(n - k) / model.tick_rate:g} s) "
+            return True, (f"confirmed: {shown} first holds {n - k} tick(s) ({(n - k) / model.tick_rate:g} s) "
                           f"after the trigger at step {k}")
-        return False, f"'{v['response']}' holds after step(s) {held[:3]}, not only after step {n}"
+        return False, f"{shown} holds after step(s) {held[:3]}, not only after step {n}"
     if held:
-        return False, f"'{v['response']}' holds after step {held[0]}"
+        return False, f"{shown} holds after step {held[0]}"
     if ce.loop is not None:
         if states[-1] != states[ce.loop]:
             return False, f"the run does not return to the state after step {ce.loop}"
-        return True, (f"confirmed: after the trigger at step {k}, '{v['response']}' never holds: the run returns to "
+        return True, (f"confirmed: after the trigger at step {k}, {shown} never holds: the run returns to "
                       f"the state after step {ce.loop} and repeats for ever")
     if bound is not None and n - k >= bound:
-        return True, (f"confirmed: '{v['response']}' still does not hold {n - k} tick(s) ({(n - k) / model.tick_rate:g} s) "
+        return True, (f"confirmed: {shown} still does not hold {n - k} tick(s) ({(n - k) / model.tick_rate:g} s) "
                       f"after the trigger at step {k}; the bound is {bound / model.tick_rate:g} s")
     from .explore import explore
 
     ts = explore(model, start=states[-1], max_states=2)
     if ts.n_transitions == 0 and not ts.errors:
-        return True, f"confirmed: after the trigger at step {k} the run stops (no tick can happen) before '{v['response']}'"
+        return True, f"confirmed: after the trigger at step {k} the run stops (no tick can happen) before {shown}"
     return False, f"only {n - k} tick(s) after the trigger at step {k}; the bound is {bound} ticks"
 
 

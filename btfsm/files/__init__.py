@@ -5,8 +5,9 @@ One data model for both formats (docs/model-files.md is the reference; the JSON 
 safe loader (YAML 1.2 core scalars: ``yes``, ``no``, ``on``, ``off`` stay strings) and turned into
 plain dicts, lists and scalars by this module; templates are text substitution of
 declared ``${PARAM}`` placeholders; expressions are parsed by ``btfsm.expr.parse``. Every
-problem raises one ``ModelError`` naming the file, the element path in the file (such as
-``fsms.arm.edges[3].guard``) and, for YAML, the line.
+problem is a ``ModelError`` naming the file, the element path in the file (such as
+``fsms.arm.edges[3].guard``) and, for YAML, the line; a file's independent problems are
+raised together, as one ``ModelErrors`` (``reading``: up to ``MAX_ERRORS``).
 
 The package has one module per job, each importing only the ones before it:
 ``text`` (reading text with limits, the one-line errors), ``templates``, ``reading``

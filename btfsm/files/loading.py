@@ -8,7 +8,7 @@ import re
 from pathlib import Path
 from typing import Any, cast
 
-from ..errors import ModelError
+from ..errors import ModelError, ModelErrors
 from ..model import Model
 from ..profiles import PROFILES, TICKS
 
@@ -146,6 +146,8 @@ def load_xml_model(path, *, leaves=None, file_name: "str | None" = None, node_li
                          include=include)
     try:
         model = model_from_data(result.data, side_name or shown)
+    except ModelErrors as exc:
+        raise ModelErrors([result.locate(e, shown) for e in exc.errors], exc.stopped) from None
     except ModelError as exc:
         raise result.locate(exc, shown) from None
     object.__setattr__(model, "warnings", model.warnings + tuple(result.warnings))

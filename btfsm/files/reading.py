@@ -1,16 +1,18 @@
 """Data to Model: the shape of expanded data checked element by element, and the Model built."""
 from __future__ import annotations
 
+import dataclasses
 import difflib
 import math
 import re
+from typing import cast
 
-from ..bt import NODE_TYPES, Action, Composite, Decorator, file_fields, walk
-from ..errors import ModelError
+from ..bt import NODE_TYPES, Action, Composite, Decorator, Leaf, file_fields, walk
+from ..errors import ModelError, ModelErrors, collected
 from ..expr import Expr, as_expr
 from ..fsm import FSM, Edge, Marker, State
 from ..model import EnvChoice, EnvEvent, Model
-from ..primitives import Outcome, Primitive
+from ..primitives import PASS, Outcome, Primitive
 from ..profiles import PROFILES, TICKS
 from ..status import Status
 from ..timing import Response, duration_of
@@ -52,13 +54,60 @@ FSM_FIELDS = ("goals", "states", "initial", "edges", "markers", "params", "retar
 _FILE_FIELDS = {"source": "from", "target": "to"}  # Python field -> file field (edges)
 _FILE_FIELD = re.compile(r"^\.(source|target)\b")
 
+#: the most problems one reading reports (``ModelErrors``); it stops there
+MAX_ERRORS = 20
+
+
+class _Skipped(Exception):
+    """An element holds a problem already noted: it is not built (nor what holds it)."""
+
+
+class _Full(Exception):
+    """``MAX_ERRORS`` problems are noted: the reading stops."""
+
 
 class _Reader:
-    """Checks the shape of expanded data and builds the Model objects."""
+    """Checks the shape of expanded data and builds the Model objects.
+
+    Problems are collected, element by element (a variable, a primitive, an FSM's state,
+    edge or marker, a tree node's fields, an event, an invariant, a resource, a
+    requirement): an element with a problem is noted and skipped, and the reading goes on
+    with the next one, so that one pass reports every independent problem (up to
+    ``MAX_ERRORS``). What holds a skipped element is not built, and the Model is not
+    built either when the shape has problems (its checks would report what follows from
+    them). A shape without problems is built into a Model; the Model's checks stop at
+    their first problem, so ``build`` takes the element it names out (an edge, a marker,
+    an unknown name in an expression...: ``_without``) and builds again, to report the
+    next one, as long as what it takes out cannot cause a problem of its own."""
 
     def __init__(self, file):
         self.file = file
         self.where: dict = {}  # element path used by the Model -> (path in the file, parent, key)
+        self.errors: list = []  # the problems noted so far, in the order found
+
+    def each(self, build, *args):
+        """``build(*args)``; when it raises a ModelError: the problem noted and None returned
+        (the caller skips the element). Raises ``_Full`` at ``MAX_ERRORS`` problems."""
+        try:
+            return build(*args)
+        except _Skipped:
+            return None
+        except ModelError as exc:
+            self.errors.extend(exc.errors if isinstance(exc, ModelErrors) else [exc])
+            if len(self.errors) >= MAX_ERRORS:
+                raise _Full() from None
+            return None
+
+    @staticmethod
+    def raise_(exc):
+        """Raise ``exc`` (``each(self.raise_, exc)`` notes a problem and goes on)."""
+        raise exc
+
+    def all_built(self, *items):
+        """Raise ``_Skipped`` when one of ``items`` (an element or a list of them) was skipped."""
+        for x in items:
+            if x is None or (isinstance(x, (list, tuple)) and any(y is None for y in x)):
+                raise _Skipped()
 
     def fail(self, path, problem, obj=None, key=None):
         return err(path, problem + where_of(obj, key), self.file)
@@ -166,13 +215,15 @@ class _Reader:
             return ()
         if not isinstance(obj, dict):
             raise self.fail(path, f"expected a mapping of names to types, got {kind_of(obj)}", obj)
-        out = []
-        for name, spec in obj.items():
-            p = join_path(path, name)
-            self.string(name, path, obj, name, "a variable name")
-            self.alias(f"{element_prefix}.{name}", p, obj, name)
-            out.append(self.var(name, spec, p, obj))
+        out = [self.each(self.one_var, name, spec, path, obj, element_prefix) for name, spec in obj.items()]
+        self.all_built(out)
         return tuple(out)
+
+    def one_var(self, name, spec, path, obj, element_prefix) -> Var:
+        p = join_path(path, name)
+        self.string(name, path, obj, name, "a variable name")
+        self.alias(f"{element_prefix}.{name}", p, obj, name)
+        return self.var(name, spec, p, obj)
 
     def var(self, name, spec, path, parent) -> Var:
         if spec == "bool":
@@ -238,18 +289,20 @@ class _Reader:
             return ()
         if not isinstance(obj, dict):
             raise self.fail("primitives", f"expected a mapping of primitive names to outcome lists, got {kind_of(obj)}", obj)
-        out = []
-        for name, outs in obj.items():
-            p = join_path("primitives", name)
-            self.string(name, "primitives", obj, name, "a primitive name")
-            self.alias(p, p, obj, name)
-            duration = None
-            if isinstance(outs, dict) and ("outcomes" in outs or "duration" in outs):  # {outcomes: [...], duration: ...}
-                self.fields(outs, p, ("outcomes", "duration"), ("outcomes",), "a list of outcomes, or {outcomes: [...], duration: [min, max]}")
-                duration = self.duration(outs.get("duration"), f"{p}.duration", outs, "duration")
-                outs = outs["outcomes"]
-            out.append(Primitive(name, self.outcomes(outs, p, obj, name, p), duration))
+        out = [self.each(self.primitive, name, outs, obj) for name, outs in obj.items()]
+        self.all_built(out)
         return tuple(out)
+
+    def primitive(self, name, outs, obj) -> Primitive:
+        p = join_path("primitives", name)
+        self.string(name, "primitives", obj, name, "a primitive name")
+        self.alias(p, p, obj, name)
+        duration = None
+        if isinstance(outs, dict) and ("outcomes" in outs or "duration" in outs):  # {outcomes: [...], duration: ...}
+            self.fields(outs, p, ("outcomes", "duration"), ("outcomes",), "a list of outcomes, or {outcomes: [...], duration: [min, max]}")
+            duration = self.duration(outs.get("duration"), f"{p}.duration", outs, "duration")
+            outs = outs["outcomes"]
+        return Primitive(name, self.outcomes(outs, p, obj, name, p), duration)
 
     def duration(self, value, path, parent, key):
         """``[min, max]`` seconds (max may be null), ``{min: , max: }`` or one number (btfsm.timing)."""
@@ -284,13 +337,18 @@ class _Reader:
             kids = obj["children"]
             if not isinstance(kids, list):
                 raise self.fail(f"{path}.children", f"expected a list of nodes, got {kind_of(kids)}", obj, "children")
-            kw["children"] = tuple(self.node(c, f"{path}.children[{i}]", root, kids, i, depth + 1) for i, c in enumerate(kids))
+            kw["children"] = tuple(self.each(self.node, c, f"{path}.children[{i}]", root, kids, i, depth + 1)
+                                   for i, c in enumerate(kids))
         if "child" in obj:
-            kw["child"] = self.node(obj["child"], f"{path}.child", root, obj, "child", depth + 1)
+            kw["child"] = self.each(self.node, obj["child"], f"{path}.child", root, obj, "child", depth + 1)
+        n = len(self.errors)
         for f in file_fields(cls):
             kind = f.metadata["file"]
             if f.name in obj and (obj[f.name] is not None or kind not in _NULL_IS_DEFAULT):
-                kw[f.name] = self.node_field(kind, obj[f.name], f"{path}.{f.name}", obj, f.name, f.metadata, name)
+                kw[f.name] = self.each(self.node_field, kind, obj[f.name], f"{path}.{f.name}", obj, f.name, f.metadata, name)
+        self.all_built(kw.get("children", ()), kw.get("child", True))
+        if len(self.errors) > n:
+            raise _Skipped()
         return cls(name, **kw)
 
     def node_field(self, kind, value, path, obj, key, meta, name):
@@ -343,18 +401,23 @@ class _Reader:
     def fsm(self, name, spec, path, parent) -> FSM:
         self.fields(spec, path, FSM_FIELDS, ("goals", "states"), "an FSM (a mapping with goals and states)")
         self.alias(path, path, parent, name)
-        goals = self.names(spec["goals"], f"{path}.goals", spec, "goals", "goals")
+        n = len(self.errors)
+        goals = self.each(self.names, spec["goals"], f"{path}.goals", spec, "goals", "goals")
         states_data = spec["states"]
+        states: tuple = ()
         if not isinstance(states_data, list):
-            raise self.fail(f"{path}.states", f"expected a list of states, got {kind_of(states_data)}", spec, "states")
-        states = tuple(self.state(name, s, f"{path}.states[{i}]", states_data, i) for i, s in enumerate(states_data))
+            self.each(self.raise_, self.fail(f"{path}.states", f"expected a list of states, got {kind_of(states_data)}",
+                                             spec, "states"))
+        else:
+            states = tuple(self.each(self.state, name, s, f"{path}.states[{i}]", states_data, i)
+                           for i, s in enumerate(states_data))
         kw = {}
         for k in ("initial", "retarget", "withdraw_goal"):
             if k in spec:
-                kw[k] = self.string(spec[k], f"{path}.{k}", spec, k)
+                kw[k] = self.each(self.string, spec[k], f"{path}.{k}", spec, k)
         if "terminal" in spec:
-            kw["terminal"] = self.names(spec["terminal"], f"{path}.terminal", spec, "terminal", "states")
-        kw["params"] = self.variables(spec.get("params"), f"{path}.params", f"fsms.{name}.params")
+            kw["terminal"] = self.each(self.names, spec["terminal"], f"{path}.terminal", spec, "terminal", "states")
+        kw["params"] = self.each(self.variables, spec.get("params"), f"{path}.params", f"fsms.{name}.params")
         edges: list
         markers: list
         edges, markers = [], []
@@ -363,10 +426,13 @@ class _Reader:
             if items is None:
                 continue
             if not isinstance(items, list):
-                raise self.fail(f"{path}.{key}", f"expected a list, got {kind_of(items)}", spec, key)
+                self.each(self.raise_, self.fail(f"{path}.{key}", f"expected a list, got {kind_of(items)}", spec, key))
+                continue
             for i, x in enumerate(items):
-                built = build(x, f"{path}.{key}[{i}]", items, i)
+                built = self.each(build, x, f"{path}.{key}[{i}]", items, i)
                 out.extend(built if isinstance(built, list) else [built])
+        if len(self.errors) > n:
+            raise _Skipped()
         f = FSM(name, states=states, goals=goals, edges=tuple(e for e, _ in edges),
                 markers=tuple(m for m, _ in markers), **kw)
         for built, (_, where) in zip(f.edges, edges):
@@ -471,122 +537,375 @@ class _Reader:
             return ()
         if not isinstance(obj, list):
             raise self.fail("environment", f"expected a list of events and choices, got {kind_of(obj)}", obj)
-        out = []
-        for i, ev in enumerate(obj):
-            p = f"environment[{i}]"
-            self.alias(p, p, obj, i)
-            if isinstance(ev, dict) and "choice" in ev:
-                self.fields(ev, p, ("choice", "options"), ("options",), "a choice {choice: NAME, options: [...]}")
-                name = self.string(ev["choice"], f"{p}.choice", ev, "choice", "a choice name")
-                self.alias(f"environment.{name}", p, obj, i)
-                opts = ev["options"]
-                if not isinstance(opts, list):
-                    raise self.fail(f"{p}.options", f"expected a list of events, got {kind_of(opts)}", ev, "options")
-                for k in range(len(opts)):
-                    self.alias(f"environment.{name}.options[{k}]", f"{p}.options[{k}]", opts, k)
-                out.append(EnvChoice(name, tuple(self.event(o, f"{p}.options[{k}]", opts, k, f"environment.{name}.options")
-                                                 for k, o in enumerate(opts))))
-            else:
-                out.append(self.event(ev, p, obj, i, "environment"))
+        out = [self.each(self.env_entry, ev, i, obj) for i, ev in enumerate(obj)]
+        self.all_built(out)
         return tuple(out)
+
+    def env_entry(self, ev, i, obj):
+        p = f"environment[{i}]"
+        self.alias(p, p, obj, i)
+        if isinstance(ev, dict) and "choice" in ev:
+            self.fields(ev, p, ("choice", "options"), ("options",), "a choice {choice: NAME, options: [...]}")
+            name = self.string(ev["choice"], f"{p}.choice", ev, "choice", "a choice name")
+            self.alias(f"environment.{name}", p, obj, i)
+            opts = ev["options"]
+            if not isinstance(opts, list):
+                raise self.fail(f"{p}.options", f"expected a list of events, got {kind_of(opts)}", ev, "options")
+            for k in range(len(opts)):
+                self.alias(f"environment.{name}.options[{k}]", f"{p}.options[{k}]", opts, k)
+            options = [self.each(self.event, o, f"{p}.options[{k}]", opts, k, f"environment.{name}.options")
+                       for k, o in enumerate(opts)]
+            self.all_built(options)
+            return EnvChoice(name, tuple(options))
+        return self.event(ev, p, obj, i, "environment")
 
     def resources(self, obj, data) -> tuple:
         """``resources: {arm: [pick_a, pick_b]}``: resource name -> node names."""
         if not isinstance(obj, dict):
             raise self.fail("resources", f"expected a mapping of resource names to lists of node names, got {kind_of(obj)}",
                             data, "resources")
-        out = []
-        for name, members in obj.items():
-            self.string(name, "resources", obj, name, "a resource name")
-            path = join_path("resources", name)
-            self.alias(path, path, obj, name)
-            if isinstance(members, str):
-                members = [members]
-            if not isinstance(members, list):
-                raise self.fail(path, f"expected a list of node names, got {kind_of(members)}", obj, name)
-            for i, m in enumerate(members):
-                self.string(m, f"{path}[{i}]", members, i, "a node name")
-            out.append((name, tuple(members)))
+        out = [self.each(self.resource, name, members, obj) for name, members in obj.items()]
+        self.all_built(out)
         return tuple(out)
+
+    def resource(self, name, members, obj) -> tuple:
+        self.string(name, "resources", obj, name, "a resource name")
+        path = join_path("resources", name)
+        self.alias(path, path, obj, name)
+        if isinstance(members, str):
+            members = [members]
+        if not isinstance(members, list):
+            raise self.fail(path, f"expected a list of node names, got {kind_of(members)}", obj, name)
+        for i, m in enumerate(members):
+            self.string(m, f"{path}[{i}]", members, i, "a node name")
+        return (name, tuple(members))
 
     def responses(self, obj, data) -> tuple:
         """``responses: {NAME: {trigger: EXPR | event:NAME, response: EXPR, within: SECONDS}}``."""
         if not isinstance(obj, dict):
             raise self.fail("responses", f"expected a mapping of names to {{trigger, response, within}}, got {kind_of(obj)}",
                             data, "responses")
-        out = []
-        for name, spec in obj.items():
-            self.string(name, "responses", obj, name, "a requirement name")
-            path = join_path("responses", name)
-            self.alias(path, path, obj, name)
-            if not isinstance(spec, dict):
-                raise self.fail(path, f"expected {{trigger: ..., response: ..., within: SECONDS}}, got {kind_of(spec)}", obj, name)
-            self.fields(spec, path, ("trigger", "response", "within"), ("trigger", "response"),
-                        "{trigger: EXPR or event:NAME, response: EXPR, within: SECONDS}")
-            trig = spec["trigger"]
-            if isinstance(trig, str) and trig.strip().startswith("event:"):
-                trig = trig.strip()
-            else:
-                trig = self.expr(trig, f"{path}.trigger", spec, "trigger")
-            resp = self.expr(spec["response"], f"{path}.response", spec, "response")
-            within = spec.get("within")
-            if within is not None and (isinstance(within, bool) or not isinstance(within, (int, float))
-                                       or not 0 <= within < math.inf):
-                raise self.fail(f"{path}.within", f"expected a finite number of seconds >= 0, got {kind_of(within)}", spec, "within")
-            out.append(Response(name, trig, resp, within))
+        out = [self.each(self.response, name, spec, obj) for name, spec in obj.items()]
+        self.all_built(out)
         return tuple(out)
+
+    def response(self, name, spec, obj) -> Response:
+        self.string(name, "responses", obj, name, "a requirement name")
+        path = join_path("responses", name)
+        self.alias(path, path, obj, name)
+        if not isinstance(spec, dict):
+            raise self.fail(path, f"expected {{trigger: ..., response: ..., within: SECONDS}}, got {kind_of(spec)}", obj, name)
+        self.fields(spec, path, ("trigger", "response", "within"), ("trigger", "response"),
+                    "{trigger: EXPR or event:NAME, response: EXPR, within: SECONDS}")
+        trig = spec["trigger"]
+        if isinstance(trig, str) and trig.strip().startswith("event:"):
+            trig = trig.strip()
+        else:
+            trig = self.expr(trig, f"{path}.trigger", spec, "trigger")
+        resp = self.expr(spec["response"], f"{path}.response", spec, "response")
+        within = spec.get("within")
+        if within is not None and (isinstance(within, bool) or not isinstance(within, (int, float))
+                                   or not 0 <= within < math.inf):
+            raise self.fail(f"{path}.within", f"expected a finite number of seconds >= 0, got {kind_of(within)}", spec, "within")
+        return Response(name, trig, resp, within)
 
     # ---------------------------------------------------------------- the model
     def model(self, data) -> Model:
-        self.fields(data, "", TOP_FIELDS, ("name",), "a mapping with the model")
-        kw = {"name": self.string(data["name"], "name", data, "name", "a model name")}
+        """The Model of ``data``, or every independent problem found (``ModelErrors``)."""
+        if not isinstance(data, dict):
+            self.fields(data, "", TOP_FIELDS, ("name",), "a mapping with the model")
+        try:
+            kw = self.read(data)
+        except _Full:
+            kw = {}
+        if self.errors:
+            raise collected_at_most(self.errors)
+        return self.build(kw)
+
+    def read(self, data) -> dict:
+        """The Model's arguments, each top-level element read on its own (problems noted)."""
+        each = self.each
+        each(self.fields, data, "", TOP_FIELDS, ("name",), "a mapping with the model")
+        kw: dict = {}
+        if "name" in data:
+            kw["name"] = each(self.string, data["name"], "name", data, "name", "a model name")
         if "description" in data:
-            kw["description"] = self.string(data["description"], "description", data, "description")
+            kw["description"] = each(self.string, data["description"], "description", data, "description")
         if "semantics" in data:
             sem = data["semantics"]
             if not isinstance(sem, str) or sem not in PROFILES:
-                raise self.fail("semantics", f"expected one of {', '.join(PROFILES)}, got {sem!r}", data, "semantics")
+                each(self.raise_, self.fail("semantics", f"expected one of {', '.join(PROFILES)}, got {sem!r}", data, "semantics"))
             kw["semantics"] = sem
         if "tick" in data:
             tick = data["tick"]
             if not isinstance(tick, str) or tick not in TICKS:
-                raise self.fail("tick", f"expected one of {', '.join(TICKS)}, got {tick!r}", data, "tick")
+                each(self.raise_, self.fail("tick", f"expected one of {', '.join(TICKS)}, got {tick!r}", data, "tick"))
             kw["tick"] = tick
         if "tick_rate" in data:
             r = data["tick_rate"]
             if isinstance(r, bool) or not isinstance(r, (int, float)) or not math.isfinite(r):
-                raise self.fail("tick_rate", f"expected a finite number of ticks per second, got {kind_of(r)}", data, "tick_rate")
+                each(self.raise_, self.fail("tick_rate", f"expected a finite number of ticks per second, got {kind_of(r)}",
+                                            data, "tick_rate"))
             kw["tick_rate"] = r
         for key in TOP_FIELDS:
             self.alias(key, key, data, key)
-        kw["variables"] = self.variables(data.get("variables"), "variables", "variables")
-        kw["primitives"] = self.primitives(data.get("primitives"))
+        kw["variables"] = each(self.variables, data.get("variables"), "variables", "variables")
+        kw["primitives"] = each(self.primitives, data.get("primitives"))
         fsms = data.get("fsms")
         if fsms is not None:
             if not isinstance(fsms, dict):
-                raise self.fail("fsms", f"expected a mapping of FSM names to FSMs, got {kind_of(fsms)}", data, "fsms")
-            kw["fsms"] = tuple(self.fsm(self.string(n, "fsms", fsms, n, "an FSM name"), spec, join_path("fsms", n), fsms) for n, spec in fsms.items())
+                each(self.raise_, self.fail("fsms", f"expected a mapping of FSM names to FSMs, got {kind_of(fsms)}", data, "fsms"))
+            else:
+                kw["fsms"] = tuple(each(self.named_fsm, n, spec, fsms) for n, spec in fsms.items())
         if data.get("tree") is not None:
-            kw["tree"] = self.node(data["tree"], "tree", "tree", data, "tree")
-        kw["environment"] = self.environment(data.get("environment"))
+            kw["tree"] = each(self.node, data["tree"], "tree", "tree", data, "tree")
+        kw["environment"] = each(self.environment, data.get("environment"))
         inv = data.get("invariants")
         if inv is not None:
             if not isinstance(inv, dict):
-                raise self.fail("invariants", f"expected a mapping of names to expressions, got {kind_of(inv)}", data, "invariants")
-            kw["invariants"] = tuple((self.string(k, "invariants", inv, k, "an invariant name"), self.expr(v, join_path("invariants", k), inv, k))
-                                     for k, v in inv.items())
+                each(self.raise_, self.fail("invariants", f"expected a mapping of names to expressions, got {kind_of(inv)}",
+                                            data, "invariants"))
+            else:
+                kw["invariants"] = tuple(each(self.invariant, k, v, inv) for k, v in inv.items())
         for key in ("workable", "terminal"):
             if data.get(key) is not None:
-                kw[key] = self.expr(data[key], key, data, key)
+                kw[key] = each(self.expr, data[key], key, data, key)
         if data.get("resources") is not None:
-            kw["resources"] = self.resources(data["resources"], data)
+            kw["resources"] = each(self.resources, data["resources"], data)
         if data.get("responses") is not None:
-            kw["responses"] = self.responses(data["responses"], data)
+            kw["responses"] = each(self.responses, data["responses"], data)
+        return kw
+
+    def named_fsm(self, name, spec, fsms) -> FSM:
+        return self.fsm(self.string(name, "fsms", fsms, name, "an FSM name"), spec, join_path("fsms", name), fsms)
+
+    def invariant(self, name, expr, inv) -> tuple:
+        return (self.string(name, "invariants", inv, name, "an invariant name"), self.expr(expr, join_path("invariants", name), inv, name))
+
+    def build(self, kw) -> Model:
+        """``Model(**kw)``; when its checks find a problem, the element it names is taken out
+        (``_without``) and the Model built again, for the next problem, until it builds, a
+        problem cannot be taken out, or ``MAX_ERRORS``. A problem about an element taken
+        out (or made neutral) follows from it and is not reported."""
         self.alias_declared_outcomes(kw)
-        try:
-            return Model(**kw)
-        except ModelError as exc:
-            raise self.translate(exc) from None
+        errors: list = []
+        taken: list = []
+        while True:
+            try:
+                model = Model(**kw)
+            except ModelError as exc:
+                el = exc.element or ""
+                if any(el == t or el.startswith((t + ".", t + "[")) for t in taken):
+                    break  # it follows from what was taken out
+                errors.append(self.translate(exc))
+                fewer = _without(kw, el) if len(errors) < MAX_ERRORS else None
+                if fewer is None:
+                    break
+                kw, gone = fewer
+                taken.append(gone)
+                continue
+            if not errors:
+                return model
+            break
+        errors.sort(key=_line)  # in the file's order
+        raise collected_at_most(_once_per_name(errors))
+
+
+_UNKNOWN = re.compile(r"unknown (name|variable|state|goal|FSM|primitive) '([^']*)'|'([^']*)' is not a goal of (\S+)")
+
+
+def _once_per_name(errors: list) -> list:
+    """``errors`` with each unknown name reported once (a name used but never declared, or
+    misspelt in its declaration, is one problem however often it is used): its first
+    report says where else it is used."""
+    first: dict = {}
+    also: dict = {}
+    for e in errors:
+        m = _UNKNOWN.search(str(e.problem))
+        if m is None:
+            continue
+        kind = {"name": "variable"}.get(m.group(1) or "", m.group(1) or "goal")
+        key = (e.file, kind, m.group(2) if m.group(1) else m.group(3))
+        if key in first:
+            also[id(first[key])].append(e)
+        else:
+            first[key] = e
+            also[id(e)] = []
+    out = []
+    for e in errors:
+        if id(e) not in also:
+            if _UNKNOWN.search(str(e.problem)) is None:
+                out.append(e)
+            continue
+        more = also[id(e)]
+        if more:
+            lines = ", ".join(str(_line(x)) for x in more if _line(x))
+            e = ModelError(e.element, f"{e.problem}; also used at {len(more)} more place(s)"
+                                      + (f" (line {lines})" if lines else ""), e.file)
+        out.append(e)
+    return out
+
+
+def _line(e: ModelError) -> int:
+    """The line a problem's text ends with (0 when none)."""
+    m = re.search(r"\(line (\d+)[,)]", str(e.problem))
+    return int(m.group(1)) if m else 0
+
+
+def collected_at_most(errors: list) -> ModelError:
+    """One error for the problems found: the problem itself, or a ``ModelErrors`` (which
+    says when the reading stopped at ``MAX_ERRORS``)."""
+    if len(errors) >= MAX_ERRORS:
+        return ModelErrors(errors[:MAX_ERRORS], stopped=True)
+    return cast(ModelError, collected(errors))
+
+
+# ------------------------------------------------------ taking a problem's element out
+def _rest(element: str, head: str) -> "str | None":
+    """What follows ``head`` in ``element`` ('' for ``head`` itself), None when it is not there."""
+    if element == head:
+        return ""
+    if element.startswith(head + "."):
+        return element[len(head) + 1:]
+    return None
+
+
+def _find(items, element: str, head: str, key) -> "tuple | None":
+    """(item, what follows it) for the item of ``items`` whose path ``head.KEY`` starts
+    ``element`` (the longest such key: names may hold dots)."""
+    best = None
+    for x in items:
+        rest = _rest(element, f"{head}.{key(x)}")
+        if rest is not None and (best is None or len(key(x)) > len(key(best[0]))):
+            best = (x, rest)
+    return best
+
+
+def _without_effect(outcomes, rest: str):
+    """``outcomes`` without the effect that ``rest`` (``OUTCOME.VARIABLE``) names, or None."""
+    for oc in outcomes or ():
+        var = _rest(rest, oc.name)
+        if var and var in {v for v, _ in oc.effects}:
+            new = dataclasses.replace(oc, effects=tuple((v, e) for v, e in oc.effects if v != var))
+            return tuple(new if o is oc else o for o in outcomes)
+    return None
+
+
+def _pass_action(node) -> Action:
+    """An Action of ``node``'s name that runs the instant ``pass`` primitive (one SUCCESS)."""
+    return Action(node.name, primitive=PASS.name, outcomes=(Outcome(Status.SUCCESS),))
+
+
+def _neutral_node(node, rest: str) -> tuple:
+    """``(node, part)``: ``node`` with what a problem names (``rest``: the node, or one of
+    its fields) made neutral, and the part of it changed ('' for the whole node); a leaf
+    becomes an Action that succeeds at once. ``(None, '')`` when it cannot be."""
+    if isinstance(node, Leaf):
+        return _pass_action(node), ""
+    field, _, sub = rest.partition(".")
+    fields = {f.name: f for f in dataclasses.fields(node)}
+    if field in fields and fields[field].default is None and not sub:
+        return dataclasses.replace(node, **{field: None}), rest
+    return None, ""
+
+
+def _with_node(root, name: str, new):
+    """``root`` with its node named ``name`` replaced by ``new``."""
+    if root.name == name:
+        return new
+    changes: dict = {}
+    if isinstance(root, Composite):
+        kids = tuple(_with_node(c, name, new) for c in root.children)
+        if any(a is not b for a, b in zip(kids, root.children)):
+            changes["children"] = kids
+    elif isinstance(root, Decorator):
+        kid = _with_node(root.child, name, new)
+        if kid is not root.child:
+            changes["child"] = kid
+    return dataclasses.replace(root, **changes) if changes else root
+
+
+def _without(kw: dict, element: str) -> "tuple[dict, str] | None":
+    """``(kw, taken)``: the Model's arguments ``kw`` with the element a problem names
+    (``element``, a Model's element path) taken out, or made neutral where it cannot be
+    left out (an unknown name in a condition: true; a request of an unknown FSM or goal:
+    an Action that succeeds), and the path of what was taken; None when the problem's
+    element is not one that can go without others depending on it (a variable, a state,
+    a primitive, an event's name...)."""
+    fsms = kw.get("fsms") or ()
+    found = _find(fsms, element, "fsms", lambda f: f.name)
+    if found is not None:
+        f, rest = found
+        head = f"fsms.{f.name}"
+        new, taken = None, None
+        if rest == "initial" and f.states:
+            new, taken = dataclasses.replace(f, initial=f.states[0].id), f"{head}.initial"
+        elif rest == "terminal":
+            new, taken = dataclasses.replace(f, terminal=()), f"{head}.terminal"
+        for kind in ("edges", "markers"):
+            hit = _find(getattr(f, kind), rest, kind, lambda e: e.id) if rest.startswith(kind + ".") else None
+            if hit is not None:
+                new = dataclasses.replace(f, **{kind: tuple(e for e in getattr(f, kind) if e is not hit[0])})
+                taken = f"{head}.{kind}.{hit[0].id}"
+        hit = _find(f.states, rest, "states", lambda st: st.id) if rest.startswith("states.") else None
+        if hit is not None:
+            st, sub = hit
+            field, _, more = sub.partition(".")
+            state = None
+            if sub == "primitive" and st.outcomes is None:
+                state = dataclasses.replace(st, primitive="")
+            elif field == "outcomes":
+                outs = _without_effect(st.outcomes, more)
+                state = None if outs is None else dataclasses.replace(st, outcomes=outs)
+            if state is not None:
+                new = dataclasses.replace(f, states=tuple(state if x is st else x for x in f.states))
+                taken = f"{head}.states.{st.id}.{sub}"
+        if new is None:
+            return None
+        return dict(kw, fsms=tuple(new if g is f else g for g in fsms)), cast(str, taken)
+    roots = [r for r in [kw.get("tree")] + [st.subtree for f in fsms for st in f.states] if r is not None]
+    found = _find([n for r in roots for n in walk(r)], element, "tree", lambda n: n.name)
+    if found is not None:
+        node, rest = found
+        new_node, part = _neutral_node(node, rest)
+        if new_node is None:
+            return None
+        tree = kw.get("tree")
+        out = dict(kw, tree=None if tree is None else _with_node(tree, node.name, new_node))
+        if fsms:
+            out["fsms"] = tuple(dataclasses.replace(f, states=tuple(
+                st if st.subtree is None else dataclasses.replace(st, subtree=_with_node(st.subtree, node.name, new_node))
+                for st in f.states)) for f in fsms)
+        return out, f"tree.{node.name}" + (f".{part}" if part else "")
+    events = [e for e in kw.get("environment") or () if isinstance(e, EnvEvent)]
+    found = _find(events, element, "environment", lambda e: e.name)
+    if found is not None:
+        ev, rest = found
+        if rest == "guard":
+            new_ev = dataclasses.replace(ev, guard=None)
+        elif rest.startswith("effects.") and rest[len("effects."):] in {v for v, _ in ev.effects}:
+            var = rest[len("effects."):]
+            new_ev = dataclasses.replace(ev, effects=tuple((v, e) for v, e in ev.effects if v != var))
+        else:
+            return None
+        return dict(kw, environment=tuple(new_ev if e is ev else e for e in kw["environment"])), element
+    found = _find(kw.get("primitives") or (), element, "primitives", lambda p: p.name)
+    if found is not None:
+        prim, rest = found
+        outs = _without_effect(prim.outcomes, rest[len("outcomes."):]) if rest.startswith("outcomes.") else None
+        if outs is None:
+            return None
+        new_prim = dataclasses.replace(prim, outcomes=outs)
+        return dict(kw, primitives=tuple(new_prim if p is prim else p for p in kw["primitives"])), element
+    for key in ("workable", "terminal"):
+        if element == key:
+            return dict(kw, **{key: None}), key
+    for key in ("invariants", "responses"):
+        items = kw.get(key) or ()
+        found = _find(items, element, key, (lambda x: x[0]) if key == "invariants" else (lambda x: x.name))
+        if found is not None:
+            return dict(kw, **{key: tuple(x for x in items if x is not found[0])}), element
+    return None
 
 
 def model_from_data(data, file: "str | None" = None) -> Model:

@@ -6,7 +6,9 @@ import copy
 import difflib
 import json
 import re
+from typing import cast
 
+from ..errors import ModelError, collected
 from .text import (MAX_DEPTH, MAX_EXPANDED, MAX_NODES, MAX_TEMPLATE_DEPTH, MAX_TEXT, FileList, FileMap, check_size, err,
                    join_path, kind_of, where_of)
 
@@ -291,13 +293,16 @@ def check_fields(ctx, obj, path, allowed, required=(), what="a mapping"):
     and every ``required`` one."""
     if not isinstance(obj, dict):
         raise ctx.fail(path, f"expected {what}, got {kind_of(obj)}", obj)
+    unknown = []  # every unknown field of the mapping at once
     for k in obj:
         if not isinstance(k, str):
-            raise ctx.fail(path, f"field names are strings, got {kind_of(k)} {k!r}", obj, k)
-        if k not in allowed:
+            unknown.append(ctx.fail(path, f"field names are strings, got {kind_of(k)} {k!r}", obj, k))
+        elif k not in allowed:
             close = difflib.get_close_matches(k, allowed, 1)
             hint = f" (did you mean '{close[0]}'?)" if close else f" (expected: {', '.join(allowed)})"
-            raise ctx.fail(join_path(path, k), f"unknown field '{k}'{hint}", obj, k)
+            unknown.append(ctx.fail(join_path(path, k), f"unknown field '{k}'{hint}", obj, k))
+    if unknown:  # a missing field may be one of them, misspelt: not reported
+        raise cast(ModelError, collected(unknown))
     for r in required:
         if r not in obj:
             raise ctx.fail(path, f"missing field '{r}'", obj)

@@ -400,18 +400,17 @@ def _requirements(ctx) -> tuple:
 def counterexample(rb, transitions, trigger_step, loop, summary, bound):
     req = rb.req
     viol = {"kind": "response", "name": req.name,
-            "trigger": req.trigger if isinstance(req.trigger, str) else str(req.trigger),
-            "response": str(req.response), "trigger_step": trigger_step, "bound_ticks": bound,
+            "trigger": req.trigger_text, "response": req.response_text, "trigger_step": trigger_step, "bound_ticks": bound,
             "worst_ticks": None if rb.worst == INF else rb.worst, "tick_rate": rb.rate}
     if loop is not None:
         viol["text"] = (f"'{req.name}': after the trigger at step {trigger_step} the run enters a cycle "
-                        f"(from step {loop + 1}) on which '{req.response}' never holds")
+                        f"(from step {loop + 1}) on which '{req.response_text}' never holds")
     elif bound is not None:
-        viol["text"] = (f"'{req.name}': '{req.response}' still does not hold {bound} tick(s) ({req.within:g} s, the "
+        viol["text"] = (f"'{req.name}': '{req.response_text}' still does not hold {bound} tick(s) ({req.within:g} s, the "
                         f"bound) after the trigger at step {trigger_step}")
     else:
         viol["text"] = (f"'{req.name}': the worst case: {len(transitions) - trigger_step} tick(s) from the trigger "
-                        f"at step {trigger_step} to '{req.response}'")
+                        f"at step {trigger_step} to '{req.response_text}'")
     return path_counterexample(rb.ts, transitions, NAME, summary, viol, loop=loop)
 
 
@@ -428,8 +427,7 @@ def check(ctx) -> Result:
         bound = rb.bound_ticks()
         worst: Any = rb.worst
         best = rb.best
-        entry = {"trigger": req.trigger if isinstance(req.trigger, str) else str(req.trigger),
-                 "response": str(req.response), "within_seconds": req.within, "bound_ticks": bound,
+        entry = {"trigger": req.trigger_text, "response": req.response_text, "within_seconds": req.within, "bound_ticks": bound,
                  "triggers": int(rb.triggers.size),
                  "worst_ticks": None if worst in (None, INF) else worst,
                  "worst_seconds": None if worst in (None, INF) else rb.seconds(worst),
@@ -462,7 +460,7 @@ def check(ctx) -> Result:
             verdict = False
             if ce is None:
                 path, k, loop = witness
-                summary = (f"'{req.name}': '{req.response}' may never come after the trigger" if worst == INF else
+                summary = (f"'{req.name}': '{req.response_text}' may never come after the trigger" if worst == INF else
                            f"'{req.name}': the response can take {worst / rb.rate:g} s > {req.within:g} s")
                 ce = counterexample(rb, path, k, loop, summary, bound)
     if not ts.complete:
