@@ -9,7 +9,8 @@ targets from the goal the arm is driven to: ``move(area, pose)`` goes above the 
 the goal being driven (a bin part, a free bin spot, a tray slot, a belt part that is
 tracked), ``put``/``put_back`` descend to it, ``raise``/``escape`` lift straight up;
 ``gripper(on)`` switches the vacuum (a held part is released where it is);
-``grasp(area)`` descends onto the target part until the vacuum attaches ("attached"), or
+``grasp(area)`` descends onto the target part until the vacuum attaches to it ("attached";
+the cup is aimed at that part, ``World.aim``, and takes none it passes over), or
 reports "missed" when there is nothing to grasp; ``record_pose``, ``detach``,
 ``query_queue`` are bookkeeping and instant.
 
@@ -187,7 +188,6 @@ class KittingBinding(Binding):
         self._bin_turn = 0
         self._moving_to = None
         self._grasping = None
-        self.picked_other: list = []  # (time, part held, part aimed at): the cup took a part it was not sent for
         qvar = model.var("queue")
         self.queue_max = qvar.hi
         self.n_tray = model.var(self.d.tray_var).hi
@@ -275,14 +275,12 @@ class KittingBinding(Binding):
         return out
 
     def physics_since(self, t0: float) -> list:
-        """What physics did uncommanded since world time ``t0`` (the world's incidents, and
-        grasps in which the cup took a part it was not sent for), as one line, or nothing."""
-        seen = [(inc[0], incident_text(inc)) for inc in self.world.incidents if inc[0] >= t0]
-        seen += [(t, f"t={t:.2f} s the cup took part {held} on its way to part {aim}")
-                 for t, held, aim in self.picked_other if t >= t0]
+        """What physics did uncommanded since world time ``t0`` (the world's incidents), as
+        one line, or nothing."""
+        seen = [incident_text(inc) for inc in self.world.incidents if inc[0] >= t0]
         if not seen:
             return []
-        return [f"physics in the last {PHYSICS_WINDOW:g} s: " + "; ".join(text for _, text in sorted(seen))]
+        return [f"physics in the last {PHYSICS_WINDOW:g} s: " + "; ".join(seen)]
 
     # ------------------------------------------------------------------ world queries
     def place_of(self, pid: int) -> Place:
@@ -508,15 +506,13 @@ class KittingBinding(Binding):
         area = self.d.area(call.args)
         running, success, failure = (self._answer(call, s) for s in ("RUNNING", "SUCCESS", "FAILURE"))
         if self.r.holding is not None:
-            if self._grasping is not None and self.r.holding != self._grasping:
-                self.picked_other.append((self.world.time, self.r.holding, self._grasping))
-                self._grasping = None
             return success
         if call.first:
             tgt = self._target(area, "pick") if self.d.goal(call.goal)[1] == area else self.targets.get(area)
             if not isinstance(tgt, int) or not self._pickable(tgt):
                 return failure
             self._grasping = tgt
+            self.world.aim(self.robot, tgt)  # the cup takes this part only, not one it passes over
             x, y, z = self.pose_at(tgt)
             self.origin[area] = (x, y, z)
             if area == "conveyor":

@@ -426,7 +426,7 @@ class _Part:
 class _Robot:
     __slots__ = ("name", "spec", "x", "y", "z", "x0", "y0", "z0", "x1", "y1", "z1", "prof", "k", "moving",
                  "blocked", "holding", "closing", "armed", "faults_in", "tracking", "vel", "arrived", "body", "peak",
-                 "last_v", "anchor", "coasting", "cruise_v")
+                 "last_v", "anchor", "coasting", "cruise_v", "aim")
 
     def __init__(self, name, spec):
         self.name, self.spec = name, spec
@@ -447,6 +447,7 @@ class _Robot:
         self.anchor = (0.0, 0.0)  # where the held part's centre was, relative to the tool, when gripped
         self.coasting = False  # holding, in a move's constant-velocity phase: Chipmunk moves the tool body
         self.cruise_v = (0.0, 0.0)  # the tool's velocity in the constant-velocity phase of its move
+        self.aim = None  # the one part the gripper may take (``World.aim``), or None: any part
 
 
 class World:
@@ -868,9 +869,19 @@ class World:
         self._move(self.parts[pid], Place("GRIPPER", robot))
         return True
 
+    def aim(self, robot: str, part_id: "int | None") -> None:
+        """Let the gripper of ``robot`` take only part ``part_id`` (None: any part under it),
+        and only when the tool is centred on it within the gripper's ``grasp_tolerance``,
+        until it is released: a pick that passes over other parts, or over its own part's
+        edge, on its way to its target does not take them."""
+        r = self.robots[robot]
+        if r.aim != part_id:
+            r.aim = part_id
+            self._version += 1
+
     def release(self, robot: str) -> None:
         r = self.robots[robot]
-        r.closing, r.armed = None, True
+        r.closing, r.armed, r.aim = None, True, None
         self._version += 1
         if r.holding is not None:
             part = self.parts[r.holding]
@@ -904,6 +915,12 @@ class World:
         r = self.robots[robot]
         best, bd = None, r.spec["radius"]
         zmax = None if r.spec["z"] is None else r.z - r.spec["grasp_tolerance"]
+        if r.aim is not None:  # an aimed gripper: its part only, centred on it within the grasp tolerance
+            p = self.parts[r.aim]
+            if (p.place.kind in ("GRIPPER", "LOST") or math.hypot(p.x - r.x, p.y - r.y) > min(bd, r.spec["grasp_tolerance"])
+                    or (zmax is not None and zmax > self.top(r.aim))):
+                return None
+            return r.aim
         for place, ids in self.members.items():
             if place.kind in ("GRIPPER", "LOST"):
                 continue
