@@ -290,15 +290,18 @@ def _names(d) -> str:
     return ", ".join(sorted(d)) or "none"
 
 
-def scene_from_data(data, file: "str | None" = None) -> Scene:
-    """A Scene from plain data; ModelError ``file: element: problem`` when it is wrong."""
+def scene_from_data(data, file: "str | None" = None, *, check: "tuple | None" = None) -> Scene:
+    """A Scene from plain data; ModelError ``file: element: problem`` when it is wrong.
+    ``check``: the top-level sections to check against the schema (and ``robots``, which
+    it requires) when the caller wrote only those into data checked before; None: all."""
     from btfsm.formats import FormatError, describe, validate
 
     if not isinstance(data, dict):
         kind = f"a list of {len(data)} item(s)" if isinstance(data, list) else describe(data)
         raise ModelError("", f"expected a mapping with the scene, got {kind}", file)
     try:
-        validate(data, "scene", file or "<scene>")
+        validate(data if check is None else {k: data[k] for k in ("robots", *check) if k in data}, "scene",
+                 file or "<scene>")
     except FormatError as exc:
         where = exc.where
         raise ModelError(where, exc.problem, file) from None
@@ -1327,6 +1330,7 @@ class World:
         x, y, z, rk, moving, coasting, lv, peak = r.x, r.y, r.z, r.k, r.moving, r.coasting, r.last_v, r.peak
         moves = moving and not r.blocked
         steps, k, slipped = self.steps, 0, False
+        cx = cy = svx = svy = math.nan  # the tool body's position after the last step, and velocity, when known
         while k < m:
             k += 1
             self.steps = steps + k  # a contact callback reads the time
@@ -1354,12 +1358,17 @@ class World:
                     coasting = True
                     set_pos(tb, (ox, oy))
                     set_vel(tb, (vx, vy))
+                    cx = svx = math.nan  # Chipmunk moves the tool on (not followed here)
             else:
                 moves = moving and moves
                 coasting = False
                 vx, vy = (x - ox) / dt, (y - oy) / dt
-                set_pos(tb, (ox, oy))
-                set_vel(tb, (vx, vy))
+                if cx != ox or cy != oy or not (cx and cy):  # (a set to the same values changes nothing)
+                    set_pos(tb, (ox, oy))
+                if vx != svx or vy != svy:
+                    set_vel(tb, (vx, vy))
+                    svx, svy = vx, vy
+                cx, cy = ox + (vx + 0.0) * dt, oy + (vy + 0.0) * dt  # where Chipmunk's step leaves the tool
             if lv is not None:
                 acc = hypot(vx - lv[0], vy - lv[1]) / dt
                 if acc > peak:
