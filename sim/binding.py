@@ -195,6 +195,7 @@ class KittingBinding(Binding):
         self._q_slot = prog.scope["queue"].index
         # the three variables the abstraction check reads after every tick: (slot, variable)
         self._checked = tuple((prog.scope[v].index, model.var(v)) for v in (self.d.gripper_var, self.d.tray_var, "queue"))
+        self._raw = all(v.kind in ("bool", "int") for _, v in self._checked)
         self._answers: dict = {}  # (site index, status) -> the site's outcome name
         self._check_reach()
 
@@ -265,9 +266,12 @@ class KittingBinding(Binding):
         # check below, which reads every variable and the arm's state, says so too)
         state, d = rt.state, self.d
         (gs, gv), (ts, tv), (qs, qv) = self._checked
-        g = gv.decode(state[gs])
-        if ((g if d.gripper_var_means_full else not g) == (self.r.holding is not None)
-                and tv.decode(state[ts]) == self.tray_count() and qv.decode(state[qs]) == len(self.delivered)):
+        if self._raw:  # bools and ints are stored as their values (0/1, n)
+            g, tray, queue = state[gs], state[ts], state[qs]
+        else:
+            g, tray, queue = gv.decode(state[gs]), tv.decode(state[ts]), qv.decode(state[qs])
+        if ((not g) is (self.r.holding is None if d.gripper_var_means_full else self.r.holding is not None)
+                and tray == len(self.world.members.get(self._tray_place, ())) and queue == len(self.delivered)):
             return []
         out = self.abstraction_errors(rt.vars, *rt.fsm_state(d.fsm))
         if out:
