@@ -196,7 +196,7 @@ class KittingBinding(Binding):
         # the three variables the abstraction check reads after every tick: (slot, variable)
         self._checked = tuple((prog.scope[v].index, model.var(v)) for v in (self.d.gripper_var, self.d.tray_var, "queue"))
         self._raw = all(v.kind in ("bool", "int") for _, v in self._checked)
-        self._answers: dict = {}  # (site index, status) -> the site's outcome name
+        self._answers: dict = {}  # site index -> {status: the site's (first) outcome name with it}
         self._check_reach()
 
     def _check_reach(self) -> None:
@@ -226,14 +226,14 @@ class KittingBinding(Binding):
 
     def _answer(self, call, status: str) -> str:
         """The name of the site's declared outcome with ``status`` (looked up once per site)."""
-        key = (call.site.index, status)
-        name = self._answers.get(key)
+        names = self._answers.get(call.site.index)
+        if names is None:
+            names = self._answers[call.site.index] = {}
+            for st, _, name in reversed(call.site.outcomes):  # the first outcome of each status
+                names[st] = name
+        name = names.get(_STATUS[status])
         if name is None:
-            for _, _, name in (o for o in call.site.outcomes if o[0] == _STATUS[status]):
-                break
-            else:
-                raise KeyError(f"{call.site.primitive} declares no {status} outcome")
-            self._answers[key] = name
+            raise KeyError(f"{call.site.primitive} declares no {status} outcome")
         return name
 
     def _collect(self) -> None:

@@ -1327,7 +1327,9 @@ class World:
         cruise_end = total - t_acc
         x0, y0, z0, dx, dy, dz = r.x0, r.y0, r.z0, r.x1 - r.x0, r.y1 - r.y0, r.z1 - r.z0
         cvx, cvy = r.cruise_v
-        x, y, z, rk, moving, coasting, lv, peak = r.x, r.y, r.z, r.k, r.moving, r.coasting, r.last_v, r.peak
+        x, y, z, rk, moving, coasting, peak = r.x, r.y, r.z, r.k, r.moving, r.coasting, r.peak
+        lv = r.last_v is not None  # the tool's velocity in the last step is known: (lvx, lvy)
+        lvx, lvy = r.last_v or (0.0, 0.0)
         moves = moving and not r.blocked
         steps, k, slipped = self.steps, 0, False
         cx = cy = svx = svy = math.nan  # the tool body's position after the last step, and velocity, when known
@@ -1369,11 +1371,11 @@ class World:
                     set_vel(tb, (vx, vy))
                     svx, svy = vx, vy
                 cx, cy = ox + (vx + 0.0) * dt, oy + (vy + 0.0) * dt  # where Chipmunk's step leaves the tool
-            if lv is not None:
-                acc = hypot(vx - lv[0], vy - lv[1]) / dt
+            if lv:
+                acc = hypot(vx - lvx, vy - lvy) / dt
                 if acc > peak:
                     peak = acc
-            lv = (vx, vy)
+            lv, lvx, lvy = True, vx, vy
             cp_step(cp_space, dt)  # (Chipmunk keeps a body joined to a kinematic one awake)
             pos = get_pos(pb)  # _held
             px, py = pos.x, pos.y
@@ -1384,7 +1386,7 @@ class World:
                 break
         if r.moving and not moving:
             r.moving, r.arrived = False, True
-        r.x, r.y, r.z, r.k, r.coasting, r.last_v, r.peak = x, y, z, rk, coasting, lv, peak
+        r.x, r.y, r.z, r.k, r.coasting, r.last_v, r.peak = x, y, z, rk, coasting, (lvx, lvy) if lv else None, peak
         part.x, part.y = px, py
         if slipped:
             self._slip(r, part)
