@@ -27,6 +27,7 @@ from dataclasses import dataclass
 from typing import cast
 
 from btfsm.errors import ModelError
+from btfsm.runtime import Constant
 
 from .protocol import Binding
 from .scene import Place, incident_text
@@ -220,8 +221,7 @@ class KittingBinding(Binding):
         for name in d.instant:
             prim = prims.get(name)
             if prim is not None:
-                answer = next(o.name for o in prim.outcomes if o.status.name == "SUCCESS")
-                impls[name] = (lambda call, a=answer: a)
+                impls[name] = Constant(next(o.name for o in prim.outcomes if o.status.name == "SUCCESS"))
         return impls
 
     def _answer(self, call, status: str) -> str:
