@@ -7,8 +7,9 @@ declared outcomes (the conformance check built into every run), and the tick is 
 to the trace when one is attached.
 
 An implementation is either a callable ``impl(call) -> outcome`` or an object with
-``tick(call)`` and, optionally, ``halt(call)``; ``Constant(name)`` always answers ``name``. ``call.first`` is true on the first tick
-of a run of that primitive at that site; ``call.vars`` reads world variables by name.
+``tick(call)`` and, optionally, ``halt(call)``; ``Constant(name)`` always answers
+``name``. ``call.first`` is true on the first tick of a run of that primitive at that
+site; ``call.vars`` reads world variables by name.
 An outcome is returned as its name, a Status (when only one outcome has it), or an index.
 
 >>> from btfsm import Model, Int, Action, success, running
