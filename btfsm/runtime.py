@@ -7,8 +7,9 @@ declared outcomes (the conformance check built into every run), and the tick is 
 to the trace when one is attached.
 
 An implementation is either a callable ``impl(call) -> outcome`` or an object with
-``tick(call)`` and, optionally, ``halt(call)``. ``call.first`` is true on the first tick
-of a run of that primitive at that site; ``call.vars`` reads world variables by name.
+``tick(call)`` and, optionally, ``halt(call)``; ``Constant(name)`` always answers
+``name``. ``call.first`` is true on the first tick of a run of that primitive at that
+site; ``call.vars`` reads world variables by name.
 An outcome is returned as its name, a Status (when only one outcome has it), or an index.
 
 >>> from btfsm import Model, Int, Action, success, running
@@ -32,7 +33,7 @@ from .trace import TraceWriter, render_answers, tick_record
 if TYPE_CHECKING:
     from .semantics import Site
 
-__all__ = ["Runtime", "Call", "Clock"]
+__all__ = ["Runtime", "Call", "Clock", "Constant"]
 
 _RUNNING = int(Status.RUNNING)
 _STATUS = tuple(sorted(Status, key=int))  # int status -> Status, without Status(x)
@@ -70,6 +71,25 @@ class Call:
         self.site, self.first, self.vars, self.time, self.tick = site, first, vars, time, tick
         self.args = site.args
         self.goal = goal
+
+
+class Constant:
+    """An implementation that always answers ``answer`` (an outcome name, say of an
+    instant bookkeeping primitive); the runtime answers it without building a Call.
+
+    >>> from btfsm import Model, Action, running, success
+    >>> m = Model("c", tree=Action("log", outcomes=[running("busy"), success("done")]))
+    >>> Runtime(m, {"log": Constant("done")}).tick().status.name
+    'SUCCESS'
+    """
+
+    __slots__ = ("answer",)
+
+    def __init__(self, answer: str):
+        self.answer = answer
+
+    def __call__(self, call) -> str:
+        return self.answer
 
 
 class _ImplOracle(Oracle):
@@ -127,10 +147,14 @@ class _ImplOracle(Oracle):
             if self.log is not None:
                 self.log.append(k)
             return k
-        index, busy, clock = site.index, rt._busy, rt.clock
-        call = Call(site, index not in busy, rt._view, clock.time, clock.tick,
-                    self.goals.get(site.fsm) if site.fsm is not None else None)
-        answer = impl(call) if callable(impl) else impl.tick(call)
+        index, busy = site.index, rt._busy
+        if type(impl) is Constant:
+            answer = impl.answer
+        else:
+            clock = rt.clock
+            call = Call(site, index not in busy, rt._view, clock.time, clock.tick,
+                        self.goals.get(site.fsm) if site.fsm is not None else None)
+            answer = impl(call) if callable(impl) else impl.tick(call)
         k = None
         if type(answer) is str:  # the common case: an outcome name
             names = self.names.get(index)

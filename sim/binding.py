@@ -9,7 +9,8 @@ targets from the goal the arm is driven to: ``move(area, pose)`` goes above the 
 the goal being driven (a bin part, a free bin spot, a tray slot, a belt part that is
 tracked), ``put``/``put_back`` descend to it, ``raise``/``escape`` lift straight up;
 ``gripper(on)`` switches the vacuum (a held part is released where it is);
-``grasp(area)`` descends onto the target part until the vacuum attaches ("attached"), or
+``grasp(area)`` descends onto the target part until the vacuum attaches to it ("attached";
+the cup is aimed at that part, ``World.aim``, and takes none it passes over), or
 reports "missed" when there is nothing to grasp; ``record_pose``, ``detach``,
 ``query_queue`` are bookkeeping and instant.
 
@@ -26,6 +27,7 @@ from dataclasses import dataclass
 from typing import cast
 
 from btfsm.errors import ModelError
+from btfsm.runtime import Constant
 
 from .protocol import Binding
 from .scene import Place, incident_text
@@ -187,7 +189,6 @@ class KittingBinding(Binding):
         self._bin_turn = 0
         self._moving_to = None
         self._grasping = None
-        self.picked_other: list = []  # (time, part held, part aimed at): the cup took a part it was not sent for
         qvar = model.var("queue")
         self.queue_max = qvar.hi
         self.n_tray = model.var(self.d.tray_var).hi
@@ -195,7 +196,8 @@ class KittingBinding(Binding):
         self._q_slot = prog.scope["queue"].index
         # the three variables the abstraction check reads after every tick: (slot, variable)
         self._checked = tuple((prog.scope[v].index, model.var(v)) for v in (self.d.gripper_var, self.d.tray_var, "queue"))
-        self._answers: dict = {}  # (site index, status) -> the site's outcome name
+        self._raw = all(v.kind in ("bool", "int") for _, v in self._checked)
+        self._answers: dict = {}  # site index -> {status: the site's (first) outcome name with it}
         self._check_reach()
 
     def _check_reach(self) -> None:
@@ -219,20 +221,19 @@ class KittingBinding(Binding):
         for name in d.instant:
             prim = prims.get(name)
             if prim is not None:
-                answer = next(o.name for o in prim.outcomes if o.status.name == "SUCCESS")
-                impls[name] = (lambda call, a=answer: a)
+                impls[name] = Constant(next(o.name for o in prim.outcomes if o.status.name == "SUCCESS"))
         return impls
 
     def _answer(self, call, status: str) -> str:
         """The name of the site's declared outcome with ``status`` (looked up once per site)."""
-        key = (call.site.index, status)
-        name = self._answers.get(key)
+        names = self._answers.get(call.site.index)
+        if names is None:
+            names = self._answers[call.site.index] = {}
+            for st, _, name in reversed(call.site.outcomes):  # the first outcome of each status
+                names[st] = name
+        name = names.get(_STATUS[status])
         if name is None:
-            for _, _, name in (o for o in call.site.outcomes if o[0] == _STATUS[status]):
-                break
-            else:
-                raise KeyError(f"{call.site.primitive} declares no {status} outcome")
-            self._answers[key] = name
+            raise KeyError(f"{call.site.primitive} declares no {status} outcome")
         return name
 
     def _collect(self) -> None:
@@ -265,9 +266,12 @@ class KittingBinding(Binding):
         # check below, which reads every variable and the arm's state, says so too)
         state, d = rt.state, self.d
         (gs, gv), (ts, tv), (qs, qv) = self._checked
-        g = gv.decode(state[gs])
-        if ((g if d.gripper_var_means_full else not g) == (self.r.holding is not None)
-                and tv.decode(state[ts]) == self.tray_count() and qv.decode(state[qs]) == len(self.delivered)):
+        if self._raw:  # bools and ints are stored as their values (0/1, n)
+            g, tray, queue = state[gs], state[ts], state[qs]
+        else:
+            g, tray, queue = gv.decode(state[gs]), tv.decode(state[ts]), qv.decode(state[qs])
+        if ((not g) is (self.r.holding is None if d.gripper_var_means_full else self.r.holding is not None)
+                and tray == len(self.world.members.get(self._tray_place, ())) and queue == len(self.delivered)):
             return []
         out = self.abstraction_errors(rt.vars, *rt.fsm_state(d.fsm))
         if out:
@@ -275,14 +279,12 @@ class KittingBinding(Binding):
         return out
 
     def physics_since(self, t0: float) -> list:
-        """What physics did uncommanded since world time ``t0`` (the world's incidents, and
-        grasps in which the cup took a part it was not sent for), as one line, or nothing."""
-        seen = [(inc[0], incident_text(inc)) for inc in self.world.incidents if inc[0] >= t0]
-        seen += [(t, f"t={t:.2f} s the cup took part {held} on its way to part {aim}")
-                 for t, held, aim in self.picked_other if t >= t0]
+        """What physics did uncommanded since world time ``t0`` (the world's incidents), as
+        one line, or nothing."""
+        seen = [incident_text(inc) for inc in self.world.incidents if inc[0] >= t0]
         if not seen:
             return []
-        return [f"physics in the last {PHYSICS_WINDOW:g} s: " + "; ".join(text for _, text in sorted(seen))]
+        return [f"physics in the last {PHYSICS_WINDOW:g} s: " + "; ".join(seen)]
 
     # ------------------------------------------------------------------ world queries
     def place_of(self, pid: int) -> Place:
@@ -508,15 +510,13 @@ class KittingBinding(Binding):
         area = self.d.area(call.args)
         running, success, failure = (self._answer(call, s) for s in ("RUNNING", "SUCCESS", "FAILURE"))
         if self.r.holding is not None:
-            if self._grasping is not None and self.r.holding != self._grasping:
-                self.picked_other.append((self.world.time, self.r.holding, self._grasping))
-                self._grasping = None
             return success
         if call.first:
             tgt = self._target(area, "pick") if self.d.goal(call.goal)[1] == area else self.targets.get(area)
             if not isinstance(tgt, int) or not self._pickable(tgt):
                 return failure
             self._grasping = tgt
+            self.world.aim(self.robot, tgt)  # the cup takes this part only, not one it passes over
             x, y, z = self.pose_at(tgt)
             self.origin[area] = (x, y, z)
             if area == "conveyor":

@@ -113,6 +113,7 @@ def run_loop(rt, world, binding: Binding, time_limit: float, hooks: "Hooks | Non
     after the world steps of every tick."""
     hooks = hooks or _NO_HOOKS
     rate, dt = rt.model.tick_rate, world.dt
+    per_tick = rate * dt  # (``steps_after``, inlined)
     first = rt.clock.tick
     taken = n = 0  # world steps this loop took; ticks this loop ran
     mismatch = None
@@ -142,7 +143,7 @@ def run_loop(rt, world, binding: Binding, time_limit: float, hooks: "Hooks | Non
         hooks.after(rt, world, step, before)
         if hooks.done(rt, world, step):
             return LoopEnd(rt.clock.tick - first, "done", mismatch)
-        target = steps_after(n, rate, dt)
+        target = round((n + 1) / per_tick)  # steps_after(n, rate, dt)
         world.step(target - taken)
         taken, n = target, n + 1
         if check_invariant:

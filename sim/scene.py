@@ -290,15 +290,18 @@ def _names(d) -> str:
     return ", ".join(sorted(d)) or "none"
 
 
-def scene_from_data(data, file: "str | None" = None) -> Scene:
-    """A Scene from plain data; ModelError ``file: element: problem`` when it is wrong."""
+def scene_from_data(data, file: "str | None" = None, *, check: "tuple | None" = None) -> Scene:
+    """A Scene from plain data; ModelError ``file: element: problem`` when it is wrong.
+    ``check``: the top-level sections to check against the schema (and ``robots``, which
+    it requires) when the caller wrote only those into data checked before; None: all."""
     from btfsm.formats import FormatError, describe, validate
 
     if not isinstance(data, dict):
         kind = f"a list of {len(data)} item(s)" if isinstance(data, list) else describe(data)
         raise ModelError("", f"expected a mapping with the scene, got {kind}", file)
     try:
-        validate(data, "scene", file or "<scene>")
+        validate(data if check is None else {k: data[k] for k in ("robots", *check) if k in data}, "scene",
+                 file or "<scene>")
     except FormatError as exc:
         where = exc.where
         raise ModelError(where, exc.problem, file) from None
@@ -426,7 +429,7 @@ class _Part:
 class _Robot:
     __slots__ = ("name", "spec", "x", "y", "z", "x0", "y0", "z0", "x1", "y1", "z1", "prof", "k", "moving",
                  "blocked", "holding", "closing", "armed", "faults_in", "tracking", "vel", "arrived", "body", "peak",
-                 "last_v", "anchor", "coasting", "cruise_v")
+                 "last_v", "anchor", "coasting", "cruise_v", "aim")
 
     def __init__(self, name, spec):
         self.name, self.spec = name, spec
@@ -447,6 +450,7 @@ class _Robot:
         self.anchor = (0.0, 0.0)  # where the held part's centre was, relative to the tool, when gripped
         self.coasting = False  # holding, in a move's constant-velocity phase: Chipmunk moves the tool body
         self.cruise_v = (0.0, 0.0)  # the tool's velocity in the constant-velocity phase of its move
+        self.aim = None  # the one part the gripper may take (``World.aim``), or None: any part
 
 
 class World:
@@ -868,9 +872,19 @@ class World:
         self._move(self.parts[pid], Place("GRIPPER", robot))
         return True
 
+    def aim(self, robot: str, part_id: "int | None") -> None:
+        """Let the gripper of ``robot`` take only part ``part_id`` (None: any part under it),
+        and only when the tool is centred on it within the gripper's ``grasp_tolerance``,
+        until it is released: a pick that passes over other parts, or over its own part's
+        edge, on its way to its target does not take them."""
+        r = self.robots[robot]
+        if r.aim != part_id:
+            r.aim = part_id
+            self._version += 1
+
     def release(self, robot: str) -> None:
         r = self.robots[robot]
-        r.closing, r.armed = None, True
+        r.closing, r.armed, r.aim = None, True, None
         self._version += 1
         if r.holding is not None:
             part = self.parts[r.holding]
@@ -904,6 +918,12 @@ class World:
         r = self.robots[robot]
         best, bd = None, r.spec["radius"]
         zmax = None if r.spec["z"] is None else r.z - r.spec["grasp_tolerance"]
+        if r.aim is not None:  # an aimed gripper: its part only, centred on it within the grasp tolerance
+            p = self.parts[r.aim]
+            if (p.place.kind in ("GRIPPER", "LOST") or math.hypot(p.x - r.x, p.y - r.y) > min(bd, r.spec["grasp_tolerance"])
+                    or (zmax is not None and zmax > self.top(r.aim))):
+                return None
+            return r.aim
         for place, ids in self.members.items():
             if place.kind in ("GRIPPER", "LOST"):
                 continue
@@ -1307,9 +1327,12 @@ class World:
         cruise_end = total - t_acc
         x0, y0, z0, dx, dy, dz = r.x0, r.y0, r.z0, r.x1 - r.x0, r.y1 - r.y0, r.z1 - r.z0
         cvx, cvy = r.cruise_v
-        x, y, z, rk, moving, coasting, lv, peak = r.x, r.y, r.z, r.k, r.moving, r.coasting, r.last_v, r.peak
+        x, y, z, rk, moving, coasting, peak = r.x, r.y, r.z, r.k, r.moving, r.coasting, r.peak
+        lv = r.last_v is not None  # the tool's velocity in the last step is known: (lvx, lvy)
+        lvx, lvy = r.last_v or (0.0, 0.0)
         moves = moving and not r.blocked
         steps, k, slipped = self.steps, 0, False
+        cx = cy = svx = svy = math.nan  # the tool body's position after the last step, and velocity, when known
         while k < m:
             k += 1
             self.steps = steps + k  # a contact callback reads the time
@@ -1337,17 +1360,22 @@ class World:
                     coasting = True
                     set_pos(tb, (ox, oy))
                     set_vel(tb, (vx, vy))
+                    cx = svx = math.nan  # Chipmunk moves the tool on (not followed here)
             else:
                 moves = moving and moves
                 coasting = False
                 vx, vy = (x - ox) / dt, (y - oy) / dt
-                set_pos(tb, (ox, oy))
-                set_vel(tb, (vx, vy))
-            if lv is not None:
-                acc = hypot(vx - lv[0], vy - lv[1]) / dt
+                if cx != ox or cy != oy or not (cx and cy):  # (a set to the same values changes nothing)
+                    set_pos(tb, (ox, oy))
+                if vx != svx or vy != svy:
+                    set_vel(tb, (vx, vy))
+                    svx, svy = vx, vy
+                cx, cy = ox + (vx + 0.0) * dt, oy + (vy + 0.0) * dt  # where Chipmunk's step leaves the tool
+            if lv:
+                acc = hypot(vx - lvx, vy - lvy) / dt
                 if acc > peak:
                     peak = acc
-            lv = (vx, vy)
+            lv, lvx, lvy = True, vx, vy
             cp_step(cp_space, dt)  # (Chipmunk keeps a body joined to a kinematic one awake)
             pos = get_pos(pb)  # _held
             px, py = pos.x, pos.y
@@ -1358,7 +1386,7 @@ class World:
                 break
         if r.moving and not moving:
             r.moving, r.arrived = False, True
-        r.x, r.y, r.z, r.k, r.coasting, r.last_v, r.peak = x, y, z, rk, coasting, lv, peak
+        r.x, r.y, r.z, r.k, r.coasting, r.last_v, r.peak = x, y, z, rk, coasting, (lvx, lvy) if lv else None, peak
         part.x, part.y = px, py
         if slipped:
             self._slip(r, part)

@@ -10,7 +10,6 @@ with the world.
 """
 from __future__ import annotations
 
-import copy
 from functools import lru_cache
 
 from btfsm.bt import SkillRequest
@@ -26,12 +25,18 @@ ARIAC_SCENE = "ariac"  # models/scenes/ariac.yaml
 
 @lru_cache(maxsize=1)
 def _ariac_data() -> dict:
+    """The shipped scene's data, checked once per process (shared: never changed in place)."""
     from btfsm.files import load_data
 
-    from .scene import builtin_scene
+    from .scene import builtin_scene, scene_from_data
 
     path = builtin_scene(ARIAC_SCENE)
-    return load_data(path, file_name=path)
+    data = load_data(path, file_name=path)
+    scene_from_data(data, path)
+    return data
+
+
+_WRITTEN = ("belts", "dt", "time_limit", "seed", "faults")  # the sections a trial writes into the scene
 
 
 def ariac_scene(spec: TrialSpec, detections=None, faults=()):
@@ -41,8 +46,9 @@ def ariac_scene(spec: TrialSpec, detections=None, faults=()):
     ``detections`` times); ``faults``: regions where a held part drops."""
     from .scene import scene_from_data
 
-    data = copy.deepcopy(_ariac_data())
-    belt = data["belts"]["conveyor"]
+    base = _ariac_data()
+    belt = dict(base["belts"]["conveyor"])
+    data = dict(base, belts=dict(base["belts"], conveyor=belt))
     beam = data["sensors"]["beam"]["region"]
     y_detect = beam[3]  # parts move towards -y: they enter the beam at its +y edge
     spawn_y = belt["from"][1]
@@ -58,7 +64,8 @@ def ariac_scene(spec: TrialSpec, detections=None, faults=()):
     data["seed"] = spec.seed
     if faults:
         data["faults"] = {f"drop{i}": {"region": list(r), "probability": 1.0} for i, r in enumerate(faults)}
-    return scene_from_data(data, f"{ARIAC_SCENE} scene ({spec.variant} k={spec.k})")
+    # the shipped data was checked (``_ariac_data``): the schema checks what the trial wrote
+    return scene_from_data(data, f"{ARIAC_SCENE} scene ({spec.variant} k={spec.k})", check=_WRITTEN)
 
 
 def build_model(spec: TrialSpec):
@@ -99,10 +106,11 @@ class KittingHooks(Hooks):
     def after(self, rt, world, step, before) -> None:
         skills = self.skills
         for ev in step.events:
-            if ev[0] == "status" and ev[1] in skills and not before[skills[ev[1]]]:
-                self.starts += 1
-            elif ev[0] == "halt" and ev[1] in skills:
-                self.halts += 1
+            if ev[1] in skills:  # (most events are about other nodes)
+                if ev[0] == "status" and not before[skills[ev[1]]]:
+                    self.starts += 1
+                elif ev[0] == "halt":
+                    self.halts += 1
         if self.on_tick is not None:
             self.on_tick(rt, world)
 

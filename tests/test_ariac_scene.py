@@ -152,6 +152,28 @@ def test_the_cup_takes_a_part_only_within_its_grasp_tolerance_of_the_top():
     assert w.robots["arm"].holding == pid
 
 
+def test_an_aimed_cup_takes_only_its_part_and_only_centred_on_it():
+    """The kitting binding aims the cup at the part it picks (``World.aim``): a cup that
+    passes low over another part does not take it, and takes its own part only once the
+    tool is centred on it within the grasp tolerance (not at the edge of its radius)."""
+    w = world_for()
+    a, b = w.parts_in(Place("AREA", "bin2"))[:2]  # 20 cm apart, their tops at one height
+    move(w, above(top(w, a), 0.005))
+    w.aim("arm", b)
+    w.grip("arm")
+    w.step(24)
+    r = w.robots["arm"]
+    assert r.holding is None  # right above part a, aimed at b
+    w.move_to("arm", top(w, b)[:2], 1.0, z=top(w, b)[2])  # level, within the grasp tolerance all the way
+    run_until(w, lambda: r.holding is not None, 5.0)
+    assert r.holding == b and math.hypot(*r.anchor) <= r.spec["grasp_tolerance"] < r.spec["radius"]
+    w.release("arm")  # the aim ends with the release
+    move(w, above(top(w, a), 0.005))
+    w.grip("arm")
+    w.step()
+    assert r.holding == a
+
+
 def test_scripted_pick_from_moving_belt():
     w = world_for([17.5])
     run_until(w, lambda: detections(w), 30.0)
