@@ -12,6 +12,7 @@ import os
 import signal
 import subprocess
 import sys
+import threading
 
 import pytest
 
@@ -183,11 +184,16 @@ def _spawn(*args):
     """Start ``btfsm ARGS``; return once its simulation loop runs (it prints 'looping')."""
     proc = subprocess.Popen([sys.executable, "-c", _CHILD, *args], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
                             text=True)
+    watchdog = threading.Timer(120, proc.kill)  # a child that never gets there ends the wait (EOF)
+    watchdog.start()
     before = []
-    for line in proc.stderr:  # EOF (the child ended early) ends the loop too
-        if line.strip() == "looping":
-            return proc
-        before.append(line)
+    try:
+        for line in proc.stderr:  # EOF (the child ended early) ends the loop too
+            if line.strip() == "looping":
+                return proc
+            before.append(line)
+    finally:
+        watchdog.cancel()
     proc.wait(timeout=120)
     raise AssertionError(f"the child ended before its simulation loop (exit {proc.returncode}): {''.join(before)}")
 
