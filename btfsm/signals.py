@@ -2,10 +2,11 @@
 
 Python turns SIGINT into a ``KeyboardInterrupt`` raised wherever the main thread happens to
 be. When that is inside a destructor or a weakref callback (matplotlib has some), Python
-prints "Exception ignored" and goes on: the interrupt is lost and the command runs to its
-end. ``handling()`` records every signal it turns into an exception; long loops call
-``check()`` (it raises the recorded interrupt again if it was swallowed), and
-``btfsm.cli.main`` asks ``received()`` when a command returns normally.
+prints "Exception ignored" with a traceback and goes on: the interrupt is lost and the
+command runs to its end. ``handling()`` records every signal it turns into an exception
+and keeps Python quiet about the ones swallowed so (``sys.unraisablehook``: the command's
+one line says it); long loops call ``check()`` (it raises the recorded interrupt again if it
+was swallowed), and ``btfsm.cli.main`` asks ``received()`` when a command returns normally.
 
 >>> reset(); received() is None
 True
@@ -13,6 +14,7 @@ True
 from __future__ import annotations
 
 import signal
+import sys
 import threading
 from contextlib import contextmanager
 
@@ -44,6 +46,17 @@ def _handler(signum, frame):
     raise Terminated() if signum == signal.SIGTERM else KeyboardInterrupt()
 
 
+def _quiet_about_ours(previous):
+    """An unraisable-exception hook: our recorded interrupt, swallowed in a destructor or a
+    weakref callback, is dropped (``check`` raises it again); anything else goes on to
+    ``previous``."""
+    def hook(unraisable):
+        if isinstance(unraisable.exc_value, KeyboardInterrupt) and _state["received"] is not None:
+            return
+        previous(unraisable)
+    return hook
+
+
 @contextmanager
 def handling():
     """SIGINT raises KeyboardInterrupt and SIGTERM ``Terminated`` while the block runs,
@@ -60,8 +73,11 @@ def handling():
             previous[sig] = signal.signal(sig, _handler)
     except (ValueError, OSError):
         pass
+    hook = sys.unraisablehook
+    sys.unraisablehook = _quiet_about_ours(hook)
     try:
         yield
     finally:
+        sys.unraisablehook = hook
         for sig, old in previous.items():
             signal.signal(sig, old)

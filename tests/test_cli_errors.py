@@ -12,7 +12,7 @@ import os
 import signal
 import subprocess
 import sys
-import time
+import threading
 
 import pytest
 
@@ -160,24 +160,54 @@ def test_conform_budget_exits_3(capsys):
 
 # ---------------------------------------------------------------- real signals
 
+# The child wraps btfsm.signals.check (called before every tick of the simulation loop, and
+# imported by sim/loop.py after this patch) so that it says 'looping' on stderr once, when the
+# loop runs its first tick: the test signals then, not after a guessed sleep (under load,
+# imports and model loading can take seconds).
+_CHILD = """\
+import sys
+import btfsm.signals as signals
+original = signals.check
+said = []
+def check():
+    if not said:
+        said.append(1)
+        print('looping', file=sys.stderr, flush=True)
+    original()
+signals.check = check
+from btfsm.cli import main
+sys.exit(main(sys.argv[1:]))
+"""
+
+
 def _spawn(*args):
-    """Start ``btfsm ARGS``; return once it has entered ``main`` (it prints 'ready' first)."""
-    code = "import sys; from btfsm.cli import main; print('ready', file=sys.stderr, flush=True); sys.exit(main(sys.argv[1:]))"
-    proc = subprocess.Popen([sys.executable, "-c", code, *args], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    assert proc.stderr.readline().strip() == "ready"
-    return proc
+    """Start ``btfsm ARGS``; return once its simulation loop runs (it prints 'looping')."""
+    proc = subprocess.Popen([sys.executable, "-c", _CHILD, *args], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                            text=True)
+    watchdog = threading.Timer(120, proc.kill)  # a child that never gets there ends the wait (EOF)
+    watchdog.start()
+    before = []
+    try:
+        for line in proc.stderr:  # EOF (the child ended early) ends the loop too
+            if line.strip() == "looping":
+                return proc
+            before.append(line)
+    finally:
+        watchdog.cancel()
+    proc.wait(timeout=120)
+    raise AssertionError(f"the child ended before its simulation loop (exit {proc.returncode}): {''.join(before)}")
 
 
 @pytest.mark.parametrize("sig,code,word", [(signal.SIGINT, 130, "interrupted"), (signal.SIGTERM, 143, "terminated")])
 def test_signal_ends_in_one_line(sig, code, word, tmp_path):
     proc = _spawn("sim", "ariac-preemptive", "--time", "90000", "--gif", str(tmp_path / "run.gif"))
     try:
-        time.sleep(1.5)  # inside main: imports, model loading, then the simulation loop
-        proc.send_signal(sig)
-        out, err = proc.communicate(timeout=60)
+        proc.send_signal(sig)  # inside the simulation loop (it has run at least one check)
+        out, err = proc.communicate(timeout=120)
     finally:
         if proc.poll() is None:
             proc.kill()
+            proc.communicate()
     assert proc.returncode == code, err
     assert err.strip().splitlines()[-1] == f"btfsm sim: {word}" and "Traceback" not in err
     assert os.listdir(tmp_path) == []  # no half-written animation

@@ -248,12 +248,16 @@ def drift_big() -> Model:
 
 
 def test_lasso_same_shape_past_old_limit_on_the_command_line(capsys):
+    """The command line's lasso at k = 3; with BTFSM_LONG=1 also at k = 750 (564,001 states,
+    98 s in a loaded CI run: the limit is gone from the code, and test_lasso_past_half_a_million keeps
+    the shortest cycle exact past it in every run)."""
     shapes = []
-    for fn, k in (("drift_small", 3), ("drift_big", 750)):
+    sizes = (("drift_small", 3), ("drift_big", 750)) if os.environ.get("BTFSM_LONG") == "1" else (("drift_small", 3),)
+    for fn, k in sizes:
         code = main(["check", f"{os.path.abspath(__file__)}:{fn}", "--property", "no-dead-states", "--json"])
         out = json.loads(capsys.readouterr().out)
         assert code == 1
         ce = next(r for r in out["properties"] if r["name"] == "no-dead-states")["counterexample"]
         assert ce["violation"]["kind"] == "non-progress"
         shapes.append((ce["loop"], len(ce["steps"]) - ce["loop"]))
-    assert shapes == [(6, 1), (1500, 1)]  # prefix 2k, cycle 1
+    assert shapes == [(6, 1), (1500, 1)][:len(sizes)]  # prefix 2k, cycle 1

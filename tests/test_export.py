@@ -7,6 +7,7 @@ nuXmv is not installable here, so the SMV output is never run by nuXmv in these 
 from __future__ import annotations
 
 import itertools
+import operator
 import re
 
 import numpy as np
@@ -118,6 +119,11 @@ class _Parser:
         return ("name", tok)
 
 
+# SMV's comparison and arithmetic operators ('/' and 'mod' round toward zero: Smv.value)
+_SMV_BINARY = {"=": operator.eq, "!=": operator.ne, "<": operator.lt, "<=": operator.le, ">": operator.gt,
+               ">=": operator.ge, "+": operator.add, "-": operator.sub, "*": operator.mul}
+
+
 class Smv:
     """A parsed module: variables with domains, inputs, defines, init/next, constraints."""
 
@@ -204,6 +210,9 @@ class Smv:
             if n not in memo:
                 memo[n] = self.value(self.defines[n], env, memo)
             return memo[n]
+        op = _SMV_BINARY.get(kind)
+        if op is not None:
+            return op(self.value(e[1], env, memo), self.value(e[2], env, memo))
         if kind == "!":
             return not self.value(e[1], env, memo)
         if kind == "neg":
@@ -227,9 +236,7 @@ class Smv:
             return q if (a >= 0) == (b > 0) else -q
         if kind == "mod":
             return a - b * self.value(("/", ("int", a), ("int", b)), env, memo)
-        return {"=": lambda: a == b, "!=": lambda: a != b, "<": lambda: a < b, "<=": lambda: a <= b,
-                ">": lambda: a > b, ">=": lambda: a >= b, "+": lambda: a + b, "-": lambda: a - b,
-                "*": lambda: a * b}[kind]()
+        raise ValueError(f"unknown operator {kind!r}")
 
     def initial(self):
         s = {n: self.value(self.init[n], {}, {}) for n in self.vars}

@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import io
 import json
+import os
 import re
 import subprocess
 import sys
@@ -26,6 +27,9 @@ ROOT = Path(__file__).resolve().parent.parent
 EXAMPLES = sorted(p for p in (ROOT / "models" / "examples").glob("*.yaml") if not p.name.endswith(".btfsm.yaml"))  # not side files of XML models
 SCHEMA = json.loads((ROOT / "btfsm" / "schema" / "model.schema.json").read_text())
 VALIDATOR = jsonschema.Draft202012Validator(SCHEMA)
+# the fuzzers below: a fast default; tests/test_files_fuzz.py runs 800+ mutated files in every
+# run, BTFSM_LONG=1 these three times as many as the fast default
+FUZZ = 3 if os.environ.get("BTFSM_LONG") == "1" else 1
 
 
 def _error(text, fmt="yaml") -> str:
@@ -438,7 +442,7 @@ def _only_model_errors(fn, *args):
         assert "\n" not in str(exc)
 
 
-@settings(max_examples=300, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@settings(max_examples=100 * FUZZ, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(st.dictionaries(st.sampled_from(_KEYS), _DATA, max_size=6), st.sampled_from(["yaml", "json"]))
 def test_fuzz_random_data_only_raises_model_error(data, fmt):
     data.setdefault("name", "x") if isinstance(data, dict) else None
@@ -487,7 +491,7 @@ _EXAMPLE_DATA = {p.name: load_data(p) for p in EXAMPLES}
 _EXAMPLE_TEXT = {p.name: p.read_text() for p in EXAMPLES}
 
 
-@settings(max_examples=200, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@settings(max_examples=70 * FUZZ, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(st.sampled_from(sorted(_EXAMPLE_DATA)),
        st.lists(st.tuples(st.sampled_from(["delete", "replace", "rename", "duplicate"]), st.integers(0, 10_000), _DATA),
                 min_size=1, max_size=3))
@@ -518,22 +522,31 @@ def _mutate_text(text, edits):
     return text
 
 
-@settings(max_examples=200, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@settings(max_examples=70 * FUZZ, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(st.sampled_from(sorted(_EXAMPLE_TEXT)), _TEXT_EDITS)
 def test_fuzz_mutated_example_text(name, edits):
     _only_model_errors(loads_model, _mutate_text(_EXAMPLE_TEXT[name], edits), "yaml", name)
 
 
-@settings(max_examples=12, deadline=None, suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture])
+@settings(max_examples=12 * FUZZ, deadline=None,
+          suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture])
 @given(st.sampled_from(sorted(_EXAMPLE_TEXT)), _TEXT_EDITS)
-def test_fuzz_cli_validate_exit_codes(tmp_path, name, edits):
+def test_fuzz_cli_validate_exit_codes(tmp_path, capsys, name, edits):
+    """``btfsm validate``'s main in this process (the test_cli_validate_* tests below run
+    the real command)."""
+    from btfsm.cli import main
+
     path = tmp_path / name
     path.write_text(_mutate_text(_EXAMPLE_TEXT[name], edits))
-    out = _cli("validate", path)
-    assert out.returncode in (0, 2), out.stderr
-    assert "Traceback" not in out.stderr
-    if out.returncode == 2:
-        assert out.stderr.count("\n") == 1 and out.stderr.startswith("btfsm validate: error: ")
+    try:
+        code = main(["validate", str(path)])
+    except SystemExit as exc:
+        code = exc.code
+    out = capsys.readouterr()
+    assert code in (0, 2), out.err
+    assert "Traceback" not in out.err
+    if code == 2:
+        assert out.err.count("\n") == 1 and out.err.startswith("btfsm validate: error: ")
 
 
 # ---------------------------------------------------------------- btfsm validate

@@ -10,6 +10,7 @@ may name the Protocol.
 from __future__ import annotations
 
 import ast
+from functools import lru_cache
 from pathlib import Path
 
 import networkx as nx
@@ -61,7 +62,8 @@ def _type_checking_only(tree) -> set:
     return out
 
 
-def import_edges():
+@lru_cache(maxsize=None)  # the sources do not change while the tests run: parsed once
+def import_edges() -> tuple:
     """(importer, imported, names) for every import between btfsm's own modules that runs."""
     edges = []
     for module, (path, is_pkg) in MODULES.items():
@@ -83,7 +85,7 @@ def import_edges():
                         edges.append((module, sub, ()))
                     elif _own(base) and _own(base) != module:
                         edges.append((module, _own(base), (alias.name,)))
-    return edges
+    return tuple(edges)
 
 
 def test_the_walk_sees_the_known_edges():

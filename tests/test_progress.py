@@ -85,6 +85,25 @@ def test_check_cli_prints_no_progress_when_stderr_is_not_a_terminal(capsys):
     assert capsys.readouterr().err == ""
 
 
+@pytest.mark.parametrize("terminal", [False, True])
+def test_check_cli_bar_that_is_due_shows_on_a_terminal_only(terminal, monkeypatch, capsys):
+    """The command's bar with no delay: on a (fake) terminal it shows, on a pipe nothing
+    (tests/test_verify_cli.py shows the real bar of a 4-second exploration on a pty)."""
+    import btfsm.progress as progress
+    from btfsm.cli import main
+
+    class Due(progress.ExplorationProgress):
+        def __init__(self, file=None, delay=0.0, **options):
+            super().__init__(file, delay, mininterval=0, **options)
+
+    monkeypatch.setattr(progress, "ExplorationProgress", Due)
+    if terminal:
+        monkeypatch.setattr(sys, "stderr", FakeTTY())
+    assert main(["check", "two-area", "--property", "workable-reachability"]) == 0
+    shown = sys.stderr.getvalue() if terminal else capsys.readouterr().err
+    assert ("model" in shown and "states" in shown) if terminal else shown == ""
+
+
 def test_experiment_progress_bar(monkeypatch):
     """run_experiment: a bar with an ETA on a terminal; none with progress=False (--quiet)."""
     from btfsm.sim import experiment

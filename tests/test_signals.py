@@ -2,6 +2,7 @@
 still ends the command with exit 130 (btfsm.signals)."""
 import os
 import signal
+import types
 
 from btfsm import cli, signals
 
@@ -47,3 +48,31 @@ def test_the_trial_loop_stops_on_a_recorded_interrupt(monkeypatch):
     monkeypatch.setitem(signals._state, "received", signal.SIGINT)
     with pytest.raises(KeyboardInterrupt):
         run_trial(TrialSpec("preemptive", 1, time_limit=60.0))
+
+
+def test_an_interrupt_swallowed_by_a_destructor_prints_no_traceback(monkeypatch, capsys):
+    """Python reports an exception raised in a destructor through sys.unraisablehook (by
+    default: "Exception ignored ... Traceback" on stderr); our own interrupt is dropped
+    there, the command's one line says it."""
+    import sys
+
+    reported = []
+    monkeypatch.setattr(sys, "unraisablehook", reported.append)
+
+    class Doomed:
+        def __del__(self):
+            os.kill(os.getpid(), signal.SIGINT)  # the handler raises inside the destructor
+            for _ in range(10**6):
+                pass
+
+    def command(argv):
+        Doomed()  # collected at once
+        return 0
+
+    monkeypatch.setattr(cli, "_main", command)
+    assert cli.main(["check", "pickplace3"]) == 130
+    assert capsys.readouterr().err.strip() == "btfsm check: interrupted"
+    assert reported == []
+    with signals.handling():  # anything else still reaches the previous hook
+        sys.unraisablehook(types.SimpleNamespace(exc_value=ValueError("x")))
+    assert [type(u.exc_value) for u in reported] == [ValueError]

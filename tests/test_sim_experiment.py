@@ -55,8 +55,12 @@ def test_preemption_happens_and_baseline_does_not_preempt():
 
 
 @pytest.mark.slow
+@pytest.mark.skipif(os.environ.get("BTFSM_SLOW_DOCS") == "1",
+                    reason="README's experiment transcript (tests/test_readme.py, BTFSM_SLOW_DOCS=1) runs these 12 "
+                           "trials among its 80 and shows the same: completed, no conformance line, 0 / 54 lost")
 def test_headline_preemptive_loses_none_baseline_loses_some():
-    """The paper's headline on a spread of k values (full 18-part trials)."""
+    """The paper's headline on a spread of k values (full 18-part trials); skipped where the
+    README's transcript of the whole experiment (k = 1..40) runs, in CI."""
     results = run_experiment(trial_specs([1, 8, 15, 22, 29, 36]), workers=2, progress=False)
     s = summarize(results)
     assert s["preemptive"]["lost"] == 0

@@ -152,7 +152,7 @@ def test_entry_point_subprocess(tmp_path):
 
 def test_progress_line_on_stderr_for_long_explorations(tmp_path):
     """An exploration longer than a second shows a progress bar on stderr when stderr is a
-    terminal (a pseudo-terminal here), nothing when it is not; stdout stays clean."""
+    terminal (a pseudo-terminal here); stdout stays clean."""
     import os
     import pty
     import subprocess
@@ -190,8 +190,8 @@ def test_progress_line_on_stderr_for_long_explorations(tmp_path):
     shown = b"".join(chunks).decode("utf-8", "replace")
     assert "states/s" in shown and "model" in shown and "transitions" in shown  # the tqdm bar
     assert "6053248 states" in out.stdout.replace(",", "")
-    piped = subprocess.run(cmd, capture_output=True, text=True, timeout=300)
-    assert piped.returncode == 0 and piped.stderr == ""  # not a terminal: no bar
+    # not a terminal, no bar: tests/test_progress.py runs the command with a bar that is
+    # due at once (no delay) and sees it on a fake terminal, nothing on a pipe
 
 
 def test_quiet_verbose_and_goal_level_flags(capsys):

@@ -5,6 +5,7 @@ open systems, on every built-in model and on random ones."""
 from __future__ import annotations
 
 import json
+import os
 
 import numpy as np
 import pytest
@@ -15,6 +16,12 @@ import btfsm.verify.traced as traced
 import btfsm.verify.visited as visited
 from btfsm.models.registry import BUILTIN, HEAVY, load_builtin
 from strategies import random_models
+
+# random models, scalar vs traced engine: 60/40/60 by default, 150/100/150 with BTFSM_LONG=1
+# (the two engines also meet on random models in every run in tests/test_durations.py, timed
+# models with their FSM levels, tests/test_wide_env.py, wide environments, and
+# tests/test_timed_closure.py)
+LONG = os.environ.get("BTFSM_LONG") == "1"
 from test_spin_crosscheck import seeded_models
 from btfsm.verify.explore import explore, explore_fsm
 
@@ -165,13 +172,13 @@ def test_a_decision_is_recorded_once_per_value():
     assert t.path == [("b", g.ids[(">", y.n, g.const(3))], True), ("s", g.cols[1], 2)]
 
 
-@settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@settings(max_examples=150 if LONG else 60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(random_models())
 def test_random_models_explore_identically(model):
     assert_same(*both(model, max_states=3000))
 
 
-@settings(max_examples=100, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@settings(max_examples=100 if LONG else 40, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(random_models(), st.integers(1, 3000))
 def test_random_fsms_explore_identically(model, budget):
     for f in model.fsms:
@@ -179,7 +186,7 @@ def test_random_fsms_explore_identically(model, budget):
                     explore_fsm(model, f.name, engine="traced", max_states=budget))
 
 
-@settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@settings(max_examples=150 if LONG else 60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(seeded_models(tree=True, wild=True), st.integers(1, 400))
 def test_random_whole_models_explore_identically(model, budget):
     assert_same(*both(model, max_states=budget))
