@@ -355,3 +355,43 @@ def test_the_preemptive_first_late_scenario_with_arrivals_after_the_kit():
     assert parts["approach_conveyor"] == pytest.approx((4.3, 1.4), abs=0.25)
     assert parts["approach_bins"] == pytest.approx((3.3, 1.9), abs=0.25)
     assert parts["bins_to_conveyor"] == pytest.approx((2.6, 1.7), abs=0.25)
+
+
+def test_lever_3_which_bin_the_rescue_goes_to(monkeypatch):
+    """Issue 21's lever 3, as a what-if (``derive(..., place_spots=...)``, not sound in
+    general): with the bins' place targets limited to the first bin's spots (bin2: where
+    the cell's first-free-spot rule puts a part while bin2 has a free spot), the
+    conditioned worst first late response is 15.2 s <= dt* (worst case 15.2 s too); with
+    every spot of both bins, 16.3 s (the shipped figure). So what stands between the model
+    and a proof is which *bin* a place in the bins goes to, not which spot of it. The cell
+    uses bin3 as well in the 18-part job (bin2 full), so the limit is no assumption the
+    model may make: it needs the bins' occupancy (docs/verification.md 2.1).
+    BTFSM_LONG=1 (about 30 s)."""
+    from btfsm.sim import binding as B
+    from btfsm.sim.durations import _kitting, derive
+    from btfsm.sim.protocol import TrialSpec
+    from btfsm.sim.trial import run_trial
+    from btfsm.verify.explore import explore
+    from btfsm.verify.properties.response import ResponseBound
+
+    if os.environ.get("BTFSM_LONG") != "1":
+        pytest.skip("derives twice and runs a trial, about 30 s (BTFSM_LONG=1)")
+    spots = _kitting(ariac.preemptive())[1].geometry()["spots"]["bins"]  # bin2's 9, then bin3's 9
+    figures = {}
+    for name, sel in (("bin2", spots[:9]), ("both", spots)):
+        t = derive(ariac.preemptive(), no_loss=True, place_spots={"bins": sel}).to_data()
+        m = ariac.timed(ariac.preemptive(n_tray=2), timing=t)
+        rb = ResponseBound(explore(m), m.responses[0])
+        figures[name] = (rb.worst, rb.first_late(160)[0])
+    assert figures == {"bin2": (152, 152), "both": (201, 163)}
+    chosen = []
+    orig = B.KittingBinding._choose_spot
+
+    def choose(self, area):
+        r = orig(self, area)
+        if area == "bins" and r is not None:
+            chosen.append(r[1])
+        return r
+    monkeypatch.setattr(B.KittingBinding, "_choose_spot", choose)
+    run_trial(TrialSpec("preemptive", 1))
+    assert "bin3" in chosen  # the 18-part job places in bin3 too
