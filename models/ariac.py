@@ -298,6 +298,9 @@ ARM_DURATIONS = {
 }
 #: The experiment's belt parts are detected dTa(k) = 30 + 0.2 k >= 30.2 s apart.
 ARRIVAL_MIN_INTERVAL = 30.0
+#: ``timed(m, arrivals="job")``: belt parts arrive only while the kit is incomplete, in words
+ARRIVALS_JOB = ("arrivals while the kit is incomplete (tray < n): the experiment's trial ends when the kit is "
+                "complete, so it sends no belt part after")
 #: The pick window dt* (s): a belt part is lost this long after its detection.
 PICK_WINDOW = 16.0
 
@@ -322,7 +325,7 @@ def derived_timing(assume: "str | None" = None) -> dict:
 
 
 def timed(model: Model, durations: str = "derived", *, timing: "dict | None" = None,
-          window: float = PICK_WINDOW, assume: "str | None" = None) -> Model:
+          window: float = PICK_WINDOW, assume: "str | None" = None, arrivals: str = "job") -> Model:
     """``model`` (an ARIAC variant) with the arm's durations, the arrivals' minimum
     interval and the requirement ``reach``: every detected belt part is reached (the arm
     starts grasping at the conveyor) within dt* = 16 s. Picking it cannot be bounded in this
@@ -337,12 +340,20 @@ def timed(model: Model, durations: str = "derived", *, timing: "dict | None" = N
     part lost yet" (``NO_LOSS``; named ``...-timed-no-loss``): every run of this model is
     a run of the unconditioned one, and every run of the cell up to its first lost part
     is a run of this one, so its first late response decides ``reach``
-    (docs/verification.md 2.1); its figures past dt* are not bounds of the cell's."""
+    (docs/verification.md 2.1); its figures past dt* are not bounds of the cell's.
+
+    ``arrivals="job"`` (the default): belt parts arrive only while the kit is incomplete
+    (``tray < n`` in the arrival's guard, ``ARRIVALS_JOB``), as in the experiment, whose trial
+    ends when the kit is complete (``btfsm.sim.trial.KittingHooks.done``); ``"any"``: also
+    after, the model's own environment (the figures before issue 21's scoping)."""
     import dataclasses
 
+    from btfsm.expr import as_expr, to_text
     from btfsm.positions import split_by_entry, split_by_goal, split_history
 
     f = model.fsms[0]
+    if arrivals not in ("job", "any"):
+        raise ValueError(f"arrivals: 'job' or 'any', not {arrivals!r}")
     if assume not in (None, "no_loss") or (assume and timing is not None):
         raise ValueError(f"assume: None or 'no_loss' (with the stored derivation), not {assume!r}")
     if durations == "derived":
@@ -367,12 +378,19 @@ def timed(model: Model, durations: str = "derived", *, timing: "dict | None" = N
         how = "measured in the cell (ARM_DURATIONS)"
     else:
         raise ValueError(f"durations: 'derived' or 'measured', not {durations!r}")
-    env = tuple(dataclasses.replace(cast(EnvEvent, e), min_interval=ARRIVAL_MIN_INTERVAL) for e in model.environment)
+    n_tray = next(v for v in model.variables if v.name == "tray").hi
+    job = f" and tray < {n_tray}" if arrivals == "job" else ""
+    events = [cast(EnvEvent, e) for e in model.environment]
+    env = tuple(dataclasses.replace(e, min_interval=ARRIVAL_MIN_INTERVAL,
+                                    guard=f"({to_text(as_expr(e.guard))}){job}" if job and e.guard is not None
+                                    else f"tray < {n_tray}" if job else e.guard)
+                for e in events)
     grasp = [s.id for s in model.fsms[0].states if s.id.split("#")[0].split("@")[0] == "grasp_conveyor"]
     reach = Response("reach", "event:arrive", " or ".join(f"arm.state == '{g}'" for g in grasp), window)
     suffix = "-timed" if assume is None else "-timed-no-loss"
     return dataclasses.replace(model, name=model.name + suffix, environment=env, responses=(reach,),
-                               description=model.description + "; durations " + how)
+                               description=model.description + "; durations " + how
+                               + ("; " + ARRIVALS_JOB if job else "; arrivals also after the kit is complete"))
 
 
 def preemptive_timed(n_tray: int = 2) -> Model:

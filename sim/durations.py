@@ -302,7 +302,7 @@ class Timing:
         return out
 
 
-def derive(model, scene=None, no_loss: bool = False) -> Timing:
+def derive(model, scene=None, no_loss: bool = False, place_spots: "dict | None" = None) -> Timing:
     """The position abstraction of a kitting model's arm FSM with each state's duration
     derived from the scene, per goal class and per entry, two states deep: a copy's
     duration depends on the copy it was entered from, and on the state that one was
@@ -322,7 +322,12 @@ def derive(model, scene=None, no_loss: bool = False) -> Timing:
     belt), never at the belt's hub (no part there) nor where a part left the belt. Sound
     for runs up to the first lost part, so for the first late response's verdict when
     arrivals are spaced by more than the pick window (docs/verification.md 2.1), not for
-    figures past the window."""
+    figures past the window.
+
+    ``place_spots`` ({area: [(x, y)]}): a what-if for diagnosis, not a sound derivation
+    unless the cell only ever chooses those spots: a place's target at that area (``above``
+    and ``contact`` poses of its place goal) is limited to them (e.g. the first bin's
+    spots: where a rescue goes when the first bin has a free spot, docs/verification.md 2.1)."""
     from btfsm.positions import entries_of, split_by_goal, split_history
 
     scene, binding = _kitting(model, scene)
@@ -376,8 +381,17 @@ def derive(model, scene=None, no_loss: bool = False) -> Timing:
         goals_of[s.id] = set(classes[b][c]) if c else served(f0, b)
 
     # 2. poses: geometry and moves
+    placed = {}  # area -> (contact box, above box) of the place targets limited by place_spots
+    for a, xs in (place_spots or {}).items():
+        c = _box([(x, y, z) for x, y in xs for z in geo.g["contact"][a]])
+        h = geo.g["clearance"]
+        placed[a] = (c, ((c[0][0], c[0][1], c[0][2] + h), (c[1][0], c[1][1], c[1][2] + h)))
+
     def box(p):
         k, x = p[0], (p[1] if len(p) > 1 else None)
+        if k in ("above", "contact") and x in placed and len(p) > 2 and p[2] is not None \
+                and p[2] == place_goal.get(x):
+            return placed[x][k == "above"]
         if k == "home":
             return geo.home
         if k in ("hub", "none"):

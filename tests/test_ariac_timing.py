@@ -47,6 +47,33 @@ def test_worst_cases_are_proved_and_exceed_the_window(proved):
         assert res.holds is False and res.counterexample is not None
 
 
+def test_the_timed_models_send_belt_parts_only_before_the_kit_is_complete():
+    """The experiment's trial ends when the kit is complete (``KittingHooks.done``: the
+    model's tray and the cell's both hold ``parts``), so the timed models scope the arrivals
+    to it (``tray < n`` in the guard); ``arrivals="any"`` keeps the untimed models'
+    environment, and the untimed models are unchanged."""
+    from btfsm.expr import to_text
+    from btfsm.sim.trial import KittingHooks
+
+    untimed = ariac.preemptive(n_tray=2)
+    assert "tray" not in to_text(untimed.environment[0].guard)
+    for name in ("ariac-preemptive-timed", "ariac-baseline-timed-no-loss"):
+        assert to_text(load_builtin(name).environment[0].guard).endswith("and tray < 2")
+    assert to_text(ariac.timed(ariac.baseline(n_tray=18)).environment[0].guard).endswith("and tray < 18")
+    assert ariac.timed(untimed, arrivals="any").environment[0].guard == untimed.environment[0].guard
+    with pytest.raises(ValueError, match="arrivals"):
+        ariac.timed(untimed, arrivals="never")
+
+    class _Step:
+        state = [0] * len(untimed.program.scope)
+    tray = untimed.program.scope["tray"].index
+    binding = type("B", (), {"d": type("D", (), {"tray_var": "tray"})(), "tray_count": lambda self: 2})()
+    hooks = KittingHooks(untimed, binding, 2)
+    assert not hooks.done(None, None, _Step)
+    _Step.state[tray] = 2
+    assert hooks.done(None, None, _Step)
+
+
 def test_the_violations_replay(proved):
     for v in ("preemptive", "baseline"):
         ok, text = replay_counterexample(proved[v][1].counterexample.to_json(), load_builtin(f"ariac-{v}-timed"))
@@ -84,8 +111,8 @@ def test_cli_prints_the_proved_worst_case(capsys, tmp_path):
     assert "worst first late response (every earlier trigger answered within 16 s): 251 ticks = 25.1 s" in text
     # the figure that decides dt*: the same model with the durations derived under "no part lost yet"
     assert ("worst first late response, durations conditioned on no part lost yet (ariac-preemptive-timed-no-loss, "
-            "303,063 states; it decides --within 16, a figure above 16 s is a run of the model, not a bound): "
-            "180 ticks = 18 s") in text
+            "286,955 states; it decides --within 16, a figure above 16 s is a run of the model, not a bound): "
+            "163 ticks = 16.3 s") in text
     assert json.loads(out.read_text())["violation"]["kind"] == "response"
     assert main(["replay", str(out), "ariac-preemptive-timed"]) == 0  # a run of the model, as it says
     assert "first holds 251 tick(s)" in capsys.readouterr().out
@@ -174,28 +201,27 @@ def _first_late(name):
 
 def test_the_preemptive_first_late_scenario_in_the_cell():
     """Issue 21.3, measured and NOT met (docs/verification.md 2.1 decomposes the gap). The
-    worst first late response with the durations conditioned on no part lost yet (18.0 s;
-    25.1 s without the condition, whose run the cell cannot be driven into) answers a part
-    B that arrives 30 s after part A, as the arm, holding A with the 2-part tray full,
-    starts to rescue it into the bins. The cell, sent each part at the counterexample's
-    phase (the FSM's state, as many ticks into the visit, the model's variables as there;
-    the arm unpaced), idles holding A in that phase before the arrivals' 30 s spacing
-    allows B and gets B when it does: a run of the cell, which reaches B in 12.5 s and
-    loses nothing (so no refutation either). The cell runs the plain timed model (the same
-    states): it may lose a part without a refusal."""
+    timed models send belt parts only while the kit is incomplete (``tray < 2`` in the
+    arrival's guard, ``timed(m, arrivals="job")``: the experiment's trial ends when the kit
+    is complete). With the durations conditioned on no part lost yet, the preemptive
+    model's worst first late response is 16.3 s, 0.3 s above dt* (25.1 s without the
+    condition, whose run the cell cannot be driven into): no proof. Its scenario: a part
+    detected as the arm carries a bin part to the tray, which the arm first rescues into
+    the bins. The cell, sent the part at the counterexample's phase (the FSM's state, as
+    many ticks into the visit, the model's variables as there; the arm unpaced), reaches
+    it in 7.6 s and loses nothing (no refutation either); the rescue to the farthest free
+    bin spot makes the gap (approach_bins 9.8 / 2.2 s). The cell runs the plain timed
+    model (the same states): it may lose a part without a refusal."""
     from btfsm.sim.replay import replay_in_cell
 
     _m, worst, ce = _first_late("ariac-preemptive-timed-no-loss")
-    assert worst == 180
+    assert worst == 163
     r = replay_in_cell(load_builtin("ariac-preemptive-timed"), ce, pace="phase")
-    assert r.at_phase and len(r.injected) == 2 and not r.lost and not r.mismatch, r.text()
-    assert r.injected[1][0] - r.injected[0][0] == pytest.approx(30.0, abs=0.05)  # as soon as the spacing allows
-    assert dict(r.responses)[r.injected[-1][2]] == pytest.approx(12.5, abs=0.3)
+    assert r.at_phase and len(r.injected) == 1 and not r.too_soon and not r.lost and not r.mismatch, r.text()
+    assert dict(r.responses)[r.injected[0][2]] == pytest.approx(7.6, abs=0.3)
     parts = {st: (c, x) for st, c, x in r.decomposition}
-    assert sum(c for c, _ in parts.values()) == pytest.approx(18.0)
-    assert parts["approach_conveyor"] == pytest.approx((4.3, 1.4), abs=0.25)
-    assert parts["approach_bins"] == pytest.approx((3.3, 1.9), abs=0.25)
-    assert parts["bins_to_conveyor"] == pytest.approx((2.6, 1.7), abs=0.25)
+    assert sum(c for c, _ in parts.values()) == pytest.approx(16.3)
+    assert parts["approach_bins"] == pytest.approx((9.8, 2.2), abs=0.25)
 
 
 def test_the_baseline_first_late_scenario_loses_the_part_in_the_cell():
@@ -301,37 +327,71 @@ def test_the_preemptive_worst_first_arrival_in_the_cell():
     assert parts["approach_bins"] == pytest.approx((9.8, 2.2), abs=0.25)
 
 
-def test_the_preemptive_claim_within_the_experiment():
-    """The experiment ends when the kit is complete, so its belt parts all arrive while the
-    tray is not full. With the arrivals so restricted (``... and tray < 2`` in the event's
-    guard) and the durations conditioned on no part lost yet, the preemptive model's worst
-    first late response is 16.3 s, 0.3 s above dt* (18.0 s without the restriction: part
-    B after the kit is complete): neither a proof nor, in the cell, a loss. Its scenario
-    is the worst first arrival's (the rescue of a held bin part): the cell at that phase
-    reaches the part in 7.6 s; the rescue to the farthest free bin spot makes the gap
-    (approach_bins 9.8 / 2.2 s). BTFSM_LONG=1 (about 10 s)."""
-    import dataclasses
-
-    from btfsm.expr import to_text
+def test_the_preemptive_first_late_scenario_with_arrivals_after_the_kit():
+    """Without the experiment's scope (``timed(m, arrivals="any")``: belt parts also after
+    the kit is complete) the conditioned worst first late response is 18.0 s: it answers a
+    part B that arrives 30 s after part A, as the arm, holding A with the 2-part tray full,
+    starts to rescue it into the bins. The cell, sent each part at the counterexample's
+    phase, idles holding A in that phase before the arrivals' 30 s spacing allows B and
+    gets B when it does: a run of the cell (not of the experiment, whose trial has ended),
+    which reaches B in 12.5 s and loses nothing. BTFSM_LONG=1 (about 10 s)."""
     from btfsm.sim.replay import replay_in_cell
-
-    if os.environ.get("BTFSM_LONG") != "1":
-        pytest.skip("explores and replays for about 10 s (BTFSM_LONG=1)")
-
-    def in_the_job(m):
-        ev = m.environment[0]
-        return dataclasses.replace(m, environment=(dataclasses.replace(ev, guard=f"({to_text(ev.guard)}) and tray < 2"),))
-
     from btfsm.verify.explore import explore
     from btfsm.verify.properties.response import ResponseBound, counterexample
 
-    m = in_the_job(load_builtin("ariac-preemptive-timed-no-loss"))
+    if os.environ.get("BTFSM_LONG") != "1":
+        pytest.skip("explores and replays for about 10 s (BTFSM_LONG=1)")
+    m = ariac.timed(ariac.preemptive(n_tray=2), assume="no_loss", arrivals="any")
     rb = ResponseBound(explore(m), m.responses[0])
     worst, path, k = rb.first_late(160)
-    assert worst == 163
+    assert worst == 180
     ce = counterexample(rb, path, k, None, "first late", 160).to_json()
-    r = replay_in_cell(in_the_job(load_builtin("ariac-preemptive-timed")), ce, pace="phase")
-    assert r.at_phase and len(r.injected) == 1 and not r.too_soon and not r.lost and not r.mismatch, r.text()
-    assert dict(r.responses)[r.injected[0][2]] == pytest.approx(7.6, abs=0.3)
+    r = replay_in_cell(ariac.timed(ariac.preemptive(n_tray=2), arrivals="any"), ce, pace="phase")
+    assert r.at_phase and len(r.injected) == 2 and not r.lost and not r.mismatch, r.text()
+    assert r.injected[1][0] - r.injected[0][0] == pytest.approx(30.0, abs=0.05)  # as soon as the spacing allows
+    assert dict(r.responses)[r.injected[-1][2]] == pytest.approx(12.5, abs=0.3)
     parts = {st: (c, x) for st, c, x in r.decomposition}
-    assert parts["approach_bins"] == pytest.approx((9.8, 2.2), abs=0.25)
+    assert sum(c for c, _ in parts.values()) == pytest.approx(18.0)
+    assert parts["approach_conveyor"] == pytest.approx((4.3, 1.4), abs=0.25)
+    assert parts["approach_bins"] == pytest.approx((3.3, 1.9), abs=0.25)
+    assert parts["bins_to_conveyor"] == pytest.approx((2.6, 1.7), abs=0.25)
+
+
+def test_lever_3_which_bin_the_rescue_goes_to(monkeypatch):
+    """Issue 21's lever 3, as a what-if (``derive(..., place_spots=...)``, not sound in
+    general): with the bins' place targets limited to the first bin's spots (bin2: where
+    the cell's first-free-spot rule puts a part while bin2 has a free spot), the
+    conditioned worst first late response is 15.2 s <= dt* (worst case 15.2 s too); with
+    every spot of both bins, 16.3 s (the shipped figure). So what stands between the model
+    and a proof is which *bin* a place in the bins goes to, not which spot of it. The cell
+    uses bin3 as well in the 18-part job (bin2 full), so the limit is no assumption the
+    model may make: it needs the bins' occupancy (docs/verification.md 2.1).
+    BTFSM_LONG=1 (about 30 s)."""
+    from btfsm.sim import binding as B
+    from btfsm.sim.durations import _kitting, derive
+    from btfsm.sim.protocol import TrialSpec
+    from btfsm.sim.trial import run_trial
+    from btfsm.verify.explore import explore
+    from btfsm.verify.properties.response import ResponseBound
+
+    if os.environ.get("BTFSM_LONG") != "1":
+        pytest.skip("derives twice and runs a trial, about 30 s (BTFSM_LONG=1)")
+    spots = _kitting(ariac.preemptive())[1].geometry()["spots"]["bins"]  # bin2's 9, then bin3's 9
+    figures = {}
+    for name, sel in (("bin2", spots[:9]), ("both", spots)):
+        t = derive(ariac.preemptive(), no_loss=True, place_spots={"bins": sel}).to_data()
+        m = ariac.timed(ariac.preemptive(n_tray=2), timing=t)
+        rb = ResponseBound(explore(m), m.responses[0])
+        figures[name] = (rb.worst, rb.first_late(160)[0])
+    assert figures == {"bin2": (152, 152), "both": (201, 163)}
+    chosen = []
+    orig = B.KittingBinding._choose_spot
+
+    def choose(self, area):
+        r = orig(self, area)
+        if area == "bins" and r is not None:
+            chosen.append(r[1])
+        return r
+    monkeypatch.setattr(B.KittingBinding, "_choose_spot", choose)
+    run_trial(TrialSpec("preemptive", 1))
+    assert "bin3" in chosen  # the 18-part job places in bin3 too
