@@ -292,11 +292,53 @@ class Engine:
                     col = (part // self.mult[k]) % info.size
                     cols[k] = col + info.lo if info.lo else col
             batch = _Batch(np.arange(a, b, dtype=np.int64), cols, ())
-            for bt in self.inputs(batch):
-                for be in self.environment(bt):
+            answers = [be for bt in self.inputs(batch) for be in self.environment(bt)]
+            if self.labels or len(answers) < 2:
+                for be in answers:
                     self.request(be, out)
+            else:
+                self.request_merged(answers, len(chunk_codes), out)
             self.memo = {}  # per token group: its arrays are not shared with the next
         return out
+
+    def request_merged(self, answers, width, out):
+        """The request on every batch of ``answers`` (one per input and environment
+        answer, rows in chunk order) at once, without labels: their rows stacked into one
+        batch whose positions are ``answer * width + position`` (unique in the batch, as
+        ``_by_pos`` needs), so the request's Python work is done once, not once per
+        answer. The transitions come out in the order of separate requests: by answer,
+        then by the request's own batches, then by position; as one output entry."""
+        n = sum(be.n for be in answers)
+        cols: list = []
+        for k in range(len(answers[0].cols)):
+            vals = [be.cols[k] for be in answers]
+            v0 = vals[0]
+            if not any(isinstance(v, np.ndarray) for v in vals) and all(v == v0 for v in vals):
+                cols.append(v0)
+                continue
+            col = np.empty(n, np.result_type(*vals))
+            at = 0
+            for be, v in zip(answers, vals):
+                col[at:at + be.n] = v
+                at += be.n
+            cols.append(col)
+        pos = np.concatenate([be.pos + e * width for e, be in enumerate(answers)])
+        errors, self.errors = self.errors, []
+        mine: list = []
+        self.request(_Batch(pos, cols, ()), mine)
+        errors += [p % width for p in self.errors]
+        self.errors = errors
+        mine = [o for o in mine if len(o[0])]
+        if not mine:
+            return
+        if len(mine) == 1:
+            ps, codes = mine[0][0], mine[0][1]
+        else:
+            ps = np.concatenate([o[0] for o in mine])
+            codes = np.concatenate([o[1] for o in mine])
+            order = np.argsort(ps // width, kind="stable")
+            ps, codes = ps[order], codes[order]
+        out.append((ps % width, codes, (), None, None))
 
     def inputs(self, batch):
         spec, prog = self.spec, self.prog
@@ -749,6 +791,27 @@ def _flat_rows(rows):
             yield r
 
 
+_LOW32 = np.uint64(0xFFFFFFFF)
+
+
+def _first_unique(cand):
+    """``np.unique(cand, return_index=True)``: the distinct codes, ascending, and the
+    index of each one's first occurrence. Codes below 2**32 (and fewer than 2**32
+    candidates) sort as one uint64 key ``code << 32 | index`` instead (an unstable sort
+    of plain integers, SIMD in numpy 2: about twice np.unique's stable argsort)."""
+    if len(cand) >= 1 << 32 or cand.dtype.itemsize > 4 or cand.dtype.kind not in "iu":
+        return np.unique(cand, return_index=True)
+    key = cand.astype(np.uint64)
+    key <<= np.uint64(32)
+    key |= np.arange(len(cand), dtype=np.uint64)
+    key.sort()
+    codes = (key >> np.uint64(32)).astype(cand.dtype)
+    keep = np.empty(len(codes), bool)
+    keep[:1] = True
+    np.not_equal(codes[1:], codes[:-1], out=keep[1:])
+    return codes[keep], (key[keep] & _LOW32).astype(np.intp)
+
+
 def _search(model, fsm, goals, max_states, progress, chunk, keep_edges, max_transitions=None, max_seconds=None):
     t0 = time.perf_counter()
     spec = step_spec(model, fsm, goals)
@@ -821,7 +884,7 @@ def _search(model, fsm, goals, max_states, progress, chunk, keep_edges, max_tran
             cand, cpos = cand[fresh], cpos[fresh]
             if not len(cand):
                 continue
-            uniq, first = np.unique(cand, return_index=True)
+            uniq, first = _first_unique(cand)
             if budget is not None and n + len(uniq) > budget:
                 keep = budget - n
                 sel = np.sort(np.argsort(first, kind="stable")[:keep])
@@ -839,7 +902,7 @@ def _search(model, fsm, goals, max_states, progress, chunk, keep_edges, max_tran
             par = np.concatenate(new_par)
             order = np.argsort(level, kind="stable")  # sorted: grouped by token for the next level
             level, par = level[order], par[order]
-        elif new_codes:  # np.unique's output is sorted already
+        elif new_codes:  # _first_unique's output is sorted already
             level, par = new_codes[0], new_par[0]
         else:
             level, par = np.zeros(0, cdt), np.zeros(0, pdt)
