@@ -133,6 +133,13 @@ class Engine:
         fixed = spec.fixed()
         self.fixed_cols = {k: self.S(v) for k, v in fixed.items()}
         self.env = [(i, spec.model.environment[i]) for i in spec.env]
+        # the slots the inputs and the environment read or write
+        self.env_slots = {slot for slot, _ in spec.inputs}
+        for _, ev in self.env:
+            for o in (ev.options if isinstance(ev, EnvChoice) else (ev,)):
+                exprs = [o.guard] + [value for _, value in o.effects]
+                self.env_slots.update(self.scope[name].index for name, _ in o.effects)
+                self.env_slots.update(self.scope[x].index for e in exprs if e is not None for x in names_in(e))
 
     # ------------------------------------------------------------ expressions
     def fn(self, e, fsm_scope=False, expected=None):
@@ -291,38 +298,58 @@ class Engine:
                 else:
                     col = (part // self.mult[k]) % info.size
                     cols[k] = col + info.lo if info.lo else col
-            batch = _Batch(np.arange(a, b, dtype=np.int64), cols, ())
-            answers = [be for bt in self.inputs(batch) for be in self.environment(bt)]
-            if self.labels or len(answers) < 2:
-                for be in answers:
-                    self.request(be, out)
-            else:
-                self.request_merged(answers, len(chunk_codes), out)
+            if self.labels:
+                batch = _Batch(np.arange(a, b, dtype=np.int64), cols, ())
+                for bt in self.inputs(batch):
+                    for be in self.environment(bt):
+                        self.request(be, out)
+            else:  # the inputs and the environment on the columns they use only
+                narrow = [c if k in self.env_slots or not isinstance(c, np.ndarray) else None for k, c in enumerate(cols)]
+                batch = _Batch(np.arange(a, b, dtype=np.int64), narrow, ())
+                answers = [be for bt in self.inputs(batch) for be in self.environment(bt)]
+                if answers:
+                    self.request_merged(answers, cols, a, b - a, len(chunk_codes), out)
             self.memo = {}  # per token group: its arrays are not shared with the next
         return out
 
-    def request_merged(self, answers, width, out):
+    def request_merged(self, answers, root, start, count, width, out):
         """The request on every batch of ``answers`` (one per input and environment
-        answer, rows in chunk order) at once, without labels: their rows stacked into one
-        batch whose positions are ``answer * width + position`` (unique in the batch, as
-        ``_by_pos`` needs), so the request's Python work is done once, not once per
-        answer. The transitions come out in the order of separate requests: by answer,
-        then by the request's own batches, then by position; as one output entry."""
-        n = sum(be.n for be in answers)
+        answer, rows in chunk order, holding the columns of ``env_slots`` only; ``root``:
+        the columns of the chunk's ``count`` rows from ``start``) at once, without labels: their
+        rows stacked into one batch whose positions are ``answer * width + position``
+        (unique in the batch, as ``_by_pos`` needs), so the request's Python work is done
+        once, not once per answer. The transitions come out in the order of separate
+        requests: by answer, then by the request's own batches, then by position; as one
+        output entry."""
+        if len(answers) == 1:
+            at = answers[0].pos
+            pos = at
+        else:
+            at = np.concatenate([be.pos for be in answers])
+            pos = at + np.repeat(np.arange(len(answers), dtype=np.int64) * width, [be.n for be in answers])
+        whole = len(answers) == 1 and len(at) == count  # every row, in order: the root columns as they are
+        rows = None
         cols: list = []
-        for k in range(len(answers[0].cols)):
+        for k, c in enumerate(root):
+            if k not in self.env_slots:
+                if isinstance(c, np.ndarray) and not whole:
+                    if rows is None:
+                        rows = at - start
+                    c = c[rows]
+                cols.append(c)
+                continue
             vals = [be.cols[k] for be in answers]
             v0 = vals[0]
-            if not any(isinstance(v, np.ndarray) for v in vals) and all(v == v0 for v in vals):
+            if len(vals) == 1 or (not any(isinstance(v, np.ndarray) for v in vals) and all(v == v0 for v in vals)):
                 cols.append(v0)
                 continue
+            n = len(at)
             col = np.empty(n, np.result_type(*vals))
-            at = 0
+            i = 0
             for be, v in zip(answers, vals):
-                col[at:at + be.n] = v
-                at += be.n
+                col[i:i + be.n] = v
+                i += be.n
             cols.append(col)
-        pos = np.concatenate([be.pos + e * width for e, be in enumerate(answers)])
         errors, self.errors = self.errors, []
         mine: list = []
         self.request(_Batch(pos, cols, ()), mine)
