@@ -214,14 +214,14 @@ class Engine:
                 k2 = (id(c), id(idx))
                 g = self.memo.get(k2)
                 if g is None:
-                    g = self.memo[k2] = (c[idx], c, idx)
+                    g = self.memo[k2] = (np.take(c, idx), c, idx)
                 cols.append(g[0])
             else:
                 cols.append(c)
         pk = (id(batch.pos), id(idx), "pos")
         g = self.memo.get(pk)
         if g is None:
-            g = self.memo[pk] = (batch.pos[idx], batch.pos, idx)
+            g = self.memo[pk] = (np.take(batch.pos, idx), batch.pos, idx)
         return _Batch(g[0], cols, batch.label)
 
     def apply(self, batch: _Batch, effects, where: str) -> "_Batch | None":
@@ -308,26 +308,22 @@ class Engine:
                 batch = _Batch(np.arange(a, b, dtype=np.int64), narrow, ())
                 answers = [be for bt in self.inputs(batch) for be in self.environment(bt)]
                 if answers:
-                    self.request_merged(answers, cols, a, b - a, len(chunk_codes), out)
+                    self.request_merged(answers, cols, a, b - a, out)
             self.memo = {}  # per token group: its arrays are not shared with the next
         return out
 
-    def request_merged(self, answers, root, start, count, width, out):
+    def request_merged(self, answers, root, start, count, out):
         """The request on every batch of ``answers`` (one per input and environment
         answer, rows in chunk order, holding the columns of ``env_slots`` only; ``root``:
-        the columns of the chunk's ``count`` rows from ``start``) at once, without labels: their
-        rows stacked into one batch whose positions are ``answer * width + position``
-        (unique in the batch, as ``_by_pos`` needs), so the request's Python work is done
-        once, not once per answer. The transitions come out in the order of separate
-        requests: by answer, then by the request's own batches, then by position; as one
-        output entry."""
-        if len(answers) == 1:
-            at = answers[0].pos
-            pos = at
-        else:
-            at = np.concatenate([be.pos for be in answers])
-            pos = at + np.repeat(np.arange(len(answers), dtype=np.int64) * width, [be.n for be in answers])
-        whole = len(answers) == 1 and len(at) == count  # every row, in order: the root columns as they are
+        the columns of the chunk's ``count`` rows from ``start``) at once, without
+        labels: their rows stacked into one batch (its positions: the row numbers, unique
+        as ``_by_pos`` needs), so the request's Python work is done once, not once per
+        answer. The transitions come out in the order of separate requests: by answer,
+        then by the request's own batches, then by position; as one output entry."""
+        sizes = [be.n for be in answers]
+        at = answers[0].pos if len(answers) == 1 else np.concatenate([be.pos for be in answers])  # chunk positions
+        n = len(at)
+        whole = n == count and len(answers) == 1  # every row, in order: the root columns as they are
         rows = None
         cols: list = []
         for k, c in enumerate(root):
@@ -335,7 +331,7 @@ class Engine:
                 if isinstance(c, np.ndarray) and not whole:
                     if rows is None:
                         rows = at - start
-                    c = c[rows]
+                    c = np.take(c, rows)
                 cols.append(c)
                 continue
             vals = [be.cols[k] for be in answers]
@@ -343,17 +339,17 @@ class Engine:
             if len(vals) == 1 or (not any(isinstance(v, np.ndarray) for v in vals) and all(v == v0 for v in vals)):
                 cols.append(v0)
                 continue
-            n = len(at)
             col = np.empty(n, np.result_type(*vals))
             i = 0
-            for be, v in zip(answers, vals):
-                col[i:i + be.n] = v
-                i += be.n
+            for m, v in zip(sizes, vals):
+                col[i:i + m] = v
+                i += m
             cols.append(col)
+        pos = np.arange(n, dtype=np.int64)
         errors, self.errors = self.errors, []
         mine: list = []
         self.request(_Batch(pos, cols, ()), mine)
-        errors += [p % width for p in self.errors]
+        errors += [np.take(at, p) for p in self.errors]
         self.errors = errors
         mine = [o for o in mine if len(o[0])]
         if not mine:
@@ -363,9 +359,11 @@ class Engine:
         else:
             ps = np.concatenate([o[0] for o in mine])
             codes = np.concatenate([o[1] for o in mine])
-            order = np.argsort(ps // width, kind="stable")
-            ps, codes = ps[order], codes[order]
-        out.append((ps % width, codes, (), None, None))
+            if len(answers) > 1:  # by answer (stable: by batch, then by position within it)
+                answer = np.repeat(np.arange(len(answers), dtype=np.int32), sizes)
+                order = np.argsort(np.take(answer, ps), kind="stable")
+                ps, codes = np.take(ps, order), np.take(codes, order)
+        out.append((at if ps is pos else np.take(at, ps), codes, (), None, None))
 
     def inputs(self, batch):
         spec, prog = self.spec, self.prog
@@ -617,7 +615,7 @@ class Engine:
                 remaining = remaining & _not(fire)
             done = self.take(batch, _not(remaining))
             if done is not None:
-                out.append((done, reply[np.flatnonzero(_not(remaining))] if isinstance(reply, np.ndarray) else reply))
+                out.append((done, np.compress(_not(remaining), reply) if isinstance(reply, np.ndarray) else reply))
             rest = self.take(batch, remaining)
             if rest is None:
                 return out
@@ -671,7 +669,7 @@ class _Dense:
 
     def new(self, codes):
         """Mask of ``codes`` not yet visited."""
-        return (self.bits[codes >> 3] & (np.uint8(1) << (codes & 7).astype(np.uint8))) == 0
+        return (np.take(self.bits, codes >> 3) & (np.uint8(1) << (codes & 7).astype(np.uint8))) == 0
 
     def add(self, sorted_unique):
         byte = sorted_unique >> 3
@@ -836,7 +834,7 @@ def _first_unique(cand):
     keep = np.empty(len(codes), bool)
     keep[:1] = True
     np.not_equal(codes[1:], codes[:-1], out=keep[1:])
-    return codes[keep], (key[keep] & _LOW32).astype(np.intp)
+    return np.compress(keep, codes), (np.compress(keep, key) & _LOW32).astype(np.intp)
 
 
 def _search(model, fsm, goals, max_states, progress, chunk, keep_edges, max_transitions=None, max_seconds=None):
@@ -908,7 +906,7 @@ def _search(model, fsm, goals, max_states, progress, chunk, keep_edges, max_tran
             cpos = np.concatenate(cpos)
             dead_parts.append(np.flatnonzero(np.bincount(cpos, minlength=len(part)) == 0) + front_start + a)
             fresh = visited.new(cand)
-            cand, cpos = cand[fresh], cpos[fresh]
+            cand, cpos = np.compress(fresh, cand), np.compress(fresh, cpos)
             if not len(cand):
                 continue
             uniq, first = _first_unique(cand)
@@ -920,7 +918,7 @@ def _search(model, fsm, goals, max_states, progress, chunk, keep_edges, max_tran
                 expanded = front_start + a
             visited.add(uniq)
             new_codes.append(uniq.astype(cdt))
-            new_par.append((cpos[first] + front_start + a).astype(pdt))
+            new_par.append((np.take(cpos, first) + front_start + a).astype(pdt))
             n += len(uniq)
             if not complete:
                 break
