@@ -283,6 +283,9 @@ class Engine:
         self.memo = {}
         tm = self.mult[self.tok]
         bounds = np.searchsorted(chunk_codes, np.arange(len(self.ids) + 1, dtype=np.int64) * tm)
+        if not self.labels:
+            self.step_merged(c, bounds, out)
+            return out
         for s in range(len(self.ids)):
             a, b = int(bounds[s]), int(bounds[s + 1])
             if a == b:
@@ -298,19 +301,48 @@ class Engine:
                 else:
                     col = (part // self.mult[k]) % info.size
                     cols[k] = col + info.lo if info.lo else col
-            if self.labels:
-                batch = _Batch(np.arange(a, b, dtype=np.int64), cols, ())
-                for bt in self.inputs(batch):
-                    for be in self.environment(bt):
-                        self.request(be, out)
-            else:  # the inputs and the environment on the columns they use only
-                narrow = [c if k in self.env_slots or not isinstance(c, np.ndarray) else None for k, c in enumerate(cols)]
-                batch = _Batch(np.arange(a, b, dtype=np.int64), narrow, ())
-                answers = [be for bt in self.inputs(batch) for be in self.environment(bt)]
-                if answers:
-                    self.request_merged(answers, cols, a, b - a, out)
+            batch = _Batch(np.arange(a, b, dtype=np.int64), cols, ())
+            for bt in self.inputs(batch):
+                for be in self.environment(bt):
+                    self.request(be, out)
             self.memo = {}  # per token group: its arrays are not shared with the next
         return out
+
+    def step_merged(self, c, bounds, out):
+        """``step`` without labels (for ``reach``): the inputs and the environment once on
+        the whole chunk, on the columns they read or write only (``env_slots``); then per
+        token group one request on its rows of every answer (``request_merged``). The
+        transitions come out in ``step``'s order."""
+        prog, S = self.prog, self.S
+        cols: list = [None] * len(prog.slots)
+        for k, v in self.fixed_cols.items():
+            cols[k] = v
+        for k in self.order:
+            info = prog.slots[k]
+            col = (c // self.mult[k]) % info.size if k != self.tok else c // self.mult[k]
+            cols[k] = col + info.lo if info.lo else col
+        narrow = [v if k in self.env_slots or not isinstance(v, np.ndarray) else None for k, v in enumerate(cols)]
+        answers = [be for bt in self.inputs(_Batch(np.arange(len(c), dtype=np.int64), narrow, ()))
+                   for be in self.environment(bt)]
+        cuts = [np.searchsorted(be.pos, bounds) for be in answers]
+        self.memo = {}
+        for s in range(len(self.ids)):
+            a, b = int(bounds[s]), int(bounds[s + 1])
+            if a == b:
+                continue
+            group = []
+            for be, cut in zip(answers, cuts):
+                i, j = int(cut[s]), int(cut[s + 1])
+                if i == j:
+                    continue
+                sub = [v[i:j] if isinstance(v, np.ndarray) else v for v in be.cols]
+                sub[self.tok] = S(s)
+                group.append(_Batch(be.pos[i:j], sub, ()))
+            if group:
+                root = [v[a:b] if isinstance(v, np.ndarray) else v for v in cols]
+                root[self.tok] = S(s)
+                self.request_merged(group, root, a, b - a, out)
+            self.memo = {}  # per token group: its arrays are not shared with the next
 
     def request_merged(self, answers, root, start, count, out):
         """The request on every batch of ``answers`` (one per input and environment
