@@ -130,6 +130,42 @@ def test_random_models_hypothesis_draws(model):
     same(explore_fsm(model, "f"), vector.explore(model, fsm="f"))
 
 
+def same_as_labelled(model, fsm=None, **kw):
+    """``reach`` (the unlabelled path: one request per token group over every input and
+    environment answer) finds what ``explore`` (one request per answer) finds, numbered
+    alike: the same codes in the same order, the same BFS parents (the source of each
+    state's parent transition), levels, dead states, domain-error states and counts."""
+    r, ts = vector.reach(model, fsm=fsm, **kw), vector.explore(model, fsm=fsm, **kw)
+    assert r.n_states == ts.n_states and r.n_transitions == ts.n_transitions and r.complete == ts.complete
+    assert r.states().tolist() == ts.states.tolist()
+    parents = [-1] + [int(ts.src[t]) for t in ts.parent[1:].tolist()]
+    assert r.parent.tolist() == parents
+    assert np.array_equal(np.diff(r.levels), np.bincount(ts.depth(), minlength=len(r.levels) - 1))
+    assert sorted(r.dead.tolist()) == sorted(ts.dead.tolist())
+    assert r.error_states.tolist() == sorted({e.state for e in ts.errors})
+    return r
+
+
+@settings(max_examples=25, **_SETTINGS)
+@given(seeded_models(tree=True, wild=True))
+def test_reach_numbers_random_models_like_explore(model):
+    same_as_labelled(model)
+    same_as_labelled(model, chunk=7)
+
+
+@settings(max_examples=25, **_SETTINGS)
+@given(seeded_models(wild=True))
+def test_reach_numbers_random_fsms_like_explore(model):
+    same_as_labelled(model, fsm="f")
+
+
+def test_reach_numbers_the_hand_written_features_like_explore():
+    m = feature_model()
+    same_as_labelled(m)
+    same_as_labelled(m, fsm="arm")
+    same_as_labelled(pickplace(3, dead=True), chunk=37)
+
+
 # ---------------------------------------------------------------------- scope
 
 
