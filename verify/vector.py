@@ -177,17 +177,18 @@ class Engine:
         """``e`` over ``cols``, memoised per chunk on the identity of the columns it
         reads: batches that differ only in other columns (e.g. one per environment
         option) share the work."""
-        key0 = (id(e), fsm_scope, expected)
-        reads = self._reads.get(key0)
-        if reads is None:
+        key0 = (id(e), fsm_scope, id(expected))
+        known = self._reads.get(key0)
+        if known is None:
             scope = self.fscope if fsm_scope else self.scope
-            reads = self._reads[key0] = (e, tuple(sorted({scope[x].index for x in names_in(e)})))
-        reads = reads[1]
-        key = (key0, tuple(id(cols[k]) for k in reads))
+            reads = tuple(sorted({scope[x].index for x in names_in(e)}))
+            known = self._reads[key0] = (self.fn(e, fsm_scope, expected), reads, e, expected)  # e, expected: ids kept
+        f, reads = known[0], known[1]
+        key = (key0, *[id(cols[k]) for k in reads])
         hit = self.memo.get(key)
         if hit is not None:
             return hit[0]
-        v = self.fn(e, fsm_scope, expected)(cols)
+        v = f(cols)
         if isinstance(v, np.ndarray) and v.ndim == 0:  # np.where over scalars
             v = v[()]
         self.memo[key] = (v, [cols[k] for k in reads])  # keeps the keyed columns alive
@@ -519,17 +520,23 @@ class Engine:
     def emit(self, batch, reply, post, out, flag=None):
         if flag is not None:
             batch = batch.with_cols({flag: _where(reply == RUNNING, self.S(1), self.S(0))})
-        code = None
+        code = term = None
         const = -self.offset
         S = self.S
         for k in self.order:
             v = batch.cols[k]
             if isinstance(v, np.ndarray):
                 m = self.mult[k]
-                term = v * S(m) if m != 1 else v
                 if code is None:
-                    code = term.astype(S) if term.dtype != S else term.copy()
+                    code = v * S(m) if m != 1 else v.astype(S)
+                    if code.dtype != S:
+                        code = code.astype(S)
+                elif m == 1:
+                    code += v
                 else:
+                    if term is None:
+                        term = np.empty(batch.n, S)
+                    np.multiply(v, S(m), out=term)
                     code += term
             else:
                 const += int(v) * self.mult[k]
@@ -849,18 +856,44 @@ def _flat_rows(rows):
 
 
 _LOW32 = np.uint64(0xFFFFFFFF)
+_HASH = np.uint32(0x9E3779B1)  # Fibonacci hashing: the slot is the top bits of code * _HASH
 
 
 def _first_unique(cand):
     """``np.unique(cand, return_index=True)``: the distinct codes, ascending, and the
-    index of each one's first occurrence. Codes below 2**32 (and fewer than 2**32
-    candidates) sort as one uint64 key ``code << 32 | index`` instead (an unstable sort
-    of plain integers, SIMD in numpy 2: about twice np.unique's stable argsort)."""
+    index of each one's first occurrence. For 32-bit codes (a level's new codes, about
+    five times as many as distinct ones): each distinct code's first index by one pass
+    of ``np.minimum.at`` over a hash table (a code whose slot is won by another code is
+    decided exactly among the losers), then only the distinct codes are sorted."""
+    m = len(cand)
+    if cand.dtype.itemsize != 4 or cand.dtype.kind not in "iu" or not 16 <= m < 1 << 31:
+        return _sort_unique(cand)
+    cu = cand.view(np.uint32)
+    bits = m.bit_length()
+    slot = cu * _HASH
+    slot >>= np.uint32(32 - bits)
+    table = np.full(1 << bits, m, np.int32)
+    idx = np.arange(m, dtype=np.int32)
+    np.minimum.at(table, slot, idx)
+    win = np.take(table, slot)
+    first = np.flatnonzero(win == idx)
+    lost = np.take(cu, win) != cu
+    if lost.any():
+        rest = np.flatnonzero(lost)
+        first = np.concatenate((first, np.take(rest, _sort_unique(np.take(cand, rest))[1])))
+    return _sort_unique(np.take(cand, first), first)
+
+
+def _sort_unique(cand, index=None):
+    """``np.unique(cand, return_index=True)`` (``index``: the indices to report instead of
+    0, 1, ...), by one unstable sort of the uint64 keys ``code << 32 | index`` for codes
+    and indices below 2**32 (SIMD in numpy 2: about twice np.unique's stable argsort)."""
     if len(cand) >= 1 << 32 or cand.dtype.itemsize > 4 or cand.dtype.kind not in "iu":
-        return np.unique(cand, return_index=True)
+        u, f = np.unique(cand, return_index=True)
+        return u, (f if index is None else index[f])
     key = cand.astype(np.uint64)
     key <<= np.uint64(32)
-    key |= np.arange(len(cand), dtype=np.uint64)
+    key |= np.arange(len(cand), dtype=np.uint64) if index is None else index.astype(np.uint64)
     key.sort()
     codes = (key >> np.uint64(32)).astype(cand.dtype)
     keep = np.empty(len(codes), bool)
