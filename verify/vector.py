@@ -91,18 +91,6 @@ def _where(m, a, b):
 
 
 _BIT8 = np.left_shift(np.uint8(1), np.arange(8, dtype=np.uint8))  # bit b of a byte
-_IOTA: dict = {}
-
-
-def _iota(n: int, dtype=np.int64) -> np.ndarray:
-    """``np.arange(n, dtype=dtype)`` as a read-only view of one array kept per type (no
-    new pages for the row numbers of every batch)."""
-    a = _IOTA.get(dtype)
-    if a is None or len(a) < n:
-        a = np.arange(max(n, 2 * len(a) if a is not None else 1 << 16), dtype=dtype)
-        a.flags.writeable = False
-        _IOTA[dtype] = a
-    return a[:n]
 
 
 # ---------------------------------------------------------------------- static ranges
@@ -338,7 +326,7 @@ class Engine:
             col = (c // self.mult[k]) % info.size if k != self.tok else c // self.mult[k]
             cols[k] = col + info.lo if info.lo else col
         narrow = [v if k in self.env_slots or not isinstance(v, np.ndarray) else None for k, v in enumerate(cols)]
-        answers = [be for bt in self.inputs(_Batch(_iota(len(c)), narrow, ()))
+        answers = [be for bt in self.inputs(_Batch(np.arange(len(c), dtype=np.int64), narrow, ()))
                    for be in self.environment(bt)]
         cuts = [np.searchsorted(be.pos, bounds) for be in answers]
         self.memo = {}
@@ -393,7 +381,7 @@ class Engine:
                 col[i:i + m] = v
                 i += m
             cols.append(col)
-        pos = _iota(n)
+        pos = np.arange(n, dtype=np.int64)
         errors, self.errors = self.errors, []
         mine: list = []
         self.request(_Batch(pos, cols, ()), mine)
@@ -888,7 +876,7 @@ def _first_unique(cand):
     slot = cu * _HASH
     slot >>= np.uint32(32 - bits)
     table = np.full(1 << bits, m, np.int32)
-    idx = _iota(m, np.int32)
+    idx = np.arange(m, dtype=np.int32)
     np.minimum.at(table, slot, idx)
     win = np.take(table, slot)
     first = np.flatnonzero(win == idx)
