@@ -16,7 +16,17 @@ States are mixed-radix int codes (the FSM token is the most significant digit, s
 level sorted by code is grouped by token and each group runs with the token as a
 scalar). The visited set is a packed bitmap when the code space has at most
 ``DENSE_LIMIT`` codes, else sorted runs merged as they grow. Levels are processed in
-chunks of ``chunk`` states; the parent of every state is kept for traces.
+chunks of ``chunk`` states; the parent of every state is kept for traces. A chunk's new
+codes are deduplicated by a hash table (each code's first occurrence, which makes its
+parent) before only the distinct ones are sorted.
+
+Without labels (``reach``) the Python work per chunk is cut down: the inputs and the
+environment run once on the whole chunk, on the columns they read or write only, and
+each token group makes one request over the rows of every answer stacked together,
+rather than one request per answer (``explore`` keeps one per answer for its labels).
+The transitions come out in the order separate requests give them, so ``reach`` picks
+the same parents as with one request per answer (tests/test_vector.py checks ``reach``
+against ``explore``: the same states in the same order, BFS parents).
 
 ``explore(model, fsm=None)`` returns a ``TransitionSystem`` (transitions, labels,
 statuses, contract violations, domain errors) like ``btfsm.verify.explore``; ``reach(...)``
