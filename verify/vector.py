@@ -59,6 +59,7 @@ __all__ = ["explore", "reach", "Reach", "Engine", "DENSE_LIMIT", "CHUNK"]
 DENSE_LIMIT = 1 << 31  # codes; the bitmap then takes 256 MB
 CHUNK = 1 << 16
 ROWS_LIMIT = 1 << 21  # rows (state, answers) of one chunk at most
+MERGED_ROWS = 1 << 18  # reach: rows of one stacked request at most (more answers: several requests)
 RUNNING, SUCCESS, FAILURE = 0, 1, 2
 _STATUS = ("RUNNING", "SUCCESS", "FAILURE")
 _T, _F = np.bool_(True), np.bool_(False)
@@ -355,7 +356,15 @@ class Engine:
             if group:
                 root = [v[a:b] if isinstance(v, np.ndarray) else v for v in cols]
                 root[self.tok] = S(s)
-                self.request_merged(group, root, a, b - a, out)
+                pack: list = []
+                rows = 0
+                for be in group:  # consecutive answers, MERGED_ROWS rows at most (one answer at least)
+                    if pack and rows + be.n > MERGED_ROWS:
+                        self.request_merged(pack, root, a, b - a, out)
+                        pack, rows = [], 0
+                    pack.append(be)
+                    rows += be.n
+                self.request_merged(pack, root, a, b - a, out)
             self.memo = {}  # per token group: its arrays are not shared with the next
 
     def request_merged(self, answers, root, start, count, out):
