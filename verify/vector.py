@@ -151,8 +151,9 @@ class Engine:
         self.env_slots = {slot for slot, _ in spec.inputs}
         for _, ev in self.env:
             for o in (ev.options if isinstance(ev, EnvChoice) else (ev,)):
-                exprs = [o.guard] + [value for _, value in o.effects]
-                self.env_slots.update(self.scope[name].index for name, _ in o.effects)
+                effects: Any = o.effects  # a tuple of (var, Expr) once built
+                exprs: list[Any] = [o.guard] + [value for _, value in effects]
+                self.env_slots.update(self.scope[name].index for name, _ in effects)
                 self.env_slots.update(self.scope[x].index for e in exprs if e is not None for x in names_in(e))
 
     # ------------------------------------------------------------ expressions
