@@ -10,6 +10,7 @@ from collections import Counter
 import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 
 from btfsm import FSM, Action, Bool, Edge, Int, Model, ReactiveFallback, SkillRequest, State, success
 from btfsm.errors import ModelError
@@ -129,6 +130,62 @@ def test_random_models_hypothesis_draws(model):
     if model.tree is not None:
         same(explore(model), vector.explore(model))
     same(explore_fsm(model, "f"), vector.explore(model, fsm="f"))
+
+
+def same_as_labelled(model, fsm=None, **kw):
+    """``reach`` (the unlabelled path: one request per token group over every input and
+    environment answer) finds what ``explore`` (one request per answer) finds, numbered
+    alike: the same codes in the same order, levels, dead states, domain-error states and
+    counts; every parent is a BFS parent (a transition into the state from the level
+    before). The parents themselves may differ: the labelled path splits the answers
+    further (a choice asked or not), so it can meet a state from another parent first."""
+    r, ts = vector.reach(model, fsm=fsm, **kw), vector.explore(model, fsm=fsm, **kw)
+    assert r.n_states == ts.n_states and r.n_transitions == ts.n_transitions and r.complete == ts.complete
+    assert r.states().tolist() == ts.states.tolist()
+    depth = ts.depth()
+    assert np.array_equal(np.diff(r.levels), np.bincount(depth, minlength=len(r.levels) - 1))
+    edges = set(zip(ts.src.tolist(), ts.dst.tolist()))
+    assert r.parent[0] == -1
+    assert all((p, i) in edges and depth[p] == depth[i] - 1 for i, p in enumerate(r.parent.tolist()) if i)
+    assert sorted(r.dead.tolist()) == sorted(ts.dead.tolist())
+    assert r.error_states.tolist() == sorted({e.state for e in ts.errors})
+    return r
+
+
+@settings(max_examples=20, **_SETTINGS)
+@given(seeded_models(tree=True, wild=True))
+def test_reach_numbers_random_models_like_explore(model):
+    same_as_labelled(model)
+    same_as_labelled(model, chunk=7)
+
+
+@settings(max_examples=20, **_SETTINGS)
+@given(seeded_models(wild=True))
+def test_reach_numbers_random_fsms_like_explore(model):
+    same_as_labelled(model, fsm="f")
+
+
+def test_reach_numbers_the_hand_written_features_like_explore(monkeypatch):
+    m = feature_model()
+    same_as_labelled(m)
+    same_as_labelled(m, fsm="arm", chunk=7)
+    r = same_as_labelled(pickplace(3, dead=True))
+    monkeypatch.setattr(vector, "MERGED_ROWS", 5)  # a token group's answers in several requests
+    s = same_as_labelled(pickplace(3, dead=True))
+    assert s.parent.tolist() == r.parent.tolist()  # the same order of transitions, so the same parents
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.integers(0, 2**32 - 1), st.integers(0, 3000), st.sampled_from([4, 300, 2**20, 2**31 - 1]),
+       st.sampled_from([np.int32, np.uint32]))
+def test_the_first_occurrences_of_a_level_are_np_unique(seed, n, span, dtype):
+    """A level's new codes are deduplicated by a hash table, then sorted (parents: each
+    code's first occurrence): exactly ``np.unique(..., return_index=True)``, collisions
+    and repeats included."""
+    codes = np.random.default_rng(seed).integers(0, span, n).astype(dtype)
+    want, got = np.unique(codes, return_index=True), vector._first_unique(codes)
+    assert got[0].dtype == codes.dtype
+    assert got[0].tolist() == want[0].tolist() and got[1].tolist() == want[1].tolist()
 
 
 # ---------------------------------------------------------------------- scope

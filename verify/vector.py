@@ -16,7 +16,17 @@ States are mixed-radix int codes (the FSM token is the most significant digit, s
 level sorted by code is grouped by token and each group runs with the token as a
 scalar). The visited set is a packed bitmap when the code space has at most
 ``DENSE_LIMIT`` codes, else sorted runs merged as they grow. Levels are processed in
-chunks of ``chunk`` states; the parent of every state is kept for traces.
+chunks of ``chunk`` states; the parent of every state is kept for traces. A chunk's new
+codes are deduplicated by a hash table (each code's first occurrence, which makes its
+parent) before only the distinct ones are sorted.
+
+Without labels (``reach``) the Python work per chunk is cut down: the inputs and the
+environment run once on the whole chunk, on the columns they read or write only, and
+each token group makes one request over the rows of every answer stacked together,
+rather than one request per answer (``explore`` keeps one per answer for its labels).
+The transitions come out in the order separate requests give them, so ``reach`` picks
+the same parents as with one request per answer (tests/test_vector.py checks ``reach``
+against ``explore``: the same states in the same order, BFS parents).
 
 ``explore(model, fsm=None)`` returns a ``TransitionSystem`` (transitions, labels,
 statuses, contract violations, domain errors) like ``btfsm.verify.explore``; ``reach(...)``
@@ -49,6 +59,7 @@ __all__ = ["explore", "reach", "Reach", "Engine", "DENSE_LIMIT", "CHUNK"]
 DENSE_LIMIT = 1 << 31  # codes; the bitmap then takes 256 MB
 CHUNK = 1 << 16
 ROWS_LIMIT = 1 << 21  # rows (state, answers) of one chunk at most
+MERGED_ROWS = 1 << 16  # reach: rows of one stacked request at most (more answers: several requests)
 RUNNING, SUCCESS, FAILURE = 0, 1, 2
 _STATUS = ("RUNNING", "SUCCESS", "FAILURE")
 _T, _F = np.bool_(True), np.bool_(False)
@@ -88,6 +99,9 @@ def _where(m, a, b):
     if not isinstance(a, np.ndarray) and not isinstance(b, np.ndarray) and a == b:
         return a
     return np.where(m, a, b)
+
+
+_BIT8 = np.left_shift(np.uint8(1), np.arange(8, dtype=np.uint8))  # bit b of a byte
 
 
 # ---------------------------------------------------------------------- static ranges
@@ -133,6 +147,14 @@ class Engine:
         fixed = spec.fixed()
         self.fixed_cols = {k: self.S(v) for k, v in fixed.items()}
         self.env = [(i, spec.model.environment[i]) for i in spec.env]
+        # the slots the inputs and the environment read or write
+        self.env_slots = {slot for slot, _ in spec.inputs}
+        for _, ev in self.env:
+            for o in (ev.options if isinstance(ev, EnvChoice) else (ev,)):
+                effects: Any = o.effects  # a tuple of (var, Expr) once built
+                exprs: list[Any] = [o.guard] + [value for _, value in effects]
+                self.env_slots.update(self.scope[name].index for name, _ in effects)
+                self.env_slots.update(self.scope[x].index for e in exprs if e is not None for x in names_in(e))
 
     # ------------------------------------------------------------ expressions
     def fn(self, e, fsm_scope=False, expected=None):
@@ -170,17 +192,18 @@ class Engine:
         """``e`` over ``cols``, memoised per chunk on the identity of the columns it
         reads: batches that differ only in other columns (e.g. one per environment
         option) share the work."""
-        key0 = (id(e), fsm_scope, expected)
-        reads = self._reads.get(key0)
-        if reads is None:
+        key0 = (id(e), fsm_scope, id(expected))
+        known = self._reads.get(key0)
+        if known is None:
             scope = self.fscope if fsm_scope else self.scope
-            reads = self._reads[key0] = (e, tuple(sorted({scope[x].index for x in names_in(e)})))
-        reads = reads[1]
-        key = (key0, tuple(id(cols[k]) for k in reads))
+            reads = tuple(sorted({scope[x].index for x in names_in(e)}))
+            known = self._reads[key0] = (self.fn(e, fsm_scope, expected), reads, e, expected)  # e, expected: ids kept
+        f, reads = known[0], known[1]
+        key = (key0, *[id(cols[k]) for k in reads])
         hit = self.memo.get(key)
         if hit is not None:
             return hit[0]
-        v = self.fn(e, fsm_scope, expected)(cols)
+        v = f(cols)
         if isinstance(v, np.ndarray) and v.ndim == 0:  # np.where over scalars
             v = v[()]
         self.memo[key] = (v, [cols[k] for k in reads])  # keeps the keyed columns alive
@@ -207,14 +230,14 @@ class Engine:
                 k2 = (id(c), id(idx))
                 g = self.memo.get(k2)
                 if g is None:
-                    g = self.memo[k2] = (c[idx], c, idx)
+                    g = self.memo[k2] = (np.take(c, idx), c, idx)
                 cols.append(g[0])
             else:
                 cols.append(c)
         pk = (id(batch.pos), id(idx), "pos")
         g = self.memo.get(pk)
         if g is None:
-            g = self.memo[pk] = (batch.pos[idx], batch.pos, idx)
+            g = self.memo[pk] = (np.take(batch.pos, idx), batch.pos, idx)
         return _Batch(g[0], cols, batch.label)
 
     def apply(self, batch: _Batch, effects, where: str) -> "_Batch | None":
@@ -276,6 +299,9 @@ class Engine:
         self.memo = {}
         tm = self.mult[self.tok]
         bounds = np.searchsorted(chunk_codes, np.arange(len(self.ids) + 1, dtype=np.int64) * tm)
+        if not self.labels:
+            self.step_merged(c, bounds, out)
+            return out
         for s in range(len(self.ids)):
             a, b = int(bounds[s]), int(bounds[s + 1])
             if a == b:
@@ -297,6 +323,103 @@ class Engine:
                     self.request(be, out)
             self.memo = {}  # per token group: its arrays are not shared with the next
         return out
+
+    def step_merged(self, c, bounds, out):
+        """``step`` without labels (for ``reach``): the inputs and the environment once on
+        the whole chunk, on the columns they read or write only (``env_slots``); then per
+        token group one request on its rows of every answer (``request_merged``). The
+        transitions come out in ``step``'s order."""
+        prog, S = self.prog, self.S
+        cols: list = [None] * len(prog.slots)
+        for k, v in self.fixed_cols.items():
+            cols[k] = v
+        for k in self.order:
+            info = prog.slots[k]
+            col = (c // self.mult[k]) % info.size if k != self.tok else c // self.mult[k]
+            cols[k] = col + info.lo if info.lo else col
+        narrow = [v if k in self.env_slots or not isinstance(v, np.ndarray) else None for k, v in enumerate(cols)]
+        answers = [be for bt in self.inputs(_Batch(np.arange(len(c), dtype=np.int64), narrow, ()))
+                   for be in self.environment(bt)]
+        cuts = [np.searchsorted(be.pos, bounds) for be in answers]
+        self.memo = {}
+        for s in range(len(self.ids)):
+            a, b = int(bounds[s]), int(bounds[s + 1])
+            if a == b:
+                continue
+            group = []
+            for be, cut in zip(answers, cuts):
+                i, j = int(cut[s]), int(cut[s + 1])
+                if i == j:
+                    continue
+                sub = [v[i:j] if isinstance(v, np.ndarray) else v for v in be.cols]
+                sub[self.tok] = S(s)
+                group.append(_Batch(be.pos[i:j], sub, ()))
+            if group:
+                root = [v[a:b] if isinstance(v, np.ndarray) else v for v in cols]
+                root[self.tok] = S(s)
+                pack: list = []
+                rows = 0
+                for be in group:  # consecutive answers, MERGED_ROWS rows at most (one answer at least)
+                    if pack and rows + be.n > MERGED_ROWS:
+                        self.request_merged(pack, root, a, b - a, out)
+                        pack, rows = [], 0
+                    pack.append(be)
+                    rows += be.n
+                self.request_merged(pack, root, a, b - a, out)
+            self.memo = {}  # per token group: its arrays are not shared with the next
+
+    def request_merged(self, answers, root, start, count, out):
+        """The request on every batch of ``answers`` (one per input and environment
+        answer, rows in chunk order, holding the columns of ``env_slots`` only; ``root``:
+        the columns of the chunk's ``count`` rows from ``start``) at once, without
+        labels: their rows stacked into one batch (its positions: the row numbers, unique
+        as ``_by_pos`` needs), so the request's Python work is done once, not once per
+        answer. The transitions come out in the order of separate requests: by answer,
+        then by the request's own batches, then by position; as one output entry."""
+        sizes = [be.n for be in answers]
+        at = answers[0].pos if len(answers) == 1 else np.concatenate([be.pos for be in answers])  # chunk positions
+        n = len(at)
+        whole = n == count and len(answers) == 1  # every row, in order: the root columns as they are
+        rows = None
+        cols: list = []
+        for k, c in enumerate(root):
+            if k not in self.env_slots:
+                if isinstance(c, np.ndarray) and not whole:
+                    if rows is None:
+                        rows = at - start
+                    c = np.take(c, rows)
+                cols.append(c)
+                continue
+            vals = [be.cols[k] for be in answers]
+            v0 = vals[0]
+            if len(vals) == 1 or (not any(isinstance(v, np.ndarray) for v in vals) and all(v == v0 for v in vals)):
+                cols.append(v0)
+                continue
+            col = np.empty(n, np.result_type(*vals))
+            i = 0
+            for m, v in zip(sizes, vals):
+                col[i:i + m] = v
+                i += m
+            cols.append(col)
+        pos = np.arange(n, dtype=np.int64)
+        errors, self.errors = self.errors, []
+        mine: list = []
+        self.request(_Batch(pos, cols, ()), mine)
+        errors += [np.take(at, p) for p in self.errors]
+        self.errors = errors
+        mine = [o for o in mine if len(o[0])]
+        if not mine:
+            return
+        if len(mine) == 1:
+            ps, codes = mine[0][0], mine[0][1]
+        else:
+            ps = np.concatenate([o[0] for o in mine])
+            codes = np.concatenate([o[1] for o in mine])
+            if len(answers) > 1:  # by answer (stable: by batch, then by position within it)
+                answer = np.repeat(np.arange(len(answers), dtype=np.int32), sizes)
+                order = np.argsort(np.take(answer, ps), kind="stable")
+                ps, codes = np.take(ps, order), np.take(codes, order)
+        out.append((at if ps is pos else np.take(at, ps), codes, (), None, None))
 
     def inputs(self, batch):
         spec, prog = self.spec, self.prog
@@ -420,17 +543,23 @@ class Engine:
     def emit(self, batch, reply, post, out, flag=None):
         if flag is not None:
             batch = batch.with_cols({flag: _where(reply == RUNNING, self.S(1), self.S(0))})
-        code = None
+        code = term = None
         const = -self.offset
         S = self.S
         for k in self.order:
             v = batch.cols[k]
             if isinstance(v, np.ndarray):
                 m = self.mult[k]
-                term = v * S(m) if m != 1 else v
                 if code is None:
-                    code = term.astype(S) if term.dtype != S else term.copy()
+                    code = v * S(m) if m != 1 else v.astype(S)
+                    if code.dtype != S:
+                        code = code.astype(S)
+                elif m == 1:
+                    code += v
                 else:
+                    if term is None:
+                        term = np.empty(batch.n, S)
+                    np.multiply(v, S(m), out=term)
                     code += term
             else:
                 const += int(v) * self.mult[k]
@@ -548,7 +677,7 @@ class Engine:
                 remaining = remaining & _not(fire)
             done = self.take(batch, _not(remaining))
             if done is not None:
-                out.append((done, reply[np.flatnonzero(_not(remaining))] if isinstance(reply, np.ndarray) else reply))
+                out.append((done, np.compress(_not(remaining), reply) if isinstance(reply, np.ndarray) else reply))
             rest = self.take(batch, remaining)
             if rest is None:
                 return out
@@ -602,11 +731,11 @@ class _Dense:
 
     def new(self, codes):
         """Mask of ``codes`` not yet visited."""
-        return (self.bits[codes >> 3] & (np.uint8(1) << (codes & 7).astype(np.uint8))) == 0
+        return (np.take(self.bits, codes >> 3) & np.take(_BIT8, codes & 7)) == 0
 
     def add(self, sorted_unique):
         byte = sorted_unique >> 3
-        bit = np.uint8(1) << (sorted_unique & 7).astype(np.uint8)
+        bit = np.take(_BIT8, sorted_unique & 7)
         starts = np.flatnonzero(np.concatenate(([True], byte[1:] != byte[:-1])))
         self.bits[byte[starts]] |= np.bitwise_or.reduceat(bit, starts)
 
@@ -749,6 +878,53 @@ def _flat_rows(rows):
             yield r
 
 
+_LOW32 = np.uint64(0xFFFFFFFF)
+_HASH = np.uint32(0x9E3779B1)  # Fibonacci hashing: the slot is the top bits of code * _HASH
+
+
+def _first_unique(cand):
+    """``np.unique(cand, return_index=True)``: the distinct codes, ascending, and the
+    index of each one's first occurrence. For 32-bit codes (a level's new codes, about
+    five times as many as distinct ones): each distinct code's first index by one pass
+    of ``np.minimum.at`` over a hash table (a code whose slot is won by another code is
+    decided exactly among the losers), then only the distinct codes are sorted."""
+    m = len(cand)
+    if cand.dtype.itemsize != 4 or cand.dtype.kind not in "iu" or not 16 <= m < 1 << 31:
+        return _sort_unique(cand)
+    cu = cand.view(np.uint32)
+    bits = m.bit_length()
+    slot = cu * _HASH
+    slot >>= np.uint32(32 - bits)
+    table = np.full(1 << bits, m, np.int32)
+    idx = np.arange(m, dtype=np.int32)
+    np.minimum.at(table, slot, idx)
+    win = np.take(table, slot)
+    first = np.flatnonzero(win == idx)
+    lost = np.take(cu, win) != cu
+    if lost.any():
+        rest = np.flatnonzero(lost)
+        first = np.concatenate((first, np.take(rest, _sort_unique(np.take(cand, rest))[1])))
+    return _sort_unique(np.take(cand, first), first)
+
+
+def _sort_unique(cand, index=None):
+    """``np.unique(cand, return_index=True)`` (``index``: the indices to report instead of
+    0, 1, ...), by one unstable sort of the uint64 keys ``code << 32 | index`` for codes
+    and indices below 2**32 (SIMD in numpy 2: about twice np.unique's stable argsort)."""
+    if len(cand) >= 1 << 32 or cand.dtype.itemsize > 4 or cand.dtype.kind not in "iu":
+        u, f = np.unique(cand, return_index=True)
+        return u, (f if index is None else index[f])
+    key = cand.astype(np.uint64)
+    key <<= np.uint64(32)
+    key |= np.arange(len(cand), dtype=np.uint64) if index is None else index.astype(np.uint64)
+    key.sort()
+    codes = (key >> np.uint64(32)).astype(cand.dtype)
+    keep = np.empty(len(codes), bool)
+    keep[:1] = True
+    np.not_equal(codes[1:], codes[:-1], out=keep[1:])
+    return np.compress(keep, codes), (np.compress(keep, key) & _LOW32).astype(np.intp)
+
+
 def _search(model, fsm, goals, max_states, progress, chunk, keep_edges, max_transitions=None, max_seconds=None):
     t0 = time.perf_counter()
     spec = step_spec(model, fsm, goals)
@@ -818,10 +994,10 @@ def _search(model, fsm, goals, max_states, progress, chunk, keep_edges, max_tran
             cpos = np.concatenate(cpos)
             dead_parts.append(np.flatnonzero(np.bincount(cpos, minlength=len(part)) == 0) + front_start + a)
             fresh = visited.new(cand)
-            cand, cpos = cand[fresh], cpos[fresh]
+            cand, cpos = np.compress(fresh, cand), np.compress(fresh, cpos)
             if not len(cand):
                 continue
-            uniq, first = np.unique(cand, return_index=True)
+            uniq, first = _first_unique(cand)
             if budget is not None and n + len(uniq) > budget:
                 keep = budget - n
                 sel = np.sort(np.argsort(first, kind="stable")[:keep])
@@ -830,7 +1006,7 @@ def _search(model, fsm, goals, max_states, progress, chunk, keep_edges, max_tran
                 expanded = front_start + a
             visited.add(uniq)
             new_codes.append(uniq.astype(cdt))
-            new_par.append((cpos[first] + front_start + a).astype(pdt))
+            new_par.append((np.take(cpos, first) + front_start + a).astype(pdt))
             n += len(uniq)
             if not complete:
                 break
@@ -839,7 +1015,7 @@ def _search(model, fsm, goals, max_states, progress, chunk, keep_edges, max_tran
             par = np.concatenate(new_par)
             order = np.argsort(level, kind="stable")  # sorted: grouped by token for the next level
             level, par = level[order], par[order]
-        elif new_codes:  # np.unique's output is sorted already
+        elif new_codes:  # _first_unique's output is sorted already
             level, par = new_codes[0], new_par[0]
         else:
             level, par = np.zeros(0, cdt), np.zeros(0, pdt)
