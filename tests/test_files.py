@@ -545,8 +545,11 @@ def test_fuzz_cli_validate_exit_codes(tmp_path, capsys, name, edits):
     out = capsys.readouterr()
     assert code in (0, 2), out.err
     assert "Traceback" not in out.err
-    if code == 2:
-        assert out.err.count("\n") == 1 and out.err.startswith("btfsm validate: error: ")
+    if code == 2:  # one line per problem found (and then their count when there are several)
+        lines = out.err.splitlines()
+        problems = lines if len(lines) == 1 else lines[:-1]
+        assert out.err.endswith("\n") and all(x.startswith("btfsm validate: error: ") for x in problems), out.err
+        assert len(lines) == 1 or lines[-1].startswith(f"btfsm validate: {len(problems)} errors"), out.err
 
 
 # ---------------------------------------------------------------- btfsm validate

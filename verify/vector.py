@@ -28,6 +28,11 @@ The transitions come out in the order separate requests give them, so ``reach`` 
 the same parents as with one request per answer (tests/test_vector.py checks ``reach``
 against ``explore``: the same states in the same order, BFS parents).
 
+Why one module of more than 1,000 lines: the batch columns, the rules that run on them
+(the same rules as ``btfsm.semantics``, vectorised), the generated guard and effect code
+and the level loop with its visited set share one private batch representation; split,
+each part would import the others' private names.
+
 ``explore(model, fsm=None)`` returns a ``TransitionSystem`` (transitions, labels,
 statuses, contract violations, domain errors) like ``btfsm.verify.explore``; ``reach(...)``
 keeps only states and parents (no transitions), for state spaces in the tens of millions.
