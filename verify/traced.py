@@ -824,8 +824,6 @@ def _number(n_entries, e0, t_src, t_dst, order_key):
     tgt_sorted = t_dst[order]
     id_of = np.full(n_entries, -1, np.int64)
     id_of[e0] = 0
-    big = np.iinfo(np.int64).max
-    first = np.full(n_entries, big, np.int64)
     level, n, states, picks = np.array([e0], np.int64), 1, [np.array([e0], np.int64)], []
     parents, done = [np.array([-1], np.int64)], 0  # parents: the transition that discovered each state
     while len(level):
@@ -839,11 +837,10 @@ def _number(n_entries, e0, t_src, t_dst, order_key):
         tgt = tgt_sorted[idx]
         at = np.flatnonzero(id_of[tgt] < 0)
         cand = tgt[at]
-        pos = np.arange(len(cand))
-        np.minimum.at(first, cand, pos)
-        win = pos[first[cand] == pos]  # each new entry once, in order of first discovery
+        key = np.arange(-len(cand) - 1, -1)  # the positions in ``cand``, shifted below -1 (unreached)
+        np.minimum.at(id_of, cand, key)  # ``id_of`` as the scratch: each candidate's first position
+        win = np.flatnonzero(id_of[cand] == key)  # each new entry once, in order of first discovery
         new = cand[win]
-        first[cand] = big
         id_of[new] = np.arange(n, n + len(new))
         parents.append(done + at[win])
         n += len(new)
@@ -871,15 +868,18 @@ def _search_closure(task, eng, c0, smax, tmax, t0):
     if n > smax or nt > tmax:
         return None  # a budget cuts the system: the ordinary search cuts it exactly
     lid = t_lid[pos]
-    src, dst = id_of[t_src[pos]], id_of[t_dst[pos]]
+    dst = id_of[t_dst[pos]]
+    # each state's transitions are its entry's, all of them in a row (``_number`` takes every
+    # transition of a state it reaches): the offsets from the entries' out-degrees, no source array
+    degree = np.bincount(t_src, minlength=len(codes))[entries]
     del t_src, t_dst, t_lid, pos, got  # the code graph: its memory back before the system's arrays
     # labels and edge codes (label, status) numbered in order of first use, as the ordinary search does
     labels, label_goal, label_ids, kinds = [], [], {}, {}
     leaf_edge = np.zeros(len(eng.leaves), np.int64)
-    by_leaf = np.argsort(lid.astype(np.int16) if len(eng.leaves) < 1 << 15 else lid, kind="stable")  # radix sort
-    cut = np.flatnonzero(np.diff(lid[by_leaf], prepend=-1))
-    u, first = lid[by_leaf[cut]], by_leaf[cut]  # each leaf used and its first transition
-    for li in u[np.argsort(first)].tolist():
+    first = np.full(len(eng.leaves), nt, np.int64)
+    np.minimum.at(first, lid, np.arange(nt, dtype=np.int64))  # each leaf's first transition (nt: unused)
+    u = np.flatnonzero(first < nt)  # the leaves used
+    for li in u[np.argsort(first[u])].tolist():
         name = eng.leaves[li].label
         lab = label_ids.get(name)
         if lab is None:
@@ -904,7 +904,7 @@ def _search_closure(task, eng, c0, smax, tmax, t0):
         progress(n, nt, seconds)
     # the compact layout of the ordinary search (src is ascending: each state's transitions in a row)
     offsets = np.zeros(n + 1, _small(nt))
-    np.cumsum(np.bincount(src, minlength=n), out=offsets[1:])
+    np.cumsum(degree, out=offsets[1:])
     edge_label = np.zeros(len(kinds), _small(len(labels)))
     edge_status = np.zeros(len(kinds), np.int8)
     for (lab, st), e in kinds.items():

@@ -50,10 +50,17 @@ NAME = "response"
 INF = np.iinfo(np.int64).max  # no response on some behaviour
 
 
+def _ints(a) -> np.ndarray:
+    """``a`` as an integer array, without a copy when it is one (a system's ``src`` and
+    ``dst`` are int32: no int64 copies of them)."""
+    a = np.asarray(a)
+    return a if a.dtype.kind in "iu" else a.astype(np.int64)
+
+
 def reverse_csr(n: int, src, dst) -> tuple:
     """``(offs, pred)``: the sources of the edges into node ``v`` are
-    ``pred[offs[v]:offs[v + 1]]``, in edge order."""
-    src, dst = np.asarray(src, np.int64), np.asarray(dst, np.int64)
+    ``pred[offs[v]:offs[v + 1]]``, in edge order (``pred`` in the type of ``src``)."""
+    src, dst = _ints(src), _ints(dst)
     order = np.argsort(dst, kind="stable")
     offs = np.zeros(n + 1, np.int64)
     np.cumsum(np.bincount(dst, minlength=n), out=offs[1:])
@@ -91,9 +98,9 @@ def worst_until(n: int, src, dst, stop, rev=None) -> np.ndarray:
     Kahn's algorithm backwards from the stop nodes, one numpy step per round: a node
     leaves ``pending`` in round k when the last of its successors left it in round k - 1,
     so its longest path is k (stop nodes: round 0). Edges out of stop nodes do not count."""
-    src, dst = np.asarray(src, np.int64), np.asarray(dst, np.int64)
+    src, dst = _ints(src), _ints(dst)
     stop = np.asarray(stop, bool)
-    pending = np.bincount(src[~stop[src]], minlength=n).astype(np.int64)
+    pending = np.bincount(src[~stop[src]], minlength=n).astype(np.int64, copy=False)
     offs, pred = reverse_csr(n, src, dst) if rev is None else rev
     worst = np.full(n, INF, np.int64)
     worst[stop] = 0
