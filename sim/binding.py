@@ -271,7 +271,7 @@ class KittingBinding(Binding):
         else:
             g, tray, queue = gv.decode(state[gs]), tv.decode(state[ts]), qv.decode(state[qs])
         if ((not g) is (self.r.holding is None if d.gripper_var_means_full else self.r.holding is not None)
-                and tray == len(self.world.members.get(self._tray_place, ())) and queue == len(self.delivered)):
+                and tray == self.tray_count() and queue == len(self.delivered)):
             return []
         out = self.abstraction_errors(rt.vars, *rt.fsm_state(d.fsm))
         if out:

@@ -61,9 +61,9 @@ def test_an_interrupt_swallowed_by_a_destructor_prints_no_traceback(monkeypatch,
 
     class Doomed:
         def __del__(self):
-            os.kill(os.getpid(), signal.SIGINT)  # the handler raises inside the destructor
-            for _ in range(10**6):
-                pass
+            os.kill(os.getpid(), signal.SIGINT)  # the handler raises inside the destructor:
+            for _ in range(10**6):  # Python runs a signal's handler between bytecodes, so the
+                continue            # destructor keeps running bytecodes until it has
 
     def command(argv):
         Doomed()  # collected at once
