@@ -31,7 +31,18 @@ import time
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 sys.path.insert(0, ROOT)
 
-DEFAULT_REFERENCE = os.path.join(os.path.dirname(ROOT), "shared", "bench", "pymunk_cell_bench.py")
+def _shared_reference() -> str:
+    """``shared/bench/pymunk_cell_bench.py`` beside the project root, or beside one of its
+    parents (a git worktree of the project lives deeper than its main clone)."""
+    d = ROOT
+    while True:
+        p = os.path.join(os.path.dirname(d), "shared", "bench", "pymunk_cell_bench.py")
+        if os.path.exists(p) or os.path.dirname(d) == d:
+            return p
+        d = os.path.dirname(d)
+
+
+DEFAULT_REFERENCE = _shared_reference()
 
 
 def run_trial_bench(sim_seconds: float) -> dict:

@@ -61,6 +61,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .traced import CHUNK, DENSE_LIMIT, STEP, BatchSuccessors
+from .visited import FIBONACCI
 
 __all__ = ["owner", "Partition", "DistributedCounts", "DistributedCheck", "explore_distributed",
            "check_distributed", "simulate", "cluster", "MESSAGE_MIN", "ROUND_STATES", "partition_key"]
@@ -80,7 +81,6 @@ WORKER_MALLOC = ((-3, 1 << 25), (-1, 1 << 26))
 # 1.6 % of a core instead of 3.2 % (measured), and the partition's thread is not interrupted.
 QUIET_WORKERS = {"distributed.worker.profile.enabled": False, "distributed.admin.system-monitor.interval": "2s"}
 CONNECT_SECONDS = 10  # to reach a running scheduler before giving up
-_GOLDEN = np.uint64(0x9E3779B97F4A7C15)
 
 
 def owner(codes: np.ndarray, parts: int, key: tuple = ()) -> np.ndarray:
@@ -93,7 +93,7 @@ def owner(codes: np.ndarray, parts: int, key: tuple = ()) -> np.ndarray:
             q = c // mult
             d = d * size + (q - q // size * size)
         c = d
-    h = ((c.astype(np.uint64) * _GOLDEN) >> np.uint64(40)).astype(np.int64)  # 24 bits
+    h = ((c.astype(np.uint64) * FIBONACCI) >> np.uint64(40)).astype(np.int64)  # 24 bits
     return h % parts
 
 

@@ -14,7 +14,7 @@ import numpy as np
 
 from .codec import code_dtype
 
-__all__ = ["Visited", "Ids", "Bitmap", "Hashed", "STEP"]
+__all__ = ["Visited", "Ids", "Bitmap", "Hashed", "STEP", "FIBONACCI"]
 
 STEP = 1 << 20  # codes numbered, hashed or ranked at a time (bounds the temporaries)
 
@@ -155,7 +155,8 @@ class Ids(Visited):
         return out
 
 
-_GOLDEN = np.uint64(0x9E3779B97F4A7C15)
+#: Fibonacci hashing's multiplier, 2**64 / golden ratio (``Hashed``, and ``distributed.owner``)
+FIBONACCI = np.uint64(0x9E3779B97F4A7C15)
 
 
 class Hashed(Visited):
@@ -184,7 +185,7 @@ class Hashed(Visited):
             self._insert(self.codes[a:b].astype(np.int64), np.arange(a, b, dtype=np.int64))
 
     def _home(self, codes):
-        h = codes.astype(np.uint64) * _GOLDEN
+        h = codes.astype(np.uint64) * FIBONACCI
         return (h >> np.uint64(64 - self.bits)).astype(np.int64)
 
     def seen(self, codes):
