@@ -34,12 +34,14 @@ sys.path.insert(0, ROOT)
 def _shared_reference() -> str:
     """``shared/bench/pymunk_cell_bench.py`` beside the project root, or beside one of its
     parents (a git worktree of the project lives deeper than its main clone)."""
+    first = os.path.join(os.path.dirname(ROOT), "shared", "bench", "pymunk_cell_bench.py")
     d = ROOT
-    while True:
+    while os.path.dirname(d) != d:
         p = os.path.join(os.path.dirname(d), "shared", "bench", "pymunk_cell_bench.py")
-        if os.path.exists(p) or os.path.dirname(d) == d:
+        if os.path.exists(p):
             return p
         d = os.path.dirname(d)
+    return first  # not found: the usual place, for the message
 
 
 DEFAULT_REFERENCE = _shared_reference()
