@@ -18,6 +18,7 @@ from ..status import Status
 from ..timing import Response, duration_of
 from ..world import Bool, Enum, Int, Var
 
+from .repair import hides, repair
 from .templates import check_fields, expand_templates
 from .text import MAX_DEPTH, err, join_path, kind_of, loads_data, where_of
 
@@ -84,6 +85,9 @@ class _Reader:
         self.file = file
         self.where: dict = {}  # element path used by the Model -> (path in the file, parent, key)
         self.errors: list = []  # the problems noted so far, in the order found
+        self.sites: dict = {}  # element path used by the Model -> every (path in the file, parent, key), in order
+        self.shifts: dict = {}  # repair's record of the duplicates and members it took out
+        self.renamed: dict = {}  # a node's name of its own (a duplicate's, by repair) -> the name in the file
 
     def each(self, build, *args):
         """``build(*args)``; when it raises a ModelError: the problem noted and None returned
@@ -114,6 +118,9 @@ class _Reader:
 
     def alias(self, model_path, path, parent, key):
         self.where.setdefault(model_path, (path, parent, key))
+        sites = self.sites.setdefault(model_path, [])
+        if not sites or sites[-1][0] != path:
+            sites.append((path, parent, key))
 
     def translate(self, exc: ModelError) -> ModelError:
         """A Model error with its element path rewritten to the path in the file (+ line)."""
@@ -684,20 +691,33 @@ class _Reader:
 
     def build(self, kw) -> Model:
         """``Model(**kw)``; when its checks find a problem, the element it names is taken out
-        (``_without``) and the Model built again, for the next problem, until it builds, a
-        problem cannot be taken out, or ``MAX_ERRORS``. A problem about an element taken
-        out (or made neutral) follows from it and is not reported."""
+        (``_without``), or the problem repaired (``repair``: a duplicate name, a variable's
+        declaration, a cycle of direct edges...), and the Model built again, for the next
+        problem, until it builds, a problem can be neither, or ``MAX_ERRORS``. A problem
+        about an element taken out (or made neutral), or about a name whose declaration
+        was taken out, follows from it and is not reported."""
         self.alias_declared_outcomes(kw)
         errors: list = []
         taken: list = []
-        while True:
+        hidden: set = set()
+        for _ in range(_MAX_BUILDS):
             try:
                 model = Model(**kw)
             except ModelError as exc:
                 el = exc.element or ""
                 if any(el == t or el.startswith((t + ".", t + "[")) for t in taken):
                     break  # it follows from what was taken out
-                errors.append(self.translate(exc))
+                follows = hides(exc, hidden)
+                fixed = None if follows else repair(self, kw, exc)
+                if fixed is not None:
+                    errors.append(fixed.error)
+                    kw, hidden = fixed.kw, hidden | fixed.hidden
+                    taken += [fixed.taken] if fixed.taken else []
+                    if len(errors) >= MAX_ERRORS:
+                        break
+                    continue
+                if not follows:
+                    errors.append(self.translate(exc))
                 fewer = _without(kw, el) if len(errors) < MAX_ERRORS else None
                 if fewer is None:
                     break
@@ -711,6 +731,8 @@ class _Reader:
         raise collected_at_most(_once_per_name(errors))
 
 
+#: the most times ``build`` builds a Model to find the problems of one file
+_MAX_BUILDS = 4 * MAX_ERRORS
 _UNKNOWN = re.compile(r"unknown (name|variable|state|goal|FSM|primitive) '([^']*)'|'([^']*)' is not a goal of (\S+)")
 
 
