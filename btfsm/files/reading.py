@@ -20,7 +20,7 @@ from ..world import Bool, Enum, Int, Var
 
 from .repair import hides, repair
 from .templates import check_fields, expand_templates
-from .text import MAX_DEPTH, err, join_path, kind_of, loads_data, where_of
+from .text import MAX_DEPTH, MAX_ERRORS, err, join_path, kind_of, loads_data, where_of
 
 
 _VAR_KINDS = ("bool", "enum", "int")
@@ -55,8 +55,6 @@ FSM_FIELDS = ("goals", "states", "initial", "edges", "markers", "params", "retar
 _FILE_FIELDS = {"source": "from", "target": "to"}  # Python field -> file field (edges)
 _FILE_FIELD = re.compile(r"^\.(source|target)\b")
 
-#: the most problems one reading reports (``ModelErrors``); it stops there
-MAX_ERRORS = 20
 
 
 class _Skipped(Exception):
@@ -710,6 +708,8 @@ class _Reader:
                 follows = hides(exc, hidden)
                 fixed = None if follows else repair(self, kw, exc)
                 if fixed is not None:
+                    if any(str(e) == str(fixed.error) for e in errors):
+                        break  # the repair did not take the problem away
                     errors.append(fixed.error)
                     kw, hidden = fixed.kw, hidden | fixed.hidden
                     taken += [fixed.taken] if fixed.taken else []

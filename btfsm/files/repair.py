@@ -63,6 +63,10 @@ def repair(reader, kw: dict, exc: ModelError) -> "Repair | None":
     fsms = kw.get("fsms") or ()
     for f in fsms:
         head = f"fsms.{f.name}"
+        twice = [st.id for st in f.states if el == f"{head}.states.{st.id}" or el.startswith(f"{head}.states.{st.id}.")]
+        if twice and twice.count(twice[0]) > 1:  # a problem of a duplicate state (found before the duplicate)
+            return _fsm_duplicate(reader, kw, ModelError(f"{head}.states", f"duplicate state '{twice[0]}'"), f, "states",
+                                  twice[0])
         if el == head and problem == f"name '{f.name}' is used twice":
             return _fsm_name_twice(reader, kw, exc, f)
         if dup and el in (f"{head}.states", f"{head}.goals", f"{head}.edges", f"{head}.markers", f"{head}.params"):
@@ -162,13 +166,14 @@ def _cycle(reader, kw, exc, f, goal: str, path: list) -> "Repair | None":
 
 
 # ------------------------------------------------------------------ declarations
-def _repaired_var(var: Var) -> "tuple[Var | None, frozenset]":
-    """A declaration like ``var`` that passes its checks, and the names it no longer has
-    (enum values); ``(None, ...)`` when there is none."""
+def _repaired_var(var: Var) -> "Var | None":
+    """A declaration like ``var`` that passes its checks, or None when there is none. An
+    enum value dropped here is never a valid value: a use of it is a problem of its own."""
     try:
         check_name(var.name, "", "variable name")
     except ModelError:
-        return None, frozenset()
+        return None
+    new: Optional[Var]
     if var.kind == "enum":
         keep: list = []
         for v in var.values:
@@ -177,28 +182,27 @@ def _repaired_var(var: Var) -> "tuple[Var | None, frozenset]":
                     keep.append(check_label(v, ""))
             except ModelError:
                 pass
-        dropped = frozenset(v for v in var.values if isinstance(v, str) and v not in keep)
-        new: Optional[Var] = Enum(var.name, keep, var.init if var.init in keep else None) if keep else None
+        new = Enum(var.name, keep, var.init if var.init in keep else None) if keep else None
     elif var.kind == "int":
         if not all(isinstance(b, int) and not isinstance(b, bool) for b in (var.lo, var.hi)):
-            return None, frozenset()
+            return None
         lo, hi = sorted((max(-INT_LIMIT, min(INT_LIMIT, var.lo)), max(-INT_LIMIT, min(INT_LIMIT, var.hi))))
         init = var.init if isinstance(var.init, int) and not isinstance(var.init, bool) and lo <= var.init <= hi else None
-        new, dropped = Int(var.name, lo, hi, init), frozenset()
+        new = Int(var.name, lo, hi, init)
     else:
-        new, dropped = Bool(var.name, var.init if isinstance(var.init, bool) else False), frozenset()
+        new = Bool(var.name, var.init if isinstance(var.init, bool) else False)
     try:
-        return (None if new is None else new.validated("")), dropped
+        return None if new is None else new.validated("")
     except ModelError:
-        return None, frozenset()
+        return None
 
 
 def _declaration(reader, kw, exc, var: Var, replace: Callable[["Var | None"], dict], fsm: str = "") -> Repair:
     """A variable's or parameter's declaration repaired, or taken out with its name hidden."""
-    new, dropped = _repaired_var(var)
-    hidden = dropped if new is not None else frozenset({var.name})
-    if new is None and fsm:
-        hidden |= {f"{fsm}.{var.name}", f"params of {fsm}"}
+    new = _repaired_var(var)
+    hidden: frozenset = frozenset()
+    if new is None:
+        hidden = frozenset({var.name} | ({f"{fsm}.{var.name}", f"params of {fsm}"} if fsm else set()))
     return Repair(replace(new), reader.translate(exc), hidden=hidden)
 
 

@@ -8,9 +8,9 @@ import json
 import re
 from typing import cast
 
-from ..errors import ModelError, collected
-from .text import (MAX_DEPTH, MAX_EXPANDED, MAX_NODES, MAX_TEMPLATE_DEPTH, MAX_TEXT, FileList, FileMap, check_size, err,
-                   join_path, kind_of, where_of)
+from ..errors import ModelError, ModelErrors, collected
+from .text import (MAX_DEPTH, MAX_ERRORS, MAX_EXPANDED, MAX_NODES, MAX_TEMPLATE_DEPTH, MAX_TEXT, FileList, FileMap,
+                   check_size, err, join_path, kind_of, where_of)
 
 
 _PLACEHOLDER = re.compile(r"\$\{([A-Za-z_][A-Za-z0-9_]*)\}")
@@ -23,14 +23,49 @@ def _is_use(x) -> bool:
     return isinstance(x, dict) and "use" in x
 
 
+class _FollowOn(Exception):
+    """A use of a template whose definition has a problem (already noted)."""
+
+
+_FAILED = object()  # what ``note`` returns for a definition or use with a problem
+
+
 class _Expander:
-    """Expands ``use`` entries (see docs/model-files.md, "Templates")."""
+    """Expands ``use`` entries (see docs/model-files.md, "Templates").
+
+    Problems are collected definition by definition and use by use (``note``): a
+    definition with a problem is left out, and its uses are not reported; a use with a
+    problem is left out. A limit reached (``budget``) stops at once."""
 
     def __init__(self, file):
         self.file, self.templates, self.produced, self.copied, self.chars = file, {}, 0, 0, 0
+        self.errors: list = []  # the problems noted, in the order found
+        self.bad: set = set()  # names of the templates whose definitions have a problem
+        self.over = False  # a limit was reached, or MAX_ERRORS problems noted: stop
 
     def fail(self, path, problem, obj=None, key=None):
         return err(path, problem + where_of(obj, key), self.file)
+
+    def budget(self, path, problem, obj=None):
+        """The problem of a limit reached: it ends the expansion."""
+        self.over = True
+        return self.fail(path, problem, obj)
+
+    def note(self, build, *args):
+        """``build(*args)``, or ``_FAILED`` when it raises a ModelError (noted) or meets a
+        use of a template with a problem; a limit reached is raised on."""
+        try:
+            return build(*args)
+        except _FollowOn:
+            return _FAILED
+        except ModelError as exc:
+            if self.over:
+                raise
+            self.errors.extend(exc.errors if isinstance(exc, ModelErrors) else [exc])
+            if len(self.errors) >= MAX_ERRORS:
+                self.over = True
+                raise ModelErrors(self.errors[:MAX_ERRORS], stopped=True) from None
+            return _FAILED
 
     # ---------------------------------------------------------------- definitions
     def define(self, templates):
@@ -39,27 +74,32 @@ class _Expander:
         if not isinstance(templates, dict):
             raise self.fail("templates", f"expected a mapping of template names to definitions, got {kind_of(templates)}", templates)
         for name, spec in templates.items():
-            path = join_path("templates", name)
-            if not isinstance(name, str) or not re.fullmatch(r"[A-Za-z_][A-Za-z0-9_]*", name):
-                raise self.fail("templates", f"template name {name!r} is not an identifier", templates, name)
-            check_fields(self, spec, path, ("params", "description") + LIST_SECTIONS + VALUE_SECTIONS, (), "a template")
-            params = spec.get("params", [])
-            if not isinstance(params, list) or not all(isinstance(p, str) and re.fullmatch(r"[A-Za-z_][A-Za-z0-9_]*", p) for p in params):
-                raise self.fail(f"{path}.params", "expected a list of parameter names (identifiers)", spec, "params")
-            if len(set(params)) != len(params):
-                raise self.fail(f"{path}.params", "a parameter is listed twice", spec, "params")
-            if "description" in spec and not isinstance(spec["description"], str):
-                raise self.fail(f"{path}.description", "expected a string", spec, "description")
-            sections = {k: v for k, v in spec.items() if k in LIST_SECTIONS + VALUE_SECTIONS}
-            if not sections:
-                raise self.fail(path, f"defines no section (one or more of: {', '.join(LIST_SECTIONS + VALUE_SECTIONS)})", spec)
-            for sec, body in sections.items():
-                if sec in LIST_SECTIONS and not isinstance(body, list):
-                    raise self.fail(f"{path}.{sec}", f"expected a list, got {kind_of(body)}", spec, sec)
-                if sec in VALUE_SECTIONS and not isinstance(body, dict):
-                    raise self.fail(f"{path}.{sec}", f"expected a mapping, got {kind_of(body)}", spec, sec)
-                self._check_placeholders(body, f"{path}.{sec}", set(params), spec, sec)
-            self.templates[name] = (tuple(params), sections)
+            if self.note(self.define_one, templates, name, spec) is _FAILED:
+                self.bad.add(name)
+
+    def define_one(self, templates, name, spec):
+        """Check and keep one template's definition."""
+        path = join_path("templates", name)
+        if not isinstance(name, str) or not re.fullmatch(r"[A-Za-z_][A-Za-z0-9_]*", name):
+            raise self.fail("templates", f"template name {name!r} is not an identifier", templates, name)
+        check_fields(self, spec, path, ("params", "description") + LIST_SECTIONS + VALUE_SECTIONS, (), "a template")
+        params = spec.get("params", [])
+        if not isinstance(params, list) or not all(isinstance(p, str) and re.fullmatch(r"[A-Za-z_][A-Za-z0-9_]*", p) for p in params):
+            raise self.fail(f"{path}.params", "expected a list of parameter names (identifiers)", spec, "params")
+        if len(set(params)) != len(params):
+            raise self.fail(f"{path}.params", "a parameter is listed twice", spec, "params")
+        if "description" in spec and not isinstance(spec["description"], str):
+            raise self.fail(f"{path}.description", "expected a string", spec, "description")
+        sections = {k: v for k, v in spec.items() if k in LIST_SECTIONS + VALUE_SECTIONS}
+        if not sections:
+            raise self.fail(path, f"defines no section (one or more of: {', '.join(LIST_SECTIONS + VALUE_SECTIONS)})", spec)
+        for sec, body in sections.items():
+            if sec in LIST_SECTIONS and not isinstance(body, list):
+                raise self.fail(f"{path}.{sec}", f"expected a list, got {kind_of(body)}", spec, sec)
+            if sec in VALUE_SECTIONS and not isinstance(body, dict):
+                raise self.fail(f"{path}.{sec}", f"expected a mapping, got {kind_of(body)}", spec, sec)
+            self._check_placeholders(body, f"{path}.{sec}", set(params), spec, sec)
+        self.templates[name] = (tuple(params), sections)
 
     def _check_placeholders(self, obj, path, params, parent, key):
         if isinstance(obj, str):
@@ -129,7 +169,8 @@ class _Expander:
         src_lines = getattr(items, "lines", None) or {}
         for i, item in enumerate(items):
             if _is_use(item):
-                for x, line in self.use(item, section, f"{path}[{i}]", in_list=True):
+                made = self.note(self.use, item, section, f"{path}[{i}]", True)
+                for x, line in () if made is _FAILED else made:
                     out.lines[len(out)] = line
                     out.append(x)
             else:
@@ -139,6 +180,10 @@ class _Expander:
         parent[key] = out
 
     def value(self, v, section, path, parent, key):
+        made = self.note(self.one_value, v, section, path)
+        return v if made is _FAILED else made
+
+    def one_value(self, v, section, path):
         depth = 0
         while _is_use(v):
             depth += 1
@@ -151,6 +196,8 @@ class _Expander:
         """Instantiate one ``use`` entry: a list of ``(item, line)`` (one item when not in a list)."""
         check_fields(self, entry, path, _USE_KEYS, ("use",), "a template use")
         name = entry["use"]
+        if name in self.bad:
+            raise _FollowOn()
         if not isinstance(name, str) or name not in self.templates:
             known = ", ".join(self.templates) or "none defined"
             raise self.fail(f"{path}.use", f"unknown template {name!r} (templates: {known})", entry, "use")
@@ -173,7 +220,7 @@ class _Expander:
             inst = self._subst(body, binding, origin, chain + (name,), path)
             self.produced += len(inst) if isinstance(inst, list) else 1
             if self.produced > MAX_EXPANDED:
-                raise self.fail(path, f"templates produce more than {MAX_EXPANDED} items", entry)
+                raise self.budget(path, f"templates produce more than {MAX_EXPANDED} items", entry)
             if isinstance(inst, list):  # nested uses in the fragment itself
                 holder = {"x": inst}
                 self.list(holder, "x", section, path)
@@ -218,7 +265,7 @@ class _Expander:
         """Count one value produced by a template; refuse past ``MAX_NODES`` (structure bombs)."""
         self.copied += 1
         if self.copied > MAX_NODES:
-            raise self.fail(path, f"templates produce more than {MAX_NODES} values")
+            raise self.budget(path, f"templates produce more than {MAX_NODES} values")
 
     def _subst(self, obj, binding, origin, chain, path):
         self._count(path)
@@ -256,7 +303,7 @@ class _Expander:
             size += (len(val) if isinstance(val, str) else len(str(val)) + 1) - len(m.group(0))
         self.chars += size
         if size > MAX_TEXT or self.chars > MAX_TEXT:
-            raise self.fail(path, f"templates produce more than {MAX_TEXT} characters of text")
+            raise self.budget(path, f"templates produce more than {MAX_TEXT} characters of text")
 
         def rep(m):
             val = binding[m.group(1)]
@@ -345,6 +392,8 @@ def expand_templates(data, file: "str | None" = None):
     ex = _Expander(file)
     ex.define(data.pop("templates", None))
     ex.model(data)
+    if ex.errors:
+        raise cast(ModelError, collected(ex.errors))
     left = _find_placeholder(data, "")
     if left is not None:
         raise err(left[0], f"unresolved placeholder in {left[1]!r} (placeholders are replaced only inside templates)", file)

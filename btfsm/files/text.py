@@ -23,6 +23,7 @@ MAX_TEMPLATE_DEPTH = 16
 MAX_INT = 2 ** 63  # integers in a model file lie within -MAX_INT..MAX_INT
 MAX_EXPANDED = 100_000  # items produced by templates
 MAX_TEXT = MAX_FILE_BYTES  # characters of text produced by template placeholders
+MAX_ERRORS = 20  # problems of one model file reported together (``ModelErrors``); the search stops there
 
 
 _CONTROL = {c: f"\\x{c:02x}" for c in list(range(32)) + [127, 0x85]}
