@@ -175,6 +175,29 @@ SHAPE_TYPOS = [("cup_seen: bool ", "cup_seen: bol "),
                ("{id: reach, outcomes: [running, success]}", "{id: reach, outcomes: [runing, success]}")]
 
 
+#: first_model.yaml with comment lines where the typos below put a declaration (so that
+#: no typo moves the lines of the others)
+SPARE = (FIRST.replace("variables:\n", "variables:\n  # spare var1\n  # spare var2\n  # spare var3\n", 1)
+         .replace("      - {id: put_away", "      # spare state\n      - {id: put_away", 1)
+         .replace("fsms:\n", "# spare prims\nfsms:\n", 1).replace("environment:\n", "# spare resources\nenvironment:\n", 1)
+         + "  # spare event\n")
+#: typos of SPARE, each one problem that the model's checks found alone before (a duplicate
+#: name, a variable's declaration, a cycle of direct edges...), some with uses of what they
+#: declare; independent of each other and of NAME_TYPOS
+CHECK_TYPOS = [[("      # spare state", "      - reach")],
+               [("goals: [fetch, stow]", "goals: [fetch, stow, fetch]")],
+               [("{Condition: sees_cup, expr: cup_seen}", "{Condition: has_cup, expr: cup_seen}")],
+               [("  # spare var1", "  arm: bool"), ("cup_seen: false}}", "cup_seen: false, arm: true}}")],
+               [("  # spare var2", "  level: {int: [5, 1], init: 9}"),
+                ("goals: stow, when: direct}      #", "goals: stow, when: direct, guard: level > 2}      #")],
+               [("  # spare var3", "  mode: {enum: [a, b, a], init: c}")],
+               [("  # spare event", "  - {event: cup_appears}")],
+               [("{from: home, to: put_away, goals: stow}", "{from: home, to: reach, goals: stow, when: direct}")],
+               [("{id: reach, outcomes: [running, success]}", "{id: reach, outcomes: [running, success, running]}")],
+               [("# spare prims", "primitives: {grasp: [success]}")],
+               [("# spare resources", "resources: {arm_use: [stow, nosuch]}")]]
+
+
 def _messages(text) -> list:
     from btfsm.files import loads_model
 
@@ -187,23 +210,180 @@ def _messages(text) -> list:
     return []
 
 
-@pytest.mark.parametrize("typos", [NAME_TYPOS, SHAPE_TYPOS], ids=["names", "shape"])
-def test_any_set_of_typos_gives_exactly_their_errors(typos):
+def _typo(text: str, typo) -> str:
+    """``text`` with one typo made: an ``(old, new)`` pair or a list of them."""
+    for old, new in [typo] if isinstance(typo[0], str) else typo:
+        assert old in text, old
+        text = text.replace(old, new, 1)
+    return text
+
+
+@pytest.mark.parametrize("base, typos", [(FIRST, NAME_TYPOS), (FIRST, SHAPE_TYPOS), (SPARE, NAME_TYPOS + CHECK_TYPOS)],
+                         ids=["names", "shape", "checks"])
+def test_any_set_of_typos_gives_exactly_their_errors(base, typos):
     """For any subset of independent typos, the loader reports exactly the errors each
     typo gives alone: nothing missing, nothing that follows from another (a
     hypothesis-drawn subset per example; 6 of them, 200 with BTFSM_LONG=1)."""
+    assert _messages(base) == []
     alone = []
-    for old, new in typos:
-        one = _messages(FIRST.replace(old, new, 1))
+    for typo in typos:
+        one = _messages(_typo(base, typo))
         assert len(one) == 1, one
         alone.append(one[0])
 
     @settings(max_examples=200 if os.environ.get("BTFSM_LONG") else 6, deadline=None, derandomize=True, database=None)
-    @given(st.sets(st.integers(0, len(typos) - 1), min_size=1))
+    @given(st.sets(st.integers(0, len(typos) - 1), min_size=1, max_size=19))  # under the 20 errors reported
     def run(chosen):
-        text = FIRST
+        text = base
         for i in sorted(chosen):
-            text = text.replace(*typos[i], 1)
+            text = _typo(text, typos[i])
         assert sorted(_messages(text)) == sorted(alone[i] for i in chosen)
 
     run()
+
+
+# ------------------------------------------- duplicates, declarations, cycles, templates
+def _edited(tmp_path, edits, name="m.yaml"):
+    text = FIRST
+    for old, new in edits:
+        assert old in text, old
+        text = text.replace(old, new, 1)
+    path = tmp_path / name
+    path.write_text(text)
+    return path
+
+
+def _all_problems(capsys, path):
+    """The error lines of ``btfsm validate PATH``: exit 2, no traceback, the count line when
+    there are several."""
+    assert cli.main(["validate", str(path)]) == 2
+    err = capsys.readouterr().err.splitlines()
+    assert "Traceback" not in "".join(err), err
+    if len(err) > 1:
+        assert err[-1] == f"btfsm validate: {len(err) - 1} errors", err
+        err = err[:-1]
+    prefix = f"btfsm validate: error: {path}: "
+    assert all(x.startswith(prefix) for x in err), err
+    return [x[len(prefix):] for x in err]
+
+
+#: (edits of first_model.yaml, the errors of btfsm validate): each problem once, at the
+#: element it is in (a duplicate: the later one), nothing that follows from it
+MODEL_CHECK_CASES = {
+    "duplicate state": ([("      - {id: put_away", "      - reach\n      - {id: put_away")],
+                        ["fsms.arm.states[3]: duplicate state 'reach' (line 13)"]),
+    "three of one state": ([("      - {id: put_away", "      - reach\n      - {id: reach, outcomes: [{success: {hold: true}}]}\n"
+                                                    "      - {id: put_away")],
+                           ["fsms.arm.states[3]: duplicate state 'reach' (line 13)",
+                            "fsms.arm.states[4]: duplicate state 'reach' (line 14)"]),
+    "duplicate goal": ([("goals: [fetch, stow]", "goals: [fetch, stow, fetch]")],
+                       ["fsms.arm.goals: duplicate goal 'fetch' (line 8)"]),
+    "duplicate edge id": ([("{from: home, to: reach, goals: fetch}", "{from: home, to: reach, goals: fetch, id: e}"),
+                           ("{from: grasp, to: home, goals: fetch}", "{from: grasp, to: home, goals: fetch, id: e}")],
+                          ["fsms.arm.edges[2]: duplicate edge id 'e' (line 17)"]),
+    "duplicate marker id": ([("{state: grasp, goals: fetch}", "{state: grasp, goals: fetch, id: m}"),
+                             ("{state: put_away, goals: stow}", "{state: put_away, goals: stow, id: m}")],
+                            ["fsms.arm.markers[1]: duplicate marker id 'm' (line 24)"]),
+    "duplicate outcome": ([("{id: reach, outcomes: [running, success]}", "{id: reach, outcomes: [running, success, running]}")],
+                          ["fsms.arm.states[1].outcomes: duplicate name 'running' (line 11)"]),
+    "duplicate node, a typo in it": ([("{Condition: sees_cup, expr: cup_seen}", "{Condition: has_cup, expr: cup_sen}")],
+                                     ["tree.children[1].children[0]: duplicate node name 'has_cup' (node names are trace ids) "
+                                      "(line 34)",
+                                      "tree.children[1].children[0].expr: unknown name 'cup_sen' in 'cup_sen' (line 34)"]),
+    "a node of the tree and of a state": ([("      - home  ", "      - {id: home, subtree: {Condition: sees_cup, expr: cup_seen}}  ")],
+                                          ["fsms.arm.states[0].subtree: duplicate node name 'sees_cup' (node names are trace "
+                                           "ids) (line 10)"]),
+    "duplicate event": ([("effects: {cup_seen: true}}", "effects: {cup_seen: true}}\n  - {event: cup_appears}")],
+                        ["environment[1]: duplicate name 'cup_appears' (line 38)"]),
+    "duplicate option": ([("environment:", "environment:\n  - {choice: c, options: [{event: x}, {event: x}]}")],
+                         ["environment[0].options[1]: duplicate name 'x' (line 37)"]),
+    "an FSM and a variable": ([("  holding: bool ", "  arm: bool\n  holding: bool "), ("guard: not cup_seen", "guard: not arm"),
+                               ("{success: {holding: true}}", "{success: {holding: true, arm: true}}")],
+                              ["fsms.arm: name 'arm' is used twice (line 8)"]),
+    "a primitive declared twice": ([("fsms:", "primitives: {grasp: [success]}\nfsms:"),
+                                    ("{success: {holding: true}}", "{success: {holdig: true}}")],
+                                   ["fsms.arm.states[2]: primitive 'grasp' is declared twice with different outcomes (line 13)",
+                                    "fsms.arm.states[2].outcomes[0].success.holdig: unknown variable 'holdig' (line 13)"]),
+    "int bounds": ([("  holding: bool ", "  level: {int: [5, 1], init: 9}\n  holding: bool "),
+                    ("guard: not cup_seen", "guard: level > 3"),
+                    ("{success: {holding: true}}", "{success: {holding: true, level: level + 1}}")],
+                   ["variables.level: int level needs integer bounds lo <= hi, got 5..1 (line 5)"]),
+    "enum initial value": ([("  holding: bool ", "  mode: {enum: [a, b], init: c}\n  holding: bool "),
+                            ("guard: not cup_seen", "guard: mode == 'b'")],
+                           ["variables.mode: initial value: 'c' is not in the domain of mode (one of a, b) (line 5)"]),
+    "enum repeats a value": ([("  holding: bool ", "  mode: {enum: [a, b, a]}\n  holding: bool "),
+                              ("guard: not cup_seen", "guard: mode == 'b' and mode != ''")],
+                             ["variables.mode: enum mode repeats a value (line 5)",
+                              "environment[0].guard: '' is not one of a, b in \"mode == 'b' and mode != ''\" (line 38)"]),
+    "a reserved variable name": ([("  holding: bool ", "  max: bool\n  holding: bool "),
+                                  ("{success: {holding: true}}", "{success: {holding: true, max: true}}")],
+                                 ["variables.max: variable name 'max' is reserved (line 5)"]),
+    "a parameter's bounds": ([("    goals: [fetch, stow]", "    goals: [fetch, stow]\n    params: {t: {int: [3, 0], init: 7}}"),
+                              ("goal: fetch, post", "goal: fetch, params: {t: 2}, post"),
+                              ("goal: stow, post", "goal: stow, params: {t: 1}, post")],
+                             ["fsms.arm.params.t: int t needs integer bounds lo <= hi, got 3..0 (line 9)"]),
+    "a direct-edge cycle, a typo in its edge": (
+        [("{from: put_away, to: home, goals: [stow, fetch]}", "{from: home, to: reach, goals: stow, when: direct, guard: typo}")],
+        ["fsms.arm.edges[6]: direct edges form a cycle for goal 'stow': reach -> home -> reach (a direct chain must end) "
+         "(line 21)",
+         "fsms.arm.edges[6].guard: unknown name 'typo' in 'typo' (line 21)"]),
+    "resource members": ([("environment:", "resources: {arm1: [stow, nosuch, has_cup, stow, fetch], arm2: [zz]}\nenvironment:")],
+                         ["resources.arm1[1]: unknown node 'nosuch' (line 36)",
+                          "resources.arm1[2]: 'has_cup' is a Condition; a resource lists Action and SkillRequest nodes (line 36)",
+                          "resources.arm1[3]: 'stow' is listed twice (line 36)",
+                          "resources.arm2[0]: unknown node 'zz' (line 36)"]),
+}
+
+
+@pytest.mark.parametrize("case", list(MODEL_CHECK_CASES))
+def test_model_check_problems_are_reported_together(tmp_path, capsys, case):
+    """A duplicate name, a variable's or parameter's declaration, a cycle of direct edges, a
+    resource's member: reported with the others, once, and nothing that follows from them
+    (the later duplicate goes, a declaration is repaired, the closing edge is not direct)."""
+    edits, expected = MODEL_CHECK_CASES[case]
+    assert _all_problems(capsys, _edited(tmp_path, edits)) == expected
+
+
+TEMPLATED = """name: t
+templates:
+  chain:
+    params: [X]
+    edges:
+      - {from: a, to: "${X}"}
+  bad:
+    params: [Y]
+    edges: [{from: a, to: "${Z}"}]
+  dup: {params: [K], states: [{id: s, "${K}": 1, primitive: p}]}
+fsms:
+  f:
+    goals: [g]
+    states: [a, b, {use: dup, with: {K: id}}]
+    edges:
+      - {use: chian, with: {X: b}}
+      - {use: bad, with: {Y: b}}
+      - {use: chain, with: {X: b, Q: 1}}
+      - {use: chain}
+      - {use: chain, with: {X: b}}
+tree: {use: nosuch}
+"""
+
+
+def test_template_problems_are_reported_together(tmp_path, capsys):
+    """Each template definition and each use is checked on its own: a definition with a
+    problem is reported and its uses are not; a use with a problem is reported."""
+    path = tmp_path / "t.yaml"
+    path.write_text(TEMPLATED)
+    assert _all_problems(capsys, path) == [
+        "templates.bad.edges[0].to: placeholder '${Z}' is not a parameter of this template (line 9)",
+        "fsms.f.states[2]: duplicate key 'id' after substitution (line 10)",
+        "fsms.f.edges[0].use: unknown template 'chian' (templates: chain, dup) (line 16)",
+        "fsms.f.edges[2].with: unknown parameter(s) Q: template 'chain' takes X (line 18)",
+        "fsms.f.edges[3].with: missing parameter(s) X: template 'chain' takes X (line 19)",
+        "tree.use: unknown template 'nosuch' (templates: chain, dup) (line 21)"]
+
+
+def test_yaml_syntax_stops_at_its_first_problem(tmp_path, capsys):
+    """PyYAML (and json) stop at the first syntax error: what follows it is not read (the
+    second unclosed bracket, line 23, is not reported)."""
+    path = _edited(tmp_path, [("goals: [fetch, stow]", "goals: [fetch, stow"), ("{state: grasp, goals: fetch}", "{state: grasp")])
+    assert _all_problems(capsys, path) == ["YAML syntax error at line 9, column 11: expected ',' or ']', but got ':'"]

@@ -67,6 +67,9 @@ def repair(reader, kw: dict, exc: ModelError) -> "Repair | None":
         if twice and twice.count(twice[0]) > 1:  # a problem of a duplicate state (found before the duplicate)
             return _fsm_duplicate(reader, kw, ModelError(f"{head}.states", f"duplicate state '{twice[0]}'"), f, "states",
                                   twice[0])
+        again = [g for i, g in enumerate(f.goals) if g in f.goals[:i]]
+        if again and f" is not a goal of {f.name} (" in problem:  # a message that lists the goals (found before)
+            return _fsm_duplicate(reader, kw, ModelError(f"{head}.goals", f"duplicate goal '{again[0]}'"), f, "goals", again[0])
         if el == head and problem == f"name '{f.name}' is used twice":
             return _fsm_name_twice(reader, kw, exc, f)
         if dup and el in (f"{head}.states", f"{head}.goals", f"{head}.edges", f"{head}.markers", f"{head}.params"):
