@@ -243,16 +243,6 @@ def test_any_set_of_typos_gives_exactly_their_errors(base, typos):
 
 
 # ------------------------------------------- duplicates, declarations, cycles, templates
-def _edited(tmp_path, edits, name="m.yaml"):
-    text = FIRST
-    for old, new in edits:
-        assert old in text, old
-        text = text.replace(old, new, 1)
-    path = tmp_path / name
-    path.write_text(text)
-    return path
-
-
 def _all_problems(capsys, path):
     """The error lines of ``btfsm validate PATH``: exit 2, no traceback, the count line when
     there are several."""
@@ -341,7 +331,7 @@ def test_model_check_problems_are_reported_together(tmp_path, capsys, case):
     resource's member: reported with the others, once, and nothing that follows from them
     (the later duplicate goes, a declaration is repaired, the closing edge is not direct)."""
     edits, expected = MODEL_CHECK_CASES[case]
-    assert _all_problems(capsys, _edited(tmp_path, edits)) == expected
+    assert _all_problems(capsys, _typos(tmp_path, edits)) == expected
 
 
 TEMPLATED = """name: t
@@ -385,5 +375,5 @@ def test_template_problems_are_reported_together(tmp_path, capsys):
 def test_yaml_syntax_stops_at_its_first_problem(tmp_path, capsys):
     """PyYAML (and json) stop at the first syntax error: what follows it is not read (the
     second unclosed bracket, line 23, is not reported)."""
-    path = _edited(tmp_path, [("goals: [fetch, stow]", "goals: [fetch, stow"), ("{state: grasp, goals: fetch}", "{state: grasp")])
+    path = _typos(tmp_path, [("goals: [fetch, stow]", "goals: [fetch, stow"), ("{state: grasp, goals: fetch}", "{state: grasp")])
     assert _all_problems(capsys, path) == ["YAML syntax error at line 9, column 11: expected ',' or ']', but got ':'"]

@@ -29,6 +29,7 @@ problem at once"):
 from __future__ import annotations
 
 import dataclasses
+import functools
 import re
 from typing import Any, Callable, NamedTuple, Optional
 
@@ -234,7 +235,7 @@ def _rebuild(node: Node, change: Callable[[Node], Node]) -> Node:
         kids = tuple(_rebuild(c, change) for c in new.children)
         if any(a is not b for a, b in zip(kids, new.children)):
             new = dataclasses.replace(new, children=kids)
-    elif isinstance(new, Decorator):
+    elif isinstance(new, Decorator) and new.child is not None:
         kid = _rebuild(new.child, change)
         if kid is not new.child:
             new = dataclasses.replace(new, child=kid)
@@ -245,12 +246,12 @@ def _change_roots(kw, change: Callable[[str, Node], Node]) -> dict:
     """``kw`` with ``change(root path, node)`` applied to every node of every root, in order."""
     out = dict(kw)
     if kw.get("tree") is not None:
-        out["tree"] = _rebuild(kw["tree"], lambda n: change("tree", n))
+        out["tree"] = _rebuild(kw["tree"], functools.partial(change, "tree"))
     if kw.get("fsms"):
         fsms = []
         for f in kw["fsms"]:
             states = tuple(st if st.subtree is None else dataclasses.replace(
-                st, subtree=_rebuild(st.subtree, lambda n, r=f"fsms.{f.name}.states.{st.id}.subtree": change(r, n)))
+                st, subtree=_rebuild(st.subtree, functools.partial(change, f"fsms.{f.name}.states.{st.id}.subtree")))
                 for st in f.states)
             fsms.append(f if all(a is b for a, b in zip(states, f.states)) else dataclasses.replace(f, states=states))
         out["fsms"] = tuple(fsms)
@@ -302,29 +303,33 @@ def _node_twice(reader, kw, exc, name: str) -> "Repair | None":
     return Repair(new, error)
 
 
+def _change_inline(kw, head: str, change: Callable[[Any], Any]) -> "dict | None":
+    """``kw`` with ``change`` applied to the state or Action ``head`` (a Model element path)
+    that declares its primitive inline; None when there is none."""
+    for f in kw.get("fsms") or ():
+        for st in f.states:
+            if head == f"fsms.{f.name}.states.{st.id}" and st.outcomes is not None:
+                return _replace_fsm(kw, f, dataclasses.replace(f, states=tuple(change(x) if x is st else x for x in f.states)))
+    done = [False]
+
+    def at(root: str, n: Node) -> Node:
+        if done[0] or head != f"{root}.{n.name}" or not isinstance(n, Action) or n.outcomes is None:
+            return n
+        done[0] = True
+        return change(n)
+
+    new = _change_roots(kw, at)
+    return new if done[0] else None
+
+
 def _primitive_twice(reader, kw, exc, prim: str) -> "Repair | None":
     """An inline declaration of a primitive declared before gets a primitive name of its own."""
-    el = exc.element or ""
     names = {p.name for p in kw.get("primitives") or ()}
     names |= {n.primitive for _, r in _roots(kw) for n in walk(r) if isinstance(n, Action)}
     names |= {st.primitive or st.id for f in kw.get("fsms") or () for st in f.states}
     fresh = _fresh(prim, names)
-    for f in kw.get("fsms") or ():
-        for st in f.states:
-            if el == f"fsms.{f.name}.states.{st.id}" and st.outcomes is not None:
-                new = dataclasses.replace(f, states=tuple(dataclasses.replace(x, primitive=fresh) if x is st else x
-                                                          for x in f.states))
-                return Repair(_replace_fsm(kw, f, new), reader.translate(exc))
-    done = [False]
-
-    def change(root: str, n: Node) -> Node:
-        if done[0] or el != f"{root}.{n.name}" or not isinstance(n, Action) or n.outcomes is None:
-            return n
-        done[0] = True
-        return dataclasses.replace(n, primitive=fresh)
-
-    new_kw = _change_roots(kw, change)
-    return Repair(new_kw, reader.translate(exc)) if done[0] else None
+    new = _change_inline(kw, exc.element or "", lambda x: dataclasses.replace(x, primitive=fresh))
+    return None if new is None else Repair(new, reader.translate(exc))
 
 
 def _outcome_twice(reader, kw, exc, head: str, name: str) -> "Repair | None":
@@ -336,22 +341,8 @@ def _outcome_twice(reader, kw, exc, head: str, name: str) -> "Repair | None":
         if head == f"primitives.{p.name}":
             new_p = dataclasses.replace(p, outcomes=fewer(p.outcomes))
             return Repair(dict(kw, primitives=tuple(new_p if q is p else q for q in kw["primitives"])), reader.translate(exc))
-    for f in kw.get("fsms") or ():
-        for st in f.states:
-            if head == f"fsms.{f.name}.states.{st.id}" and st.outcomes is not None:
-                new = dataclasses.replace(f, states=tuple(dataclasses.replace(x, outcomes=fewer(x.outcomes)) if x is st else x
-                                                          for x in f.states))
-                return Repair(_replace_fsm(kw, f, new), reader.translate(exc))
-    done = [False]
-
-    def change(root: str, n: Node) -> Node:
-        if done[0] or head != f"{root}.{n.name}" or not isinstance(n, Action) or n.outcomes is None:
-            return n
-        done[0] = True
-        return dataclasses.replace(n, outcomes=fewer(n.outcomes))
-
-    new_kw = _change_roots(kw, change)
-    return Repair(new_kw, reader.translate(exc)) if done[0] else None
+    new = _change_inline(kw, head, lambda x: dataclasses.replace(x, outcomes=fewer(x.outcomes)))
+    return None if new is None else Repair(new, reader.translate(exc))
 
 
 # ------------------------------------------------------------------ environment and resources
