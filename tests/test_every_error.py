@@ -172,7 +172,9 @@ SHAPE_TYPOS = [("cup_seen: bool ", "cup_seen: bol "),
                ("{state: put_away, goals: stow}", "{state: put_away, goals: stow, gaurd: holding}"),
                ("{Condition: has_cup, expr: holding}", "{Condtion: has_cup, expr: holding}"),
                ("effects: {cup_seen: true}}", "efects: {cup_seen: true}}"),
-               ("{id: reach, outcomes: [running, success]}", "{id: reach, outcomes: [runing, success]}")]
+               ("{id: reach, outcomes: [running, success]}", "{id: reach, outcomes: [runing, success]}"),
+               ("{state: grasp, goals: fetch}", "{state: grasp, goals: fetch, goals: stow}"),
+               ("goal: stow, post: not holding}", "goal: stow, post: not holding, fsm: arm}")]
 
 
 #: first_model.yaml with comment lines where the typos below put a declaration (so that
@@ -370,6 +372,24 @@ def test_template_problems_are_reported_together(tmp_path, capsys):
         "fsms.f.edges[2].with: unknown parameter(s) Q: template 'chain' takes X (line 18)",
         "fsms.f.edges[3].with: missing parameter(s) X: template 'chain' takes X (line 19)",
         "tree.use: unknown template 'nosuch' (templates: chain, dup) (line 21)"]
+
+
+@pytest.mark.parametrize("name, text, expected", [
+    ("m.yaml", "name: m\nvariables:\n  a: bool\n  a: {int: [0, 3]}\nfsms:\n  f:\n    goals: [g]\n    states: [s, t]\n"
+     "    edges: [{from: s, to: t, to: s, gaurd: a}]\ntree: {Condition: c, expr: 'a > 1', expr: zz}\nvariables: {c: bool}\n",
+     ["variables: duplicate key 'a' (line 4)", "fsms.f.edges[0]: duplicate key 'to' (line 9)",
+      "fsms.f.edges[0].gaurd: unknown field 'gaurd' (did you mean 'guard'?) (line 9)",
+      "tree: duplicate key 'expr' (line 10)", "duplicate key 'variables' (line 11)"]),
+    ("m.json", '{"name": "x", "name": "y", "variables": {"a": "bool", "a": "bol"}, "tree": {"Condition": "c", "expr": "zz"}}',
+     ["duplicate key 'a' in a JSON object", "duplicate key 'name' in a JSON object"]),
+])
+def test_keys_given_twice_are_reported_with_the_shape(tmp_path, capsys, name, text, expected):
+    """A key given twice in a mapping is reported with the problems of the file's shape
+    (its later value is left out: 'expr: zz' is not read); the model's checks wait until
+    there is none, since what a later value declares would be reported unknown."""
+    path = tmp_path / name
+    path.write_text(text)
+    assert _all_problems(capsys, path) == expected
 
 
 def test_yaml_syntax_stops_at_its_first_problem(tmp_path, capsys):

@@ -87,7 +87,9 @@ def _load_model(ref, file_name, xml=None) -> Model:
     if suffix in FORMATS or os.path.exists(text):
         if os.path.isdir(text):
             raise err("", "is a folder, not a model file", file_name or text)
-        return with_source(model_from_data(load_data(text, file_name=file_name), file_name or text), file_name or text)
+        duplicates: list = []
+        data = load_data(text, file_name=file_name, duplicates=duplicates)
+        return with_source(model_from_data(data, file_name or text, earlier=duplicates), file_name or text)
     names = ", ".join(sorted(builtin_models())) or "none installed"
     raise err("", f"no such file or built-in model '{text}' (model files end in .yaml, .yml, .json or .xml; built-in models: {names})")
 
@@ -250,7 +252,9 @@ def _load_builtin(name, entry, file_name):
         import btfsm.models as shipped  # the package the registry lives in
 
         path = Path(shipped.__file__).parent / entry
-        return model_from_data(load_data(path, file_name=shown), shown)
+        duplicates: list = []
+        data = load_data(path, file_name=shown, duplicates=duplicates)
+        return model_from_data(data, shown, earlier=duplicates)
     module, _, func = entry.partition(":")
     if not module or not func:
         raise err("", f"registry entry '{entry}' for '{name}' is neither module:function nor a model file", shown)

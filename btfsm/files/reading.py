@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import dataclasses
 import difflib
+import heapq
 import math
 import re
 from typing import cast
@@ -79,8 +80,9 @@ class _Reader:
     an unknown name in an expression...: ``_without``) and builds again, to report the
     next one, as long as what it takes out cannot cause a problem of its own."""
 
-    def __init__(self, file):
+    def __init__(self, file, earlier=()):
         self.file = file
+        self.earlier = list(earlier)  # problems found when the data was read (keys given twice)
         self.where: dict = {}  # element path used by the Model -> (path in the file, parent, key)
         self.errors: list = []  # the problems noted so far, in the order found
         self.sites: dict = {}  # element path used by the Model -> every (path in the file, parent, key), in order
@@ -623,8 +625,8 @@ class _Reader:
             kw = self.read(data)
         except _Full:
             kw = {}
-        if self.errors:
-            raise collected_at_most(self.errors)
+        if self.errors or self.earlier:
+            raise collected_at_most(_merged(self.earlier, self.errors))
         return self.build(kw)
 
     def read(self, data) -> dict:
@@ -772,6 +774,11 @@ def _line(e: ModelError) -> int:
     """The line a problem's text ends with (0 when none)."""
     m = re.search(r"\(line (\d+)[,)]", str(e.problem))
     return int(m.group(1)) if m else 0
+
+
+def _merged(first: list, then: list) -> list:
+    """Two lists of problems, each in the file's order, merged by line."""
+    return list(heapq.merge(first, then, key=_line))
 
 
 def collected_at_most(errors: list) -> ModelError:
@@ -930,12 +937,25 @@ def _without(kw: dict, element: str) -> "tuple[dict, str] | None":
     return None
 
 
-def model_from_data(data, file: "str | None" = None) -> Model:
-    """Build a Model from loaded data (templates are expanded first)."""
-    data = expand_templates(data, file)
-    return _Reader(file).model(data)
+def model_from_data(data, file: "str | None" = None, *, earlier=()) -> Model:
+    """Build a Model from loaded data (templates are expanded first).
+
+    ``earlier``: problems found when the data was read (keys given twice, whose later
+    values are left out: ``loads_data(duplicates=...)``), reported with those of the
+    templates or of the shape; the model's checks wait until there are none (what a
+    later value declared would be reported unknown)."""
+    earlier = list(earlier)
+    try:
+        data = expand_templates(data, file)
+    except ModelError as exc:
+        if not earlier:
+            raise
+        raise collected_at_most(_merged(earlier, exc.errors if isinstance(exc, ModelErrors) else [exc])) from None
+    return _Reader(file, earlier).model(data)
 
 
 def loads_model(text, fmt: str = "yaml", file_name: str = "<string>") -> Model:
     """A Model from YAML or JSON text."""
-    return model_from_data(loads_data(text, fmt, file_name), file_name)
+    duplicates: list = []
+    data = loads_data(text, fmt, file_name, duplicates=duplicates)
+    return model_from_data(data, file_name, earlier=duplicates)

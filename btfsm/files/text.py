@@ -126,8 +126,11 @@ def format_of(path, fmt: "str | None" = None) -> str:
     return FORMATS[ext]
 
 
-def loads_data(text, fmt: str = "yaml", file_name: str = "<string>"):
+def loads_data(text, fmt: str = "yaml", file_name: str = "<string>", *, duplicates: "list | None" = None):
     """Parse model-file text into plain data (dicts, lists, scalars); no templates expanded.
+
+    A key given twice in one mapping is an error; with a ``duplicates`` list, each is
+    appended to it instead (a ``ModelError``) and the later value left out.
 
     >>> loads_data("edges: [{from: a, to: b, when: failure, on: off}]")
     {'edges': [{'from': 'a', 'to': 'b', 'when': 'failure', 'on': 'off'}]}
@@ -140,17 +143,18 @@ def loads_data(text, fmt: str = "yaml", file_name: str = "<string>"):
             raise err("", f"not UTF-8 text (byte {exc.start})", file_name) from None
     if not isinstance(text, str):
         raise err("", f"expected text, got {type(text).__name__}", file_name)
-    data = _parse_json(text, file_name) if fmt == "json" else _parse_yaml(text, file_name)
+    data = _parse_json(text, file_name, duplicates) if fmt == "json" else _parse_yaml(text, file_name, duplicates)
     if data is None:
         raise err("", "the file is empty (expected a mapping with the model)", file_name)
     return data
 
 
-def load_data(path, fmt: "str | None" = None, file_name: "str | None" = None):
-    """Read a model file into plain data; ``fmt`` defaults to the extension's."""
+def load_data(path, fmt: "str | None" = None, file_name: "str | None" = None, *, duplicates: "list | None" = None):
+    """Read a model file into plain data; ``fmt`` defaults to the extension's
+    (``duplicates``: as for ``loads_data``)."""
     name = file_name or str(path)
     fmt = format_of(path, fmt)
-    return loads_data(read_model_bytes(path, name), fmt, name)
+    return loads_data(read_model_bytes(path, name), fmt, name, duplicates=duplicates)
 
 
 def read_model_bytes(path, name: "str | None" = None, limit: int = MAX_FILE_BYTES, what: str = "model file") -> bytes:
@@ -189,12 +193,16 @@ def read_model_bytes(path, name: "str | None" = None, limit: int = MAX_FILE_BYTE
         os.close(fd)
 
 
-def _parse_json(text: str, file: str):
+def _parse_json(text: str, file: str, duplicates: "list | None" = None):
     def pairs(items):
         out = {}
         for k, v in items:
             if k in out:
-                raise err("", f"duplicate key '{k}' in a JSON object", file)
+                again = err("", f"duplicate key '{k}' in a JSON object", file)
+                if duplicates is None:
+                    raise again
+                duplicates.append(again)
+                continue
             out[k] = v
         return out
 
@@ -235,7 +243,7 @@ def check_size(data, file):
             stack.extend((v, depth + 1, f"{path}[{i}]") for i, v in enumerate(x))
 
 
-def _parse_yaml(text: str, file: str):
+def _parse_yaml(text: str, file: str, duplicates: "list | None" = None):
     try:
         node = yaml.compose(text, Loader=_Loader)
     except yaml.MarkedYAMLError as exc:
@@ -249,7 +257,7 @@ def _parse_yaml(text: str, file: str):
         raise err("", "YAML nested too deeply", file) from None
     if node is None:
         return None
-    return _Builder(file).build(node)
+    return _Builder(file, duplicates).build(node)
 
 
 def _one_line(x) -> str:
@@ -259,8 +267,10 @@ def _one_line(x) -> str:
 class _Builder:
     """Turns composed YAML nodes into ``FileMap`` / ``FileList`` / scalars, with positions."""
 
-    def __init__(self, file):
-        self.file, self.count, self.active = file, 0, set()
+    def __init__(self, file, duplicates: "list | None" = None):
+        self.file, self.count = file, 0
+        self.active: set = set()
+        self.duplicates = duplicates  # where a key given twice is noted (else it is raised)
 
     def fail(self, node, problem, path=""):
         return err(path, f"{problem} (line {node.start_mark.line + 1})", self.file)
@@ -295,7 +305,10 @@ class _Builder:
                     raise self.fail(knode, "a mapping key must be a plain value, not a list or mapping", path)
                 key = self.scalar(knode, path)
                 if key in out:
-                    raise self.fail(knode, f"duplicate key '{key}'", path)
+                    if self.duplicates is None:
+                        raise self.fail(knode, f"duplicate key '{key}'", path)
+                    self.duplicates.append(self.fail(knode, f"duplicate key '{key}'", path))
+                    continue  # the later value is left out
                 out.lines[key] = knode.start_mark.line + 1
                 out[key] = self.build(vnode, depth + 1, join_path(path, key))
             return out
