@@ -181,7 +181,7 @@ SHAPE_TYPOS = [("cup_seen: bool ", "cup_seen: bol "),
 #: no typo moves the lines of the others)
 SPARE = (FIRST.replace("variables:\n", "variables:\n  # spare var1\n  # spare var2\n  # spare var3\n", 1)
          .replace("      - {id: put_away", "      # spare state\n      - {id: put_away", 1)
-         .replace("fsms:\n", "# spare prims\nfsms:\n", 1).replace("environment:\n", "# spare resources\nenvironment:\n", 1)
+         .replace("fsms:\n", "# spare prims\nfsms:\n  # spare fsm\n", 1).replace("environment:\n", "# spare resources\nenvironment:\n", 1)
          + "  # spare event\n")
 #: typos of SPARE, each one problem that the model's checks found alone before (a duplicate
 #: name, a variable's declaration, a cycle of direct edges...), some with uses of what they
@@ -197,7 +197,8 @@ CHECK_TYPOS = [[("      # spare state", "      - reach")],
                [("{from: home, to: put_away, goals: stow}", "{from: home, to: reach, goals: stow, when: direct}")],
                [("{id: reach, outcomes: [running, success]}", "{id: reach, outcomes: [running, success, running]}")],
                [("# spare prims", "primitives: {grasp: [success]}")],
-               [("# spare resources", "resources: {arm_use: [stow, nosuch]}")]]
+               [("# spare resources", "resources: {arm_use: [stow, nosuch]}")],
+               [("  # spare fsm", "  k: {goals: [g], states: [a], params: {cup_seen: bool}, markers: [{state: a, guard: cup_seen}]}")]]
 
 
 def _messages(text) -> list:
@@ -314,6 +315,12 @@ MODEL_CHECK_CASES = {
                               ("goal: fetch, post", "goal: fetch, params: {t: 2}, post"),
                               ("goal: stow, post", "goal: stow, params: {t: 1}, post")],
                              ["fsms.arm.params.t: int t needs integer bounds lo <= hi, got 3..0 (line 9)"]),
+    "parameters that hide a variable": (
+        [("fsms:", "fsms:\n  k: {goals: [g], states: [a], params: {holding: bool}, markers: [{state: a, guard: holding}]}\n"
+                   "  j: {goals: [g], states: [a], params: {holding: {int: [0, 1]}}, markers: [{state: a, guard: holdin}]}")],
+        ["fsms.k.params.holding: parameter 'holding' hides a variable (line 7)",
+         "fsms.j.params.holding: parameter 'holding' hides a variable (line 8)",
+         "fsms.j.markers[0].guard: unknown name 'holdin' in 'holdin' (line 8)"]),
     "a direct-edge cycle, a typo in its edge": (
         [("{from: put_away, to: home, goals: [stow, fetch]}", "{from: home, to: reach, goals: stow, when: direct, guard: typo}")],
         ["fsms.arm.edges[6]: direct edges form a cycle for goal 'stow': reach -> home -> reach (a direct chain must end) "

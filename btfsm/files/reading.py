@@ -712,7 +712,7 @@ class _Reader:
                 if fixed is not None:
                     if any(str(e) == str(fixed.error) for e in errors):
                         break  # the repair did not take the problem away
-                    errors.append(fixed.error)
+                    errors += [fixed.error, *fixed.also]
                     kw, hidden = fixed.kw, hidden | fixed.hidden
                     taken += [fixed.taken] if fixed.taken else []
                     if len(errors) >= MAX_ERRORS:

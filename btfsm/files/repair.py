@@ -50,6 +50,7 @@ class Repair(NamedTuple):
     error: ModelError
     taken: str = ""
     hidden: frozenset = frozenset()
+    also: tuple = ()  # problems of the same kind that the repair takes away before they are found
 
 
 _DUP = re.compile(r"duplicate (variable|primitive|state|goal|edge id|marker id|parameter|name|node name) '(.*)'"
@@ -78,10 +79,11 @@ def repair(reader, kw: dict, exc: ModelError) -> "Repair | None":
         cycle = _CYCLE.match(problem)
         if cycle and el == f"{head}.edges":
             return _cycle(reader, kw, exc, f, cycle.group(1), cycle.group(2).split(" -> "))
-        if el.startswith(f"{head}.params.") and not problem.endswith("hides a variable"):
-            p = next((p for p in f.params if el == f"{head}.params.{p.name}"), None)
-            if p is not None:
-                return _declaration(reader, kw, exc, p, lambda v: _replace_param(kw, f, p, v), f.name)
+        p = next((p for p in f.params if el == f"{head}.params.{p.name}"), None)
+        if p is not None and problem == f"parameter '{p.name}' hides a variable":
+            return _hiding_param(reader, kw, exc, p.name)
+        if p is not None:
+            return _declaration(reader, kw, exc, p, lambda v: _replace_param(kw, f, p, v), f.name)
     if el.startswith("variables."):
         var = next((v for v in kw.get("variables") or () if el == f"variables.{v.name}"), None)
         if var is not None:
@@ -208,6 +210,17 @@ def _declaration(reader, kw, exc, var: Var, replace: Callable[["Var | None"], di
     if new is None:
         hidden = frozenset({var.name} | ({f"{fsm}.{var.name}", f"params of {fsm}"} if fsm else set()))
     return Repair(replace(new), reader.translate(exc), hidden=hidden)
+
+
+def _hiding_param(reader, kw, exc, name: str) -> Repair:
+    """A parameter of the name of a variable: the variable is taken out (the FSM's
+    expressions mean the parameter, as it hides the variable there), the problems about
+    its name elsewhere are not reported, and every FSM with a parameter of that name is
+    reported now (the variable gone, they would not be found)."""
+    others = tuple(reader.translate(ModelError(f"fsms.{g.name}.params.{name}", str(exc.problem)))
+                   for g in kw["fsms"] if any(q.name == name for q in g.params) and f"fsms.{g.name}.params.{name}" != exc.element)
+    return Repair(dict(kw, variables=tuple(v for v in kw.get("variables") or () if v.name != name)), reader.translate(exc),
+                  hidden=frozenset({name}), also=others)
 
 
 def _replace_var(kw, var, new) -> dict:
