@@ -4,6 +4,7 @@ file, line and element; ``--json`` lists them; exit 2. A YAML model file with fi
 gets five errors (up to 20), none that follows from another."""
 from __future__ import annotations
 
+import itertools
 import json
 import os
 from pathlib import Path
@@ -375,10 +376,10 @@ def test_template_problems_are_reported_together(tmp_path, capsys):
     assert _all_problems(capsys, path) == [
         "templates.bad.edges[0].to: placeholder '${Z}' is not a parameter of this template (line 9)",
         "fsms.f.states[2]: duplicate key 'id' after substitution (line 10)",
-        "fsms.f.edges[0].use: unknown template 'chian' (templates: chain, dup) (line 16)",
+        "fsms.f.edges[0].use: unknown template 'chian' (templates: chain, bad, dup) (line 16)",
         "fsms.f.edges[2].with: unknown parameter(s) Q: template 'chain' takes X (line 18)",
         "fsms.f.edges[3].with: missing parameter(s) X: template 'chain' takes X (line 19)",
-        "tree.use: unknown template 'nosuch' (templates: chain, dup) (line 21)"]
+        "tree.use: unknown template 'nosuch' (templates: chain, bad, dup) (line 21)"]
 
 
 @pytest.mark.parametrize("name, text, expected", [
@@ -397,6 +398,45 @@ def test_keys_given_twice_are_reported_with_the_shape(tmp_path, capsys, name, te
     path = tmp_path / name
     path.write_text(text)
     assert _all_problems(capsys, path) == expected
+
+
+TEMPLATES_OK = """name: t
+templates:
+  chain:
+    params: [X]
+    edges:
+      - {from: a, to: "${X}"}
+  back:
+    params: [Y]
+    edges: [{from: "${Y}", to: a}]
+  st: {params: [K], states: [{id: "${K}"}]}
+fsms:
+  f:
+    goals: [g]
+    states: [a, {use: st, with: {K: b}}]
+    edges:
+      - {use: chain, with: {X: b}}
+      - {use: back, with: {Y: b}}
+    markers: [{state: b}]
+"""
+#: typos of TEMPLATES_OK, each one problem of a template's definition or use, independent
+TEMPLATE_TYPOS = [('to: "${X}"', 'to: "${Z}"'), ("{use: back, with: {Y: b}}", "{use: bakc, with: {Y: b}}"),
+                  ("{use: st, with: {K: b}}", "{use: st, with: {K: b, Q: 1}}"), ("params: [Y]", "params: [Y, Y]"),
+                  ("markers: [{state: b}]", "markers: [{state: b}, {use: st, for_each: 1}]")]
+
+
+def test_any_set_of_template_typos_gives_exactly_their_errors():
+    """The subset property for templates: a definition with a problem is reported, not
+    its uses (nor a hint that would leave its name out); each use on its own."""
+    assert _messages(TEMPLATES_OK) == []
+    alone = [_messages(_typo(TEMPLATES_OK, t)) for t in TEMPLATE_TYPOS]
+    assert all(len(one) == 1 for one in alone), alone
+    for chosen in itertools.chain.from_iterable(itertools.combinations(range(len(TEMPLATE_TYPOS)), k)
+                                                for k in range(2, len(TEMPLATE_TYPOS) + 1)):
+        text = TEMPLATES_OK
+        for i in chosen:
+            text = _typo(text, TEMPLATE_TYPOS[i])
+        assert sorted(_messages(text)) == sorted(alone[i][0] for i in chosen), chosen
 
 
 def test_yaml_syntax_stops_at_its_first_problem(tmp_path, capsys):

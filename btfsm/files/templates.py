@@ -41,6 +41,7 @@ class _Expander:
         self.file, self.templates, self.produced, self.copied, self.chars = file, {}, 0, 0, 0
         self.errors: list = []  # the problems noted, in the order found
         self.bad: set = set()  # names of the templates whose definitions have a problem
+        self.defined: list = []  # every template's name, as defined (with a problem or not)
         self.over = False  # a limit was reached, or MAX_ERRORS problems noted: stop
 
     def fail(self, path, problem, obj=None, key=None):
@@ -74,6 +75,7 @@ class _Expander:
         if not isinstance(templates, dict):
             raise self.fail("templates", f"expected a mapping of template names to definitions, got {kind_of(templates)}", templates)
         for name, spec in templates.items():
+            self.defined.append(name)
             if self.note(self.define_one, templates, name, spec) is _FAILED:
                 self.bad.add(name)
 
@@ -199,7 +201,7 @@ class _Expander:
         if name in self.bad:
             raise _FollowOn()
         if not isinstance(name, str) or name not in self.templates:
-            known = ", ".join(self.templates) or "none defined"
+            known = ", ".join(str(t) for t in self.defined) or "none defined"
             raise self.fail(f"{path}.use", f"unknown template {name!r} (templates: {known})", entry, "use")
         chain = tuple(getattr(entry, "chain", ()))
         if name in chain:
