@@ -10,8 +10,9 @@ problem is a ``ModelError`` naming the file, the element path in the file (such 
 raised together, as one ``ModelErrors`` (``reading``: up to ``MAX_ERRORS``).
 
 The package has one module per job, each importing only the ones before it:
-``text`` (reading text with limits, the one-line errors), ``templates``, ``reading``
-(data to Model), ``loading`` (files, built-in models, Python modules, XML), ``writing``
+``text`` (reading text with limits, the one-line errors), ``templates``, ``repair``
+(the problems of a Model's checks repaired to find the next), ``reading`` (data to
+Model), ``loading`` (files, built-in models, Python modules, XML), ``writing``
 (Model to data) and ``validate`` (the command); ``schema`` generates the node part of the
 JSON Schema from the node classes (``btfsm.bt``). Every public name is imported here, so
 ``from btfsm.files import load_model`` is the import to use.

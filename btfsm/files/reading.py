@@ -77,8 +77,9 @@ class _Reader:
     built either when the shape has problems (its checks would report what follows from
     them). A shape without problems is built into a Model; the Model's checks stop at
     their first problem, so ``build`` takes the element it names out (an edge, a marker,
-    an unknown name in an expression...: ``_without``) and builds again, to report the
-    next one, as long as what it takes out cannot cause a problem of its own."""
+    an unknown name in an expression...: ``_without``), or repairs it (a duplicate name,
+    a variable's declaration, a cycle of direct edges...: ``repair``), and builds again,
+    to report the next one, as long as what it changes cannot cause a problem of its own."""
 
     def __init__(self, file, earlier=()):
         self.file = file
