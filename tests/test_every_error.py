@@ -322,6 +322,12 @@ MODEL_CHECK_CASES = {
         ["fsms.k.params.holding: parameter 'holding' hides a variable (line 7)",
          "fsms.j.params.holding: parameter 'holding' hides a variable (line 8)",
          "fsms.j.markers[0].guard: unknown name 'holdin' in 'holdin' (line 8)"]),
+    "options of a choice": ([("environment:", "environment:\n  - {choice: ch, options: [{event: e1, guard: zz}, "
+                                              "{event: e2, effects: {qq: true}}]}"),
+                             ("guard: not cup_seen", "guard: not cupseen")],
+                            ["environment[0].options[0].guard: unknown name 'zz' in 'zz' (line 37)",
+                             "environment[0].options[1].effects.qq: unknown variable 'qq' (line 37)",
+                             "environment[1].guard: unknown name 'cupseen' in 'not cupseen' (line 38)"]),
     "a direct-edge cycle, a typo in its edge": (
         [("{from: put_away, to: home, goals: [stow, fetch]}", "{from: home, to: reach, goals: stow, when: direct, guard: typo}")],
         ["fsms.arm.edges[6]: direct edges form a cycle for goal 'stow': reach -> home -> reach (a direct chain must end) "

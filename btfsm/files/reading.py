@@ -855,6 +855,16 @@ def _with_node(root, name: str, new):
     return dataclasses.replace(root, **changes) if changes else root
 
 
+def _without_event_part(ev, rest):
+    """``ev`` without the guard or the effect that ``rest`` names, or None."""
+    if rest == "guard":
+        return dataclasses.replace(ev, guard=None)
+    var = rest[len("effects."):] if rest.startswith("effects.") else None
+    if var is not None and var in {v for v, _ in ev.effects}:
+        return dataclasses.replace(ev, effects=tuple((v, e) for v, e in ev.effects if v != var))
+    return None
+
+
 def _without(kw: dict, element: str) -> "tuple[dict, str] | None":
     """``(kw, taken)``: the Model's arguments ``kw`` with the element a problem names
     (``element``, a Model's element path) taken out, or made neutral where it cannot be
@@ -907,18 +917,22 @@ def _without(kw: dict, element: str) -> "tuple[dict, str] | None":
                 st if st.subtree is None else dataclasses.replace(st, subtree=_with_node(st.subtree, node.name, new_node))
                 for st in f.states)) for f in fsms)
         return out, f"tree.{node.name}" + (f".{part}" if part else "")
-    events = [e for e in kw.get("environment") or () if isinstance(e, EnvEvent)]
-    found = _find(events, element, "environment", lambda e: e.name)
-    if found is not None:
-        ev, rest = found
-        if rest == "guard":
-            new_ev = dataclasses.replace(ev, guard=None)
-        elif rest.startswith("effects.") and rest[len("effects."):] in {v for v, _ in ev.effects}:
-            var = rest[len("effects."):]
-            new_ev = dataclasses.replace(ev, effects=tuple((v, e) for v, e in ev.effects if v != var))
-        else:
+    env = kw.get("environment") or ()
+    found = _find(env, element, "environment", lambda e: e.name)
+    if found is not None and isinstance(found[0], EnvChoice):  # an option of a choice: environment.CHOICE.options.NAME
+        choice, rest = found
+        option = _find(choice.options, rest, "options", lambda o: o.name)
+        new_opt = None if option is None else _without_event_part(*option)
+        if option is None or new_opt is None:
             return None
-        return dict(kw, environment=tuple(new_ev if e is ev else e for e in kw["environment"])), element
+        opt = option[0]
+        new_choice = dataclasses.replace(choice, options=tuple(new_opt if o is opt else o for o in choice.options))
+        return dict(kw, environment=tuple(new_choice if e is choice else e for e in env)), element
+    if found is not None:
+        event = _without_event_part(*found)
+        if event is None:
+            return None
+        return dict(kw, environment=tuple(event if e is found[0] else e for e in env)), element
     found = _find(kw.get("primitives") or (), element, "primitives", lambda p: p.name)
     if found is not None:
         prim, rest = found

@@ -195,8 +195,10 @@ def _repaired_var(var: Var) -> "Var | None":
         lo, hi = sorted((max(-INT_LIMIT, min(INT_LIMIT, var.lo)), max(-INT_LIMIT, min(INT_LIMIT, var.hi))))
         init = var.init if isinstance(var.init, int) and not isinstance(var.init, bool) and lo <= var.init <= hi else None
         new = Int(var.name, lo, hi, init)
-    else:
+    elif var.kind == "bool":
         new = Bool(var.name, var.init if isinstance(var.init, bool) else False)
+    else:
+        return None
     try:
         return None if new is None else new.validated("")
     except ModelError:
