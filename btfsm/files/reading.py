@@ -730,12 +730,17 @@ class _Reader:
             if not errors:
                 return model
             break
+        else:  # the builds ran out: there may be more
+            errors.sort(key=_line)
+            raise ModelErrors(_once_per_name(errors), stopped=True)
         errors.sort(key=_line)  # in the file's order
         raise collected_at_most(_once_per_name(errors))
 
 
 #: the most times ``build`` builds a Model to find the problems of one file
 _MAX_BUILDS = 4 * MAX_ERRORS
+
+
 _UNKNOWN = re.compile(r"unknown (name|variable|state|goal|FSM|primitive) '([^']*)'|'([^']*)' is not a goal of (\S+)")
 
 
