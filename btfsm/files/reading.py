@@ -57,7 +57,6 @@ _FILE_FIELDS = {"source": "from", "target": "to"}  # Python field -> file field 
 _FILE_FIELD = re.compile(r"^\.(source|target)\b")
 
 
-
 class _Skipped(Exception):
     """An element holds a problem already noted: it is not built (nor what holds it)."""
 
@@ -715,7 +714,6 @@ class _Reader:
                         break  # the repair did not take the problem away
                     errors += [fixed.error, *fixed.also]
                     kw, hidden = fixed.kw, hidden | fixed.hidden
-                    taken += [fixed.taken] if fixed.taken else []
                     if len(errors) >= MAX_ERRORS:
                         break
                     continue

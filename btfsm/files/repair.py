@@ -43,12 +43,11 @@ from .text import err, where_of
 
 
 class Repair(NamedTuple):
-    """The Model's arguments repaired, the problem as reported, the model element taken
-    out ('' for none: a problem about it follows) and the names whose problems follow."""
+    """The Model's arguments repaired, the problem as reported and the names whose
+    problems follow from it (a declaration taken out)."""
 
     kw: dict
     error: ModelError
-    taken: str = ""
     hidden: frozenset = frozenset()
     also: tuple = ()  # problems of the same kind that the repair takes away before they are found
 
