@@ -322,6 +322,20 @@ MODEL_CHECK_CASES = {
         ["fsms.k.params.holding: parameter 'holding' hides a variable (line 7)",
          "fsms.j.params.holding: parameter 'holding' hides a variable (line 8)",
          "fsms.j.markers[0].guard: unknown name 'holdin' in 'holdin' (line 8)"]),
+    "FSMs of which nothing can be checked": (
+        [("fsms:", "fsms:\n  nog: {goals: [], states: [s]}\n  nos: {goals: [g], states: []}"),
+         ("{Condition: sees_cup, expr: cup_seen}", "{Condition: sees_cup, expr: \"cup_seen and nos.state == 's'\"}"),
+         ("    - ReactiveSequence: fetch_cup", "    - {SkillRequest: r2, fsm: nog, goal: g}\n    - ReactiveSequence: fetch_cup")],
+        ["fsms.nog.goals: an FSM needs at least one goal (line 7)", "fsms.nos: has no states (line 8)"]),
+    "a retarget": ([("    goals: [fetch, stow]", "    goals: [fetch, stow]\n    retarget: sideways")],
+                   ["fsms.arm.retarget: must be one of immediate, withdraw (line 9)"]),
+    "a state that runs both": ([("      - {id: reach, outcomes: [running, success]}",
+                                 "      - {id: reach, primitive: nosuch, subtree: {Condition: c0, expr: yy}}")],
+                               ["fsms.arm.states[1]: runs both a primitive and a subtree (line 11)",
+                                "fsms.arm.states[1].subtree.expr: unknown name 'yy' in 'yy' (line 11)"]),
+    "a choice without options": ([("environment:", "responses: {r: {trigger: 'event:ch', response: holding}}\n"
+                                                   "environment:\n  - {choice: ch, options: []}")],
+                                 ["environment[0]: a choice needs options (line 38)"]),
     "options of a choice": ([("environment:", "environment:\n  - {choice: ch, options: [{event: e1, guard: zz}, "
                                               "{event: e2, effects: {qq: true}}]}"),
                              ("guard: not cup_seen", "guard: not cupseen")],

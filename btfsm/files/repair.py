@@ -71,8 +71,22 @@ def repair(reader, kw: dict, exc: ModelError) -> "Repair | None":
         again = [g for i, g in enumerate(f.goals) if g in f.goals[:i]]
         if again and f" is not a goal of {f.name} (" in problem:  # a message that lists the goals (found before)
             return _fsm_duplicate(reader, kw, ModelError(f"{head}.goals", f"duplicate goal '{again[0]}'"), f, "goals", again[0])
+        if not f.goals and f" is not a goal of {f.name} (" in problem:  # a request of an FSM without goals
+            return _fsm_out(reader, kw, ModelError(f"{head}.goals", "an FSM needs at least one goal"), f)
+        both = next((st for st in f.states if st.primitive and st.subtree is not None
+                     and (el == f"{head}.states.{st.id}" or el.startswith(f"{head}.states.{st.id}."))), None)
+        if both is not None:  # a state that runs both (its primitive's problems are found before): the subtree is kept
+            new_st = dataclasses.replace(both, primitive="")
+            return Repair(_replace_fsm(kw, f, dataclasses.replace(f, states=tuple(new_st if x is both else x for x in f.states))),
+                          reader.translate(ModelError(f"{head}.states.{both.id}", "runs both a primitive and a subtree")))
         if el == head and problem == f"name '{f.name}' is used twice":
             return _fsm_name_twice(reader, kw, exc, f)
+        if (el == head and (problem == "has no states" or problem.startswith(f"FSM name {f.name!r} is "))
+                or (el == f"{head}.goals" and problem == "an FSM needs at least one goal")):
+            return _fsm_out(reader, kw, exc, f)
+        if el in (f"{head}.retarget", f"{head}.withdraw_goal"):
+            return Repair(_replace_fsm(kw, f, dataclasses.replace(f, retarget="immediate", withdraw_goal="")),
+                          reader.translate(exc))
         if dup and el in (f"{head}.states", f"{head}.goals", f"{head}.edges", f"{head}.markers", f"{head}.params"):
             return _fsm_duplicate(reader, kw, exc, f, el[len(head) + 1:], dup.group(2))
         cycle = _CYCLE.match(problem)
@@ -101,6 +115,10 @@ def repair(reader, kw: dict, exc: ModelError) -> "Repair | None":
         return _outcome_twice(reader, kw, exc, el[:-len(".outcomes")], dup.group(2))
     if dup and el == "environment":
         return _event_twice(reader, kw, exc, dup.group(2))
+    if el.startswith("environment.") and problem == "a choice needs options":
+        env = kw.get("environment") or ()
+        return Repair(dict(kw, environment=tuple(e for e in env if el != f"environment.{e.name}")), reader.translate(exc),
+                      hidden=frozenset({el[len("environment."):]}))
     if dup and el == "invariants":
         return Repair(dict(kw, invariants=_without_later(kw["invariants"], lambda x: x[0], dup.group(2))), reader.translate(exc))
     if el.startswith("resources."):
@@ -144,6 +162,13 @@ def _fsm_name_twice(reader, kw, exc, f) -> Repair:
                       hidden=frozenset({f.name}))
     later = [g for g in kw["fsms"] if g.name == f.name][1]
     return Repair(dict(kw, fsms=tuple(g for g in kw["fsms"] if g is not later)), reader.translate(exc))
+
+
+def _fsm_out(reader, kw, exc, f) -> Repair:
+    """An FSM of which nothing can be checked (no states, no goals, a name that is not an
+    identifier) goes, and the problems of its requests and of its names with it."""
+    return Repair(dict(kw, fsms=tuple(g for g in kw["fsms"] if g is not f)), reader.translate(exc),
+                  hidden=frozenset({f"FSM {f.name}"}))
 
 
 def _fsm_duplicate(reader, kw, exc, f, kind: str, name: str) -> Repair:
@@ -414,11 +439,14 @@ def _resource(reader, kw, exc) -> "Repair | None":
 
 def hides(exc: ModelError, hidden: set) -> bool:
     """Whether ``exc`` is about a name in ``hidden`` (a declaration taken out): an unknown
-    variable, name or event, or the parameters of an FSM whose parameter was taken out."""
+    variable, name or event, the parameters of an FSM whose parameter was taken out, or
+    an FSM taken out (``FSM NAME``: a request of it, one of its goals, a name ``NAME.x``)."""
     problem = str(exc.problem)
     m = re.search(r"unknown (?:name|variable) '([^']*)'|no environment event or option '([^']*)'", problem)
     if m and (m.group(1) or m.group(2)) in hidden:
         return True
-    m = re.match(r"(\S+) takes parameters ", problem)
-    return bool(m and f"params of {m.group(1)}" in hidden)
+    if m and m.group(1) and f"FSM {m.group(1).partition('.')[0]}" in hidden:
+        return True
+    m = re.match(r"unknown FSM '(.*)'\Z|'.*' is not a goal of (.*) \(|(\S+) takes parameters ", problem)
+    return bool(m and (f"FSM {m.group(1) or m.group(2) or m.group(3)}" in hidden or f"params of {m.group(3)}" in hidden))
 
