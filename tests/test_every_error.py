@@ -183,6 +183,7 @@ SHAPE_TYPOS = [("cup_seen: bool ", "cup_seen: bol "),
 SPARE = (FIRST.replace("variables:\n", "variables:\n  # spare var1\n  # spare var2\n  # spare var3\n", 1)
          .replace("      - {id: put_away", "      # spare state\n      - {id: put_away", 1)
          .replace("fsms:\n", "# spare prims\nfsms:\n  # spare fsm\n", 1).replace("environment:\n", "# spare resources\nenvironment:\n", 1)
+         .replace("    goals: [fetch, stow]\n", "    goals: [fetch, stow]\n    # spare arm\n", 1)
          + "  # spare event\n")
 #: typos of SPARE, each one problem that the model's checks found alone before (a duplicate
 #: name, a variable's declaration, a cycle of direct edges...), some with uses of what they
@@ -199,6 +200,7 @@ CHECK_TYPOS = [[("      # spare state", "      - reach")],
                [("{id: reach, outcomes: [running, success]}", "{id: reach, outcomes: [running, success, running]}")],
                [("# spare prims", "primitives: {grasp: [success]}")],
                [("# spare resources", "resources: {arm_use: [stow, nosuch]}")],
+               [("    # spare arm", "    retarget: sideways")],
                [("  # spare fsm", "  k: {goals: [g], states: [a], params: {cup_seen: bool}, markers: [{state: a, guard: cup_seen}]}")]]
 
 
