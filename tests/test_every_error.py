@@ -335,6 +335,11 @@ MODEL_CHECK_CASES = {
                                  "      - {id: reach, primitive: nosuch, subtree: {Condition: c0, expr: yy}}")],
                                ["fsms.arm.states[1]: runs both a primitive and a subtree (line 11)",
                                 "fsms.arm.states[1].subtree.expr: unknown name 'yy' in 'yy' (line 11)"]),
+    "a re-entrant request": ([("      - home  ", "      - {id: home, subtree: {ReactiveSequence: again, children: ["
+                                                "{SkillRequest: back, fsm: arm, goal: stow}, {Condition: c0, expr: yy}]}}  ")],
+                             ["fsms.arm.states[0].subtree: requests FSM 'arm' while 'arm' is being ticked (a re-entrant request) "
+                              "(line 10)",
+                              "fsms.arm.states[0].subtree.children[1].expr: unknown name 'yy' in 'yy' (line 10)"]),
     "a choice without options": ([("environment:", "responses: {r: {trigger: 'event:ch', response: holding}}\n"
                                                    "environment:\n  - {choice: ch, options: []}")],
                                  ["environment[0]: a choice needs options (line 38)"]),

@@ -13,13 +13,13 @@ from ..errors import ModelError, ModelErrors, collected
 from ..expr import Expr, as_expr
 from ..fsm import FSM, Edge, Marker, State
 from ..model import EnvChoice, EnvEvent, Model
-from ..primitives import PASS, Outcome, Primitive
+from ..primitives import Outcome, Primitive
 from ..profiles import PROFILES, TICKS
 from ..status import Status
 from ..timing import Response, duration_of
 from ..world import Bool, Enum, Int, Var
 
-from .repair import hides, repair
+from .repair import hides, pass_action, repair
 from .templates import check_fields, expand_templates
 from .text import MAX_DEPTH, MAX_ERRORS, err, join_path, kind_of, loads_data, where_of
 
@@ -824,17 +824,12 @@ def _without_effect(outcomes, rest: str):
     return None
 
 
-def _pass_action(node) -> Action:
-    """An Action of ``node``'s name that runs the instant ``pass`` primitive (one SUCCESS)."""
-    return Action(node.name, primitive=PASS.name, outcomes=(Outcome(Status.SUCCESS),))
-
-
 def _neutral_node(node, rest: str) -> tuple:
     """``(node, part)``: ``node`` with what a problem names (``rest``: the node, or one of
     its fields) made neutral, and the part of it changed ('' for the whole node); a leaf
     becomes an Action that succeeds at once. ``(None, '')`` when it cannot be."""
     if isinstance(node, Leaf):
-        return _pass_action(node), ""
+        return pass_action(node), ""
     field, _, sub = rest.partition(".")
     fields = {f.name: f for f in dataclasses.fields(node)}
     if field in fields and fields[field].default is None and not sub:

@@ -33,10 +33,12 @@ import functools
 import re
 from typing import Any, Callable, NamedTuple, Optional
 
-from ..bt import Action, Composite, Decorator, Node, walk
+from ..bt import Action, Composite, Decorator, Node, SkillRequest, walk
 from ..errors import ModelError
 from ..expr import INT_LIMIT
 from ..model import EnvChoice
+from ..primitives import PASS, Outcome
+from ..status import Status
 from ..world import Bool, Enum, Int, Var, check_label, check_name
 
 from .text import err, where_of
@@ -84,6 +86,11 @@ def repair(reader, kw: dict, exc: ModelError) -> "Repair | None":
         if (el == head and (problem == "has no states" or problem.startswith(f"FSM name {f.name!r} is "))
                 or (el == f"{head}.goals" and problem == "an FSM needs at least one goal")):
             return _fsm_out(reader, kw, exc, f)
+        reentrant = re.match(r"requests FSM '(.*)' while '(.*)' is being ticked \(a re-entrant request\)\Z", problem)
+        if reentrant:
+            st = next((st for st in f.states if el == f"{head}.states.{st.id}.subtree" and st.subtree is not None), None)
+            if st is not None:
+                return _without_requests(reader, kw, exc, f, st, reentrant.group(1))
         if el in (f"{head}.retarget", f"{head}.withdraw_goal"):
             return Repair(_replace_fsm(kw, f, dataclasses.replace(f, retarget="immediate", withdraw_goal="")),
                           reader.translate(exc))
@@ -169,6 +176,22 @@ def _fsm_out(reader, kw, exc, f) -> Repair:
     identifier) goes, and the problems of its requests and of its names with it."""
     return Repair(dict(kw, fsms=tuple(g for g in kw["fsms"] if g is not f)), reader.translate(exc),
                   hidden=frozenset({f"FSM {f.name}"}))
+
+
+def pass_action(node: Node) -> Action:
+    """An Action of ``node``'s name that runs the instant ``pass`` primitive (one SUCCESS)."""
+    return Action(node.name, primitive=PASS.name, outcomes=(Outcome(Status.SUCCESS),))
+
+
+def _without_requests(reader, kw, exc, f, st, fsm: str) -> Repair:
+    """The requests of ``fsm`` in ``st``'s subtree (one leads back to the FSM being ticked)
+    become Actions that succeed at once."""
+    def change(n: Node) -> Node:
+        return pass_action(n) if isinstance(n, SkillRequest) and n.fsm == fsm else n
+
+    new_st = dataclasses.replace(st, subtree=_rebuild(st.subtree, change))
+    return Repair(_replace_fsm(kw, f, dataclasses.replace(f, states=tuple(new_st if x is st else x for x in f.states))),
+                  reader.translate(exc))
 
 
 def _fsm_duplicate(reader, kw, exc, f, kind: str, name: str) -> Repair:
