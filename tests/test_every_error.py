@@ -427,6 +427,17 @@ def test_keys_given_twice_are_reported_with_the_shape(tmp_path, capsys, name, te
     assert _all_problems(capsys, path) == expected
 
 
+def test_a_template_name_that_is_not_a_name(tmp_path, capsys):
+    """A definition named 5 has a problem: 'use: 5' is not reported; a list or a mapping
+    as a use's name is reported, however many definitions have problems."""
+    path = tmp_path / "t.yaml"
+    path.write_text("name: t\ntemplates:\n  5: {states: [a]}\nfsms:\n  f: {goals: [g], states: [{use: [a]}, {use: {x: 1}}, {use: 5}]}\n")
+    assert _all_problems(capsys, path) == [
+        "templates: template name 5 is not an identifier (line 3)",
+        "fsms.f.states[0].use: unknown template ['a'] (templates: 5) (line 5)",
+        "fsms.f.states[1].use: unknown template {'x': 1} (templates: 5) (line 5)"]
+
+
 TEMPLATES_OK = """name: t
 templates:
   chain:

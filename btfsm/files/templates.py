@@ -198,7 +198,7 @@ class _Expander:
         """Instantiate one ``use`` entry: a list of ``(item, line)`` (one item when not in a list)."""
         check_fields(self, entry, path, _USE_KEYS, ("use",), "a template use")
         name = entry["use"]
-        if name in self.bad:
+        if not isinstance(name, (list, dict)) and name in self.bad:  # (a list or mapping cannot be a name)
             raise _FollowOn()
         if not isinstance(name, str) or name not in self.templates:
             known = ", ".join(str(t) for t in self.defined) or "none defined"
