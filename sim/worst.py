@@ -1,0 +1,432 @@
+"""The cell's own worst reaction, found by search over the belt parts' arrival instants (issue 21).
+
+A proof of the reaction time is tight when the cell itself can be driven into a run that
+is nearly as slow. How slow can it be driven? The cell is deterministic, so its runs
+differ only in when belt parts arrive: this module runs the ARIAC job of a kitting model
+(``ariac-preemptive-timed``: 2 tray parts, arrivals at least 30 s apart and only while
+the kit is incomplete, as the timed model assumes) with a belt part sent to the sensor at
+every tick of the job (:func:`search_single`), and with two parts on a coarse grid of
+pairs refined around the worst (:func:`search_pair`), and measures each part's response
+exactly as the model defines it and as the counterexample replay does
+(``replay.replay_in_cell``, ``pace="phase"``): from the part's detection to the start of
+the arm's next grasp at the belt (a lost part counts: the next belt grasp answers it).
+
+Every run starts afresh from the same seeded world (the replay's: ``TrialSpec("preemptive",
+1)``) and differs from the others only in its arrival ticks, so the search is the same
+whatever the number of worker processes (``workers``): the runs are split into chunks,
+run in a process pool, and put back in grid order; the worst is the slowest response, the
+earliest arrival on a tie. :func:`at_phase` gives the model's own worst response to an
+arrival in the phase (the model's state) the cell's worst had.
+"""
+from __future__ import annotations
+
+import math
+import sys
+from dataclasses import dataclass, field
+from typing import Any
+
+from .loop import Hooks, run_loop
+
+__all__ = ["Phase", "Probe", "Search", "probe", "job_ticks", "run_probes", "search_single", "search_pair", "at_phase",
+           "ModelAtPhase", "SPACING_TICKS", "CAP", "duration_refusals", "report"]
+
+#: the timed ARIAC models' arrival spacing, 30 s, in ticks of 10 Hz
+SPACING_TICKS = 300
+#: seconds after a part's detection without a belt grasp after which its response counts as unbounded
+CAP = 60.0
+
+
+@dataclass(frozen=True)
+class Phase:
+    """Where the cell was when a part arrived: the arm FSM's state before the tick that
+    told the model (the ``arrive`` event), the ticks it had been in that state, its goal,
+    the model's variables then, and the whole program state (to find it in the model)."""
+
+    state: str
+    ticks: int
+    goal: "str | None"
+    values: tuple  # ((variable, value), ...) in the model's order
+    program_state: tuple = field(repr=False, compare=False)
+
+    def text(self) -> str:
+        vals = ", ".join(f"{k} = {v}" for k, v in self.values)
+        return f"'{self.state}', {self.ticks} tick(s) into the visit, goal {self.goal or '-'}; {vals}"
+
+
+@dataclass(frozen=True)
+class Probe:
+    """One run of the cell with belt parts sent at ``ticks`` (before those ticks of the
+    runtime; each is detected in the world steps after it and told the next tick)."""
+
+    ticks: tuple
+    detections: tuple = ()  # the parts' detection times (s)
+    responses: tuple = ()  # per part: s from its detection to the start of the next belt grasp; None: none within CAP
+    lost: tuple = ()  # indices (into ticks) of the parts that reached the end of the belt
+    phases: tuple = ()  # Phase per part told to the model
+    breakdown: tuple = ()  # ((state split from, s), ...): where the slowest response went, in order
+    refused: "str | None" = None  # the runtime refused a tick (an arrival the model does not allow, a duration)
+    end_tick: "int | None" = None  # with ``to_end``: the first tick after which the kit is complete
+
+    @property
+    def worst(self) -> float:
+        """The slowest response (inf: a part without one within CAP); -inf for a refused run."""
+        if self.refused is not None or len(self.responses) < len(self.ticks):
+            return -math.inf
+        return max((math.inf if r is None else r) for r in self.responses)
+
+    @property
+    def worst_part(self) -> int:
+        rs = [math.inf if r is None else r for r in self.responses]
+        return rs.index(max(rs))
+
+
+class _ArrivalHooks(Hooks):
+    """Sends a belt part before each of ``ticks``; records the arm FSM's timeline, each
+    part's phase and response; ends once every part was answered and left the belt (or,
+    with ``to_end``, once the kit is complete too), or CAP s after the last detection."""
+
+    def __init__(self, binding, ticks, to_end: bool):
+        d = binding.d
+        self.b, self.fsm, self.ticks, self.to_end = binding, d.fsm, list(ticks), to_end
+        self.beam = binding.scene.sensors[binding.sensor]["region"]
+        f = next(x for x in binding.model.fsms if x.name == d.fsm)
+        self.grasps = {st.id for st in f.states if st.primitive == d.grasp and d.area(dict(st.args)) == binding.belt_area}
+        self.tray_slot = binding.model.program.scope[d.tray_var].index
+        self.n_tray = binding.n_tray
+        self.pids: list = []
+        self.timeline: list = []  # (time, state, goal) changes
+        self.last: Any = None
+        self.in_state = 0
+        self.pre: Any = None  # (state, ticks in it, goal, program state) before this tick
+        self.told = 0
+        self.phases: list = []
+        self.responses: dict = {}  # part id -> s
+        self.grasp_at: dict = {}  # part id -> the time the belt grasp answering it begins (the timeline's)
+        self.end_tick: "int | None" = None
+
+    def before(self, rt, world) -> None:
+        st, goal = rt.fsm_state(self.fsm)
+        if (st, goal) != self.last:
+            if self.last is not None and st != self.last[0]:
+                self.in_state = 0
+            self.timeline.append((round(world.time, 2), st, goal))
+            self.last = (st, goal)
+        self.pre = (st, self.in_state, goal, rt.state)
+        if self.ticks and rt.clock.tick == self.ticks[0]:
+            self.ticks.pop(0)
+            self.pids.append(world.spawn(self.beam))
+
+    def after(self, rt, world, step, before) -> None:
+        b = self.b
+        st = rt.fsm_state(self.fsm)[0]
+        self.in_state = self.in_state + 1 if st == self.pre[0] else 0
+        told = len(b.detections) - len(b.backlog)
+        if told > self.told:  # this tick told the model of a part: its phase is the state before it
+            self.told = told
+            pst, c, goal, state = self.pre
+            values = tuple((v.name, rt.program.decode_slot(rt.program.scope[v.name].index,
+                                                            state[rt.program.scope[v.name].index]))
+                           for v in rt.model.variables)
+            self.phases.append(Phase(pst, c, goal, values, tuple(state)))
+        if st in self.grasps:  # the model's response: a belt grasp starts (``replay._CellHooks.after``)
+            for pid, t in b.detections:
+                if pid not in self.responses:
+                    self.responses[pid] = round(world.time - t - 1.0 / rt.model.tick_rate, 2)
+                    self.grasp_at[pid] = world.time + 1.0 / rt.model.tick_rate  # the grasp's visit begins
+        if self.end_tick is None and step.state[self.tray_slot] >= self.n_tray:
+            self.end_tick = rt.clock.tick - 1
+
+    def done(self, rt, world, step) -> bool:
+        if self.ticks or len(self.b.detections) < len(self.pids):
+            return False
+        answered = all(pid in self.responses for pid, _ in self.b.detections)
+        left = all(world.parts[p].place.kind != "BELT" for p in self.pids)
+        if answered and left and (not self.to_end or self.end_tick is not None):
+            return True
+        return bool(self.b.detections) and world.time > self.b.detections[-1][1] + CAP
+
+
+def _breakdown(timeline, end: float, response: float) -> tuple:
+    """((state split from, s), ...): the cell's response window split per FSM state, copies
+    summed (the cell side of ``replay.decomposition``: the window ends when the belt grasp's
+    visit begins, ``end``, and lasts ``response`` s)."""
+    from btfsm.positions import base_state
+
+    start = end - response
+    out: dict = {}
+    for j, (t, st, _g) in enumerate(timeline):
+        t1 = timeline[j + 1][0] if j + 1 < len(timeline) else end
+        lo, hi = max(t, start), min(t1, end)
+        if hi > lo + 1e-9:
+            out[base_state(st)] = round(out.get(base_state(st), 0.0) + hi - lo, 2)
+    return tuple(out.items())
+
+
+def probe(model, ticks, *, to_end: bool = False, time_limit: "float | None" = None) -> Probe:
+    """Run ``model`` in the ARIAC cell (the replay's cell) with a belt part sent before each
+    of ``ticks`` (runtime ticks, ascending); see :class:`Probe`. ``to_end``: run on until the
+    kit is complete (``Probe.end_tick``)."""
+    from .protocol import TrialSpec
+    from .scene import LOST
+    from .trial import build_trial
+
+    ticks = tuple(int(t) for t in ticks)
+    rate = model.tick_rate
+    limit = time_limit if time_limit is not None else (max(ticks, default=0) / rate + CAP + 1.0)
+    if to_end and time_limit is None:
+        limit += 120.0
+    spec = TrialSpec("preemptive", 1, time_limit=limit)
+    model, world, binding, rt = build_trial(spec, model, detections=())
+    hooks = _ArrivalHooks(binding, ticks, to_end)
+    end = run_loop(rt, world, binding, limit, hooks, stop_at_mismatch=False)
+    refused = str(end.ended_by) if end.ended_by is not None else None
+    detected = list(binding.detections)
+    responses = tuple(hooks.responses.get(pid) for pid, _ in detected)
+    lost_ids = set(world.parts_in(LOST))
+    lost = tuple(i for i, pid in enumerate(hooks.pids) if pid in lost_ids)
+    p = Probe(ticks, tuple(round(t, 3) for _, t in detected), responses, lost, tuple(hooks.phases), (), refused,
+              hooks.end_tick)
+    if refused is None and responses and len(responses) == len(ticks) and p.worst != math.inf:
+        i = p.worst_part
+        bd = _breakdown(hooks.timeline, hooks.grasp_at[detected[i][0]], responses[i])
+        p = Probe(p.ticks, p.detections, p.responses, p.lost, p.phases, bd, None, p.end_tick)
+    return p
+
+
+def job_ticks(model) -> list:
+    """The ticks before which a belt part may be sent in the job without arrivals: those
+    after which the kit is still incomplete (the part is told the model on the next tick,
+    and the timed model's arrivals need ``tray < n``)."""
+    p = probe(model, (), to_end=True, time_limit=3600.0)
+    if p.end_tick is None:
+        raise ValueError(f"{model.name}: the job does not complete within an hour of simulated time")
+    return list(range(0, p.end_tick))
+
+
+# ---------------------------------------------------------------- parallel runs
+
+_MODEL: Any = None
+
+
+def _init(model) -> None:
+    import signal
+
+    global _MODEL
+    _MODEL = model
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
+
+
+def _run_chunk(item) -> list:
+    chunk, to_end = item
+    return [probe(_MODEL, t, to_end=to_end) for t in chunk]
+
+
+def run_probes(model, grid, *, workers: int = 1, to_end: bool = False) -> list:
+    """``probe(model, ticks)`` for every ``ticks`` of ``grid``, in grid order, in ``workers``
+    processes (the same list whatever their number: each run depends on its ticks alone;
+    chunks of up to 8 runs, at least two per worker)."""
+    grid = [tuple(t) for t in grid]
+    chunk = max(1, min(8, len(grid) // (2 * max(workers, 1))))
+    items = [(grid[i:i + chunk], to_end) for i in range(0, len(grid), chunk)]
+    if workers <= 1 or len(items) <= 1:
+        return [probe(model, t, to_end=to_end) for t in grid]
+    import multiprocessing as mp
+
+    ctx = mp.get_context("fork" if sys.platform.startswith("linux") else "spawn")
+    with ctx.Pool(min(workers, len(items)), initializer=_init, initargs=(model,)) as pool:
+        return [p for part in pool.map(_run_chunk, items) for p in part]
+
+
+def _worst(probes) -> "Probe | None":
+    """The slowest run (its slowest response); the earliest arrival ticks on a tie."""
+    ok = [p for p in probes if p.refused is None and p.worst != -math.inf]
+    if not ok:
+        return None
+    return min(ok, key=lambda p: (-p.worst, p.ticks))
+
+
+@dataclass
+class Search:
+    """A search's result: the worst run found, how many runs it took, and how."""
+
+    model: str
+    arrivals: int
+    worst: "Probe | None"
+    runs: int
+    refused: int  # runs the runtime refused (a pair whose second part came after the kit was complete)
+    how: str
+    refusals: list = field(default_factory=list)  # why each refused run was refused
+    grid: list = field(default_factory=list, repr=False)  # (ticks, worst response) of every run, grid order
+    top: list = field(default_factory=list)  # the slowest runs of the last stage (Probe)
+
+    def text(self, rate: float = 10.0) -> str:
+        lines = [f"{self.model}: the cell's worst response to {self.arrivals} belt part(s), by search: "
+                 f"{self.runs} runs ({self.how})"]
+        if self.refused:
+            lines.append(f"  {self.refused} run(s) refused by the model (an arrival after the kit was complete, "
+                         "or a duration): not scenarios of the model, left out")
+        w = self.worst
+        if w is None:
+            lines.append("  no run answered")
+            return "\n".join(lines)
+        r = w.responses[w.worst_part]
+        lines.append(f"  worst: {'unbounded (no belt grasp within %g s)' % CAP if r is None else f'{r:.2f} s'}, "
+                     f"part {w.worst_part + 1} of {len(w.ticks)}, sent at t0 = "
+                     + ", ".join(f"{t / rate:.1f}" for t in w.ticks) + " s (detected at "
+                     + ", ".join(f"{t:.2f}" for t in w.detections) + " s)")
+        for i, ph in enumerate(w.phases):
+            lines.append(f"  part {i + 1}'s phase: {ph.text()}")
+        resp = ", ".join("none" if x is None else f"{x:.2f} s" for x in w.responses)
+        lines.append(f"  responses: {resp}; lost: " + (", ".join(f"part {i + 1}" for i in w.lost) or "none"))
+        if w.breakdown:
+            lines.append(f"  where the worst response went, per FSM state (cell, {sum(s for _, s in w.breakdown):.1f} s):")
+            for st, s in w.breakdown:
+                lines.append(f"    {st:24s} {s:6.1f} s")
+        return "\n".join(lines)
+
+
+def search_single(model, *, workers: int = 1, step: int = 1, ticks=None) -> Search:
+    """One belt part sent before every ``step``-th tick of the job (``job_ticks``; or the
+    given ``ticks``): the slowest response over them."""
+    grid = [(t,) for t in (job_ticks(model)[::step] if ticks is None else ticks)]
+    probes = run_probes(model, grid, workers=workers)
+    refused = sum(p.refused is not None for p in probes)
+    how = f"one part before every {'tick' if step == 1 else f'{step}th tick'} of the job, " \
+          f"t0 = {grid[0][0] / model.tick_rate:.1f}..{grid[-1][0] / model.tick_rate:.1f} s" if grid else "no tick"
+    top = sorted((p for p in probes if p.refused is None), key=lambda p: (-p.worst, p.ticks))[:5]
+    return Search(model.name, 1, _worst(probes), len(probes), refused, how,
+                  [p.refused for p in probes if p.refused is not None], [(p.ticks, p.worst) for p in probes], top)
+
+
+def search_pair(model, *, workers: int = 1, coarse: int = 10, keep: int = 3, spacing: int = SPACING_TICKS) -> Search:
+    """Two belt parts, the second at least ``spacing`` ticks after the first and while the
+    kit is incomplete. Coarse: the first part before every ``coarse``-th tick of the job,
+    the job's end with it (a run to the kit's completion), the second before every
+    ``coarse``-th tick from ``spacing`` after the first to that end. Refined: around each of
+    the ``keep`` slowest coarse pairs, every pair of ticks less than ``coarse`` from it
+    (kept at least ``spacing`` apart; a pair whose second part comes after the kit is
+    complete is refused by the model and left out)."""
+    firsts = job_ticks(model)[::coarse]
+    ends = run_probes(model, [(t,) for t in firsts], workers=workers, to_end=True)
+    grid = []
+    for t0, p in zip(firsts, ends):
+        if p.end_tick is None:
+            continue
+        grid += [(t0, t1) for t1 in range(t0 + spacing, p.end_tick, coarse)]
+    runs = len(firsts)
+    probes = run_probes(model, grid, workers=workers)
+    runs += len(probes)
+    refused = sum(p.refused is not None for p in probes)
+    best = sorted((p for p in probes if p.refused is None), key=lambda p: (-p.worst, p.ticks))[:keep]
+    fine: set = set()
+    for p in best:
+        a, b = p.ticks
+        fine |= {(x, y) for x in range(max(0, a - coarse + 1), a + coarse)
+                 for y in range(b - coarse + 1, b + coarse) if y - x >= spacing}
+    fine -= {p.ticks for p in probes}
+    fprobes = run_probes(model, sorted(fine), workers=workers)
+    runs += len(fprobes)
+    refused += sum(p.refused is not None for p in fprobes)
+    every = probes + fprobes
+    how = (f"coarse: the first part every {coarse} ticks, the second every {coarse} ticks from {spacing} ticks after "
+           f"it to the job's end ({len(firsts)} runs to the end, {len(grid)} pairs); refined: every tick within "
+           f"{coarse - 1} of the {len(best)} slowest pairs ({len(fprobes)} pairs)")
+    top = sorted((p for p in every if p.refused is None), key=lambda p: (-p.worst, p.ticks))[:5]
+    return Search(model.name, 2, _worst(every), runs, refused, how,
+                  [p.refused for p in every if p.refused is not None], [(p.ticks, p.worst) for p in every], top)
+
+
+# ---------------------------------------------------------------- the model at the cell's phase
+
+@dataclass
+class ModelAtPhase:
+    """The model's worst response to an arrival in a given state (the cell's phase)."""
+
+    found: bool
+    worst: "float | None" = None  # s
+    counterexample: "dict | None" = None  # its run (``btfsm replay ... --cell --pace phase`` replays it)
+    states: int = 0
+
+
+def at_phase(model, phase: Phase, ts=None) -> ModelAtPhase:
+    """The worst response of ``model`` (its first requirement) over the runs in which the
+    arrival comes in ``phase.program_state`` (the model's state before the arrival tick,
+    the cell's exact state there), and that run as a counterexample (the shortest path to
+    that state, the arrival, then a longest path without the response)."""
+    import numpy as np
+
+    from btfsm.verify.explore import explore
+    from btfsm.verify.properties.response import INF, ResponseBound, counterexample
+
+    ts = explore(model) if ts is None else ts
+    req = model.responses[0]
+    rb = ResponseBound(ts, req)
+    mask = np.ones(ts.n_states, bool)
+    for slot in ts.slots:
+        mask &= ts.column(slot) == phase.program_state[slot]
+    src = np.flatnonzero(mask)
+    if not src.size:
+        return ModelAtPhase(False, states=ts.n_states)
+    edges = rb.trigger_edges[np.isin(ts.src[rb.trigger_edges], src)]
+    if not edges.size:
+        return ModelAtPhase(False, states=ts.n_states)
+    path, k, loop = rb.witness_from(edges)
+    w = int(rb.worst_at[ts.dst[edges]].max())
+    bound = rb.bound_ticks()
+    ce = counterexample(rb, path, k, loop, f"the worst response to an arrival at the cell's phase '{phase.state}'",
+                        bound).to_json()
+    return ModelAtPhase(True, math.inf if w == INF else w / rb.rate, ce, ts.n_states)
+
+
+def duration_refusals(search: Search) -> list:
+    """The refusals of ``search``'s runs that were not about an arrival after the kit was
+    complete: an answer outside a declared duration (the model's durations do not hold in
+    the cell), or another conformance error."""
+    return [why for why in search.refusals if "not enabled" not in why]
+
+
+def report(model, search: Search, *, phase_models: bool = False) -> "tuple[str, int]":
+    """``btfsm sim MODEL --worst N``'s text and exit code (1 when a run was refused for a
+    declared duration: the model's durations do not hold in the cell). With
+    ``phase_models``: the model's worst response to an arrival at the cell's worst phase
+    (:func:`at_phase`), and its conditioned twin's (``registry.CONDITIONED``), with the
+    conditioned run replayed in the cell at its phase (``replay_in_cell(pace="phase")``:
+    where the response time went, per FSM state, in the model's run and in the cell)."""
+    from btfsm.models.registry import CONDITIONED, load_builtin
+
+    from .replay import replay_in_cell
+
+    lines = [search.text(model.tick_rate)]
+    bad = duration_refusals(search)
+    for why in bad[:3]:
+        lines.append(f"  REFUSED: {why}")
+    w = search.worst
+    if phase_models and w is not None and w.phases:
+        ph = w.phases[w.worst_part]
+        cell = w.responses[w.worst_part]
+        twins = [(model, "")]
+        if model.name in CONDITIONED:
+            name, what, _within = CONDITIONED[model.name]
+            twins.append((load_builtin(name), what))
+        lines.append(f"  the model's worst response to an arrival at that phase (the cell's state before the "
+                     f"arrival's tick, found among the model's states):")
+        last = None
+        for m, what in twins:
+            r = at_phase(m, ph)
+            if not r.found:
+                lines.append(f"    {m.name}: the phase is not a state of this model")
+                continue
+            ratio = f"; proof / cell = {r.worst / cell:.2f}" if cell and r.worst is not None else ""
+            cond = f" (durations conditioned on {what})" if what else ""
+            lines.append(f"    {m.name}{cond}: {r.worst:.1f} s ({r.states:,} states){ratio}")
+            last = r
+        if last is not None and last.counterexample is not None:
+            rep = replay_in_cell(model, last.counterexample, pace="phase")
+            if rep.decomposition:
+                ce_total = sum(c for _, c, _x in rep.decomposition)
+                lines.append(f"  where the time went, per FSM state: the last model's run ({ce_total:.1f} s) and the "
+                             "cell at its phase (replay --pace phase):")
+                for st, c, x in rep.decomposition:
+                    lines.append(f"    {st:24s} {c:6.1f} s {x:6.1f} s {c - x:+6.1f} s")
+    return "\n".join(lines), (1 if bad else 0)
