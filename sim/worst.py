@@ -23,12 +23,12 @@ from __future__ import annotations
 import math
 import sys
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, cast
 
 from .loop import Hooks, run_loop
 
 __all__ = ["Phase", "Probe", "Search", "probe", "job_ticks", "run_probes", "search_single", "search_pair", "at_phase",
-           "ModelAtPhase", "SPACING_TICKS", "CAP", "duration_refusals", "report"]
+           "ModelAtPhase", "SPACING_TICKS", "CAP", "duration_refusals", "model_breakdown", "report"]
 
 #: the timed ARIAC models' arrival spacing, 30 s, in ticks of 10 Hz
 SPACING_TICKS = 300
@@ -188,7 +188,7 @@ def probe(model, ticks, *, to_end: bool = False, time_limit: "float | None" = No
               hooks.end_tick)
     if refused is None and responses and len(responses) == len(ticks) and p.worst != math.inf:
         i = p.worst_part
-        bd = _breakdown(hooks.timeline, hooks.grasp_at[detected[i][0]], responses[i])
+        bd = _breakdown(hooks.timeline, hooks.grasp_at[detected[i][0]], cast(float, responses[i]))
         p = Probe(p.ticks, p.detections, p.responses, p.lost, p.phases, bd, None, p.end_tick)
     return p
 
@@ -240,7 +240,7 @@ def run_probes(model, grid, *, workers: int = 1, to_end: bool = False) -> list:
 
 def _worst(probes) -> "Probe | None":
     """The slowest run (its slowest response); the earliest arrival ticks on a tie."""
-    ok = [p for p in probes if p.refused is None and p.worst != -math.inf]
+    ok = [p for p in probes if p.worst != -math.inf]
     if not ok:
         return None
     return min(ok, key=lambda p: (-p.worst, p.ticks))
@@ -258,7 +258,8 @@ class Search:
     how: str
     refusals: list = field(default_factory=list)  # why each refused run was refused
     grid: list = field(default_factory=list, repr=False)  # (ticks, worst response) of every run, grid order
-    top: list = field(default_factory=list)  # the slowest runs of the last stage (Probe)
+    top: list = field(default_factory=list)  # the slowest runs (Probe), slowest first
+    clean: "Probe | None" = None  # the slowest run in which no part was lost
 
     def text(self, rate: float = 10.0) -> str:
         lines = [f"{self.model}: the cell's worst response to {self.arrivals} belt part(s), by search: "
@@ -277,6 +278,10 @@ class Search:
                      + ", ".join(f"{t:.2f}" for t in w.detections) + " s)")
         for i, ph in enumerate(w.phases):
             lines.append(f"  part {i + 1}'s phase: {ph.text()}")
+        c = self.clean
+        if c is not None and c is not w:
+            lines.append(f"  worst without a lost part: {c.worst:.2f} s (sent at t0 = "
+                         + ", ".join(f"{t / rate:.1f}" for t in c.ticks) + " s)")
         resp = ", ".join("none" if x is None else f"{x:.2f} s" for x in w.responses)
         lines.append(f"  responses: {resp}; lost: " + (", ".join(f"part {i + 1}" for i in w.lost) or "none"))
         if w.breakdown:
@@ -286,17 +291,21 @@ class Search:
         return "\n".join(lines)
 
 
+def _found(model, arrivals: int, probes: list, runs: int, how: str) -> Search:
+    ok = sorted((p for p in probes if p.worst != -math.inf), key=lambda p: (-p.worst, p.ticks))
+    refusals = [p.refused for p in probes if p.refused is not None]
+    return Search(model.name, arrivals, _worst(probes), runs, len(refusals), how, refusals,
+                  [(p.ticks, p.worst) for p in probes], ok[:5], next((p for p in ok if not p.lost), None))
+
+
 def search_single(model, *, workers: int = 1, step: int = 1, ticks=None) -> Search:
     """One belt part sent before every ``step``-th tick of the job (``job_ticks``; or the
     given ``ticks``): the slowest response over them."""
     grid = [(t,) for t in (job_ticks(model)[::step] if ticks is None else ticks)]
     probes = run_probes(model, grid, workers=workers)
-    refused = sum(p.refused is not None for p in probes)
     how = f"one part before every {'tick' if step == 1 else f'{step}th tick'} of the job, " \
           f"t0 = {grid[0][0] / model.tick_rate:.1f}..{grid[-1][0] / model.tick_rate:.1f} s" if grid else "no tick"
-    top = sorted((p for p in probes if p.refused is None), key=lambda p: (-p.worst, p.ticks))[:5]
-    return Search(model.name, 1, _worst(probes), len(probes), refused, how,
-                  [p.refused for p in probes if p.refused is not None], [(p.ticks, p.worst) for p in probes], top)
+    return _found(model, 1, probes, len(probes), how)
 
 
 def search_pair(model, *, workers: int = 1, coarse: int = 10, keep: int = 3, spacing: int = SPACING_TICKS) -> Search:
@@ -317,8 +326,7 @@ def search_pair(model, *, workers: int = 1, coarse: int = 10, keep: int = 3, spa
     runs = len(firsts)
     probes = run_probes(model, grid, workers=workers)
     runs += len(probes)
-    refused = sum(p.refused is not None for p in probes)
-    best = sorted((p for p in probes if p.refused is None), key=lambda p: (-p.worst, p.ticks))[:keep]
+    best = sorted((p for p in probes if p.worst != -math.inf), key=lambda p: (-p.worst, p.ticks))[:keep]
     fine: set = set()
     for p in best:
         a, b = p.ticks
@@ -327,14 +335,11 @@ def search_pair(model, *, workers: int = 1, coarse: int = 10, keep: int = 3, spa
     fine -= {p.ticks for p in probes}
     fprobes = run_probes(model, sorted(fine), workers=workers)
     runs += len(fprobes)
-    refused += sum(p.refused is not None for p in fprobes)
     every = probes + fprobes
     how = (f"coarse: the first part every {coarse} ticks, the second every {coarse} ticks from {spacing} ticks after "
            f"it to the job's end ({len(firsts)} runs to the end, {len(grid)} pairs); refined: every tick within "
            f"{coarse - 1} of the {len(best)} slowest pairs ({len(fprobes)} pairs)")
-    top = sorted((p for p in every if p.refused is None), key=lambda p: (-p.worst, p.ticks))[:5]
-    return Search(model.name, 2, _worst(every), runs, refused, how,
-                  [p.refused for p in every if p.refused is not None], [(p.ticks, p.worst) for p in every], top)
+    return _found(model, 2, every, runs, how)
 
 
 # ---------------------------------------------------------------- the model at the cell's phase
@@ -371,8 +376,11 @@ def at_phase(model, phase: Phase, ts=None) -> ModelAtPhase:
     edges = rb.trigger_edges[np.isin(ts.src[rb.trigger_edges], src)]
     if not edges.size:
         return ModelAtPhase(False, states=ts.n_states)
-    path, k, loop = rb.witness_from(edges)
     w = int(rb.worst_at[ts.dst[edges]].max())
+    witness = rb.witness_from(edges)
+    if witness is None:  # unbounded through states a budget left unexplored (not with a full exploration)
+        return ModelAtPhase(True, math.inf, None, ts.n_states)
+    path, k, loop = witness
     bound = rb.bound_ticks()
     ce = counterexample(rb, path, k, loop, f"the worst response to an arrival at the cell's phase '{phase.state}'",
                         bound).to_json()
@@ -386,47 +394,61 @@ def duration_refusals(search: Search) -> list:
     return [why for why in search.refusals if "not enabled" not in why]
 
 
+def model_breakdown(ce: dict, fsm: str) -> tuple:
+    """((state split from, s), ...): where a ``response`` counterexample's response time
+    went, from its trigger to its last state (the response), per FSM state, copies summed
+    (the counterexample side of ``replay.decomposition``)."""
+    from btfsm.positions import base_state
+
+    from .replay import fsm_states_of
+
+    v = ce.get("violation") or {}
+    states = fsm_states_of(ce, fsm)
+    rate = float(v.get("tick_rate") or 10.0)
+    out: dict = {}
+    for st in states[int(v["trigger_step"]):-1]:
+        out[base_state(st)] = round(out.get(base_state(st), 0.0) + 1.0 / rate, 2)
+    return tuple(out.items())
+
+
 def report(model, search: Search, *, phase_models: bool = False) -> "tuple[str, int]":
     """``btfsm sim MODEL --worst N``'s text and exit code (1 when a run was refused for a
     declared duration: the model's durations do not hold in the cell). With
     ``phase_models``: the model's worst response to an arrival at the cell's worst phase
-    (:func:`at_phase`), and its conditioned twin's (``registry.CONDITIONED``), with the
-    conditioned run replayed in the cell at its phase (``replay_in_cell(pace="phase")``:
-    where the response time went, per FSM state, in the model's run and in the cell)."""
+    (:func:`at_phase`), and its conditioned twin's (``registry.CONDITIONED``), each with
+    where its time went beside the cell's, per FSM state."""
     from btfsm.models.registry import CONDITIONED, load_builtin
 
-    from .replay import replay_in_cell
+    from .binding import Dialect, dialect_of
 
     lines = [search.text(model.tick_rate)]
     bad = duration_refusals(search)
     for why in bad[:3]:
         lines.append(f"  REFUSED: {why}")
     w = search.worst
-    if phase_models and w is not None and w.phases:
+    if phase_models and w is not None and w.phases and w.responses[w.worst_part] is not None:
         ph = w.phases[w.worst_part]
         cell = w.responses[w.worst_part]
+        fsm = cast(Dialect, dialect_of(model)).fsm
         twins = [(model, "")]
         if model.name in CONDITIONED:
             name, what, _within = CONDITIONED[model.name]
             twins.append((load_builtin(name), what))
-        lines.append(f"  the model's worst response to an arrival at that phase (the cell's state before the "
-                     f"arrival's tick, found among the model's states):")
-        last = None
+        lines.append("  the model's worst response to an arrival at that phase (the cell's state before the "
+                     "arrival's tick, among the model's states):")
         for m, what in twins:
             r = at_phase(m, ph)
-            if not r.found:
+            if not r.found or r.worst is None:
                 lines.append(f"    {m.name}: the phase is not a state of this model")
                 continue
-            ratio = f"; proof / cell = {r.worst / cell:.2f}" if cell and r.worst is not None else ""
-            cond = f" (durations conditioned on {what})" if what else ""
-            lines.append(f"    {m.name}{cond}: {r.worst:.1f} s ({r.states:,} states){ratio}")
-            last = r
-        if last is not None and last.counterexample is not None:
-            rep = replay_in_cell(model, last.counterexample, pace="phase")
-            if rep.decomposition:
-                ce_total = sum(c for _, c, _x in rep.decomposition)
-                lines.append(f"  where the time went, per FSM state: the last model's run ({ce_total:.1f} s) and the "
-                             "cell at its phase (replay --pace phase):")
-                for st, c, x in rep.decomposition:
-                    lines.append(f"    {st:24s} {c:6.1f} s {x:6.1f} s {c - x:+6.1f} s")
+            cond = f", durations conditioned on {what}" if what else ""
+            lines.append(f"    {m.name} ({r.states:,} states{cond}): {r.worst:.1f} s, {r.worst / cell:.2f} times "
+                         f"the cell's {cell:.2f} s")
+            if r.worst == math.inf or r.counterexample is None:
+                continue
+            mine, theirs = dict(model_breakdown(r.counterexample, fsm)), dict(w.breakdown)
+            lines.append("      per FSM state (model, cell, model - cell):")
+            for st in list(mine) + [x for x in theirs if x not in mine]:
+                a, b = mine.get(st, 0.0), theirs.get(st, 0.0)
+                lines.append(f"        {st:24s} {a:6.1f} s {b:6.1f} s {a - b:+6.1f} s")
     return "\n".join(lines), (1 if bad else 0)
