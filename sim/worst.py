@@ -264,9 +264,13 @@ class Search:
     def text(self, rate: float = 10.0) -> str:
         lines = [f"{self.model}: the cell's worst response to {self.arrivals} belt part(s), by search: "
                  f"{self.runs} runs ({self.how})"]
-        if self.refused:
-            lines.append(f"  {self.refused} run(s) refused by the model (an arrival after the kit was complete, "
-                         "or a duration): not scenarios of the model, left out")
+        late = sum("not enabled" in why for why in self.refusals)
+        if late:
+            lines.append(f"  {late} run(s) refused by the model: a part came once the kit was complete (the timed "
+                         "model's arrivals need tray < n): no scenario of the model, left out")
+        if self.refused > late:
+            lines.append(f"  {self.refused - late} run(s) refused by the runtime for a declared duration or another "
+                         "conformance error: the model's durations do not hold in the cell")
         w = self.worst
         if w is None:
             lines.append("  no run answered")
