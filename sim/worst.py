@@ -6,7 +6,7 @@ differ only in when belt parts arrive: this module runs the ARIAC job of a kitti
 (``ariac-preemptive-timed``: 2 tray parts, arrivals at least 30 s apart and only while
 the kit is incomplete, as the timed model assumes) with a belt part sent to the sensor at
 every tick of the job (:func:`search_single`), and with two parts on a coarse grid of
-pairs refined around the worst (:func:`search_pair`), and measures each part's response
+pairs refined around the slowest second responses (:func:`search_pair`), and measures each part's response
 exactly as the model defines it and as the counterexample replay does
 (``replay.replay_in_cell``, ``pace="phase"``): from the part's detection to the start of
 the arm's next grasp at the belt (a lost part counts: the next belt grasp answers it).
@@ -20,6 +20,7 @@ arrival in the phase (the model's state) the cell's worst had.
 """
 from __future__ import annotations
 
+import dataclasses
 import math
 import sys
 from dataclasses import dataclass, field
@@ -66,16 +67,20 @@ class Probe:
     breakdown: tuple = ()  # ((state split from, s), ...): where the slowest response went, in order
     refused: "str | None" = None  # the runtime refused a tick (an arrival the model does not allow, a duration)
     end_tick: "int | None" = None  # with ``to_end``: the first tick after which the kit is complete
+    ranked: "int | None" = None  # the part whose response ranks the run (None: the slowest part's)
 
     @property
     def worst(self) -> float:
-        """The slowest response (inf: a part without one within CAP); -inf for a refused run."""
+        """The ranked part's response, else the slowest (inf: none within CAP); -inf for a refused run."""
         if self.refused is not None or len(self.responses) < len(self.ticks):
             return -math.inf
-        return max((math.inf if r is None else r) for r in self.responses)
+        rs = [math.inf if r is None else r for r in self.responses]
+        return rs[self.ranked] if self.ranked is not None else max(rs)
 
     @property
     def worst_part(self) -> int:
+        if self.ranked is not None:
+            return self.ranked
         rs = [math.inf if r is None else r for r in self.responses]
         return rs.index(max(rs))
 
@@ -162,10 +167,10 @@ def _breakdown(timeline, end: float, response: float) -> tuple:
     return tuple(out.items())
 
 
-def probe(model, ticks, *, to_end: bool = False, time_limit: "float | None" = None) -> Probe:
+def probe(model, ticks, *, to_end: bool = False, time_limit: "float | None" = None, last: bool = False) -> Probe:
     """Run ``model`` in the ARIAC cell (the replay's cell) with a belt part sent before each
     of ``ticks`` (runtime ticks, ascending); see :class:`Probe`. ``to_end``: run on until the
-    kit is complete (``Probe.end_tick``)."""
+    kit is complete (``Probe.end_tick``); ``last``: the last part's response ranks the run."""
     from .protocol import TrialSpec
     from .scene import LOST
     from .trial import build_trial
@@ -185,11 +190,11 @@ def probe(model, ticks, *, to_end: bool = False, time_limit: "float | None" = No
     lost_ids = set(world.parts_in(LOST))
     lost = tuple(i for i, pid in enumerate(hooks.pids) if pid in lost_ids)
     p = Probe(ticks, tuple(round(t, 3) for _, t in detected), responses, lost, tuple(hooks.phases), (), refused,
-              hooks.end_tick)
-    if refused is None and responses and len(responses) == len(ticks) and p.worst != math.inf:
+              hooks.end_tick, len(ticks) - 1 if last and ticks else None)
+    if refused is None and responses and len(responses) == len(ticks) and p.worst not in (math.inf, -math.inf):
         i = p.worst_part
         bd = _breakdown(hooks.timeline, hooks.grasp_at[detected[i][0]], cast(float, responses[i]))
-        p = Probe(p.ticks, p.detections, p.responses, p.lost, p.phases, bd, None, p.end_tick)
+        p = dataclasses.replace(p, breakdown=bd)
     return p
 
 
@@ -218,19 +223,19 @@ def _init(model) -> None:
 
 
 def _run_chunk(item) -> list:
-    chunk, to_end = item
-    return [probe(_MODEL, t, to_end=to_end) for t in chunk]
+    chunk, to_end, last = item
+    return [probe(_MODEL, t, to_end=to_end, last=last) for t in chunk]
 
 
-def run_probes(model, grid, *, workers: int = 1, to_end: bool = False) -> list:
-    """``probe(model, ticks)`` for every ``ticks`` of ``grid``, in grid order, in ``workers``
+def run_probes(model, grid, *, workers: int = 1, to_end: bool = False, last: bool = False) -> list:
+    """``probe(model, ticks, to_end=, last=)`` for every ``ticks`` of ``grid``, in grid order, in ``workers``
     processes (the same list whatever their number: each run depends on its ticks alone;
     chunks of up to 8 runs, at least two per worker)."""
     grid = [tuple(t) for t in grid]
     chunk = max(1, min(8, len(grid) // (2 * max(workers, 1))))
-    items = [(grid[i:i + chunk], to_end) for i in range(0, len(grid), chunk)]
+    items = [(grid[i:i + chunk], to_end, last) for i in range(0, len(grid), chunk)]
     if workers <= 1 or len(items) <= 1:
-        return [probe(model, t, to_end=to_end) for t in grid]
+        return [probe(model, t, to_end=to_end, last=last) for t in grid]
     import multiprocessing as mp
 
     ctx = mp.get_context("fork" if sys.platform.startswith("linux") else "spawn")
@@ -314,7 +319,8 @@ def search_single(model, *, workers: int = 1, step: int = 1, ticks=None) -> Sear
 
 def search_pair(model, *, workers: int = 1, coarse: int = 10, keep: int = 3, spacing: int = SPACING_TICKS) -> Search:
     """Two belt parts, the second at least ``spacing`` ticks after the first and while the
-    kit is incomplete. Coarse: the first part before every ``coarse``-th tick of the job,
+    kit is incomplete, ranked by the second part's response (the first's is the one-part
+    search's whenever it comes before the second part). Coarse: the first part before every ``coarse``-th tick of the job,
     the job's end with it (a run to the kit's completion), the second before every
     ``coarse``-th tick from ``spacing`` after the first to that end. Refined: around each of
     the ``keep`` slowest coarse pairs, every pair of ticks less than ``coarse`` from it
@@ -328,7 +334,7 @@ def search_pair(model, *, workers: int = 1, coarse: int = 10, keep: int = 3, spa
             continue
         grid += [(t0, t1) for t1 in range(t0 + spacing, p.end_tick, coarse)]
     runs = len(firsts)
-    probes = run_probes(model, grid, workers=workers)
+    probes = run_probes(model, grid, workers=workers, last=True)
     runs += len(probes)
     best = sorted((p for p in probes if p.worst != -math.inf), key=lambda p: (-p.worst, p.ticks))[:keep]
     fine: set = set()
@@ -337,7 +343,7 @@ def search_pair(model, *, workers: int = 1, coarse: int = 10, keep: int = 3, spa
         fine |= {(x, y) for x in range(max(0, a - coarse + 1), a + coarse)
                  for y in range(b - coarse + 1, b + coarse) if y - x >= spacing}
     fine -= {p.ticks for p in probes}
-    fprobes = run_probes(model, sorted(fine), workers=workers)
+    fprobes = run_probes(model, sorted(fine), workers=workers, last=True)
     runs += len(fprobes)
     every = probes + fprobes
     how = (f"coarse: the first part every {coarse} ticks, the second every {coarse} ticks from {spacing} ticks after "
@@ -430,7 +436,10 @@ def report(model, search: Search, *, phase_models: bool = False) -> "tuple[str, 
     for why in bad[:3]:
         lines.append(f"  REFUSED: {why}")
     w = search.worst
-    if phase_models and w is not None and w.phases and w.responses[w.worst_part] is not None:
+    if phase_models and not model.responses:
+        lines.append(f"  --at-phase: {model.name} declares no response requirement (a timed model does: "
+                     "ariac-*-timed)")
+    elif phase_models and w is not None and w.phases and w.responses[w.worst_part] is not None:
         ph = w.phases[w.worst_part]
         cell = w.responses[w.worst_part]
         fsm = cast(Dialect, dialect_of(model)).fsm
