@@ -243,14 +243,6 @@ def run_probes(model, grid, *, workers: int = 1, to_end: bool = False, last: boo
         return [p for part in pool.map(_run_chunk, items) for p in part]
 
 
-def _worst(probes) -> "Probe | None":
-    """The slowest run (its slowest response); the earliest arrival ticks on a tie."""
-    ok = [p for p in probes if p.worst != -math.inf]
-    if not ok:
-        return None
-    return min(ok, key=lambda p: (-p.worst, p.ticks))
-
-
 @dataclass
 class Search:
     """A search's result: the worst run found, how many runs it took, and how."""
@@ -301,9 +293,11 @@ class Search:
 
 
 def _found(model, arrivals: int, probes: list, runs: int, how: str) -> Search:
+    """The worst run is the slowest (its ranked part's response, else its slowest), the
+    earliest arrival ticks on a tie; refused runs are left out."""
     ok = sorted((p for p in probes if p.worst != -math.inf), key=lambda p: (-p.worst, p.ticks))
     refusals = [p.refused for p in probes if p.refused is not None]
-    return Search(model.name, arrivals, _worst(probes), runs, len(refusals), how, refusals,
+    return Search(model.name, arrivals, ok[0] if ok else None, runs, len(refusals), how, refusals,
                   [(p.ticks, p.worst) for p in probes], ok[:5], next((p for p in ok if not p.lost), None))
 
 
@@ -312,8 +306,9 @@ def search_single(model, *, workers: int = 1, step: int = 1, ticks=None) -> Sear
     given ``ticks``): the slowest response over them."""
     grid = [(t,) for t in (job_ticks(model)[::step] if ticks is None else ticks)]
     probes = run_probes(model, grid, workers=workers)
-    how = f"one part before every {'tick' if step == 1 else f'{step}th tick'} of the job, " \
-          f"t0 = {grid[0][0] / model.tick_rate:.1f}..{grid[-1][0] / model.tick_rate:.1f} s" if grid else "no tick"
+    every = "the given ticks" if ticks is not None else "every tick" if step == 1 else f"every {step}th tick"
+    how = (f"one part before {every} of the job, t0 = {grid[0][0] / model.tick_rate:.1f}.."
+           f"{grid[-1][0] / model.tick_rate:.1f} s" if grid else "no tick")
     return _found(model, 1, probes, len(probes), how)
 
 
