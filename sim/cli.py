@@ -193,6 +193,33 @@ def args_sim(sp) -> None:
     sp.add_argument("--max-frames", type=int_range(1, MAX_FRAMES), default=600)
     cliargs.scene(sp)
     sp.add_argument("--seed", type=seed_int, default=0, help="with a scene: the seed of its random arrivals and faults")
+    sp.add_argument("--worst", type=int_range(1, 2), metavar="N", default=None,
+                    help="the kitting cell's worst response to N (1 or 2) belt parts, searched over their arrival "
+                         "ticks in the model's job (docs/cell.md, 'The cell's worst case')")
+    sp.add_argument("--step", type=int_range(1, 1000), metavar="TICKS", default=None,
+                    help="with --worst: the grid's step (default: every tick for 1 part; 10 ticks for the coarse "
+                         "grid of 2 parts, refined at every tick)")
+    sp.add_argument("--at-phase", action="store_true",
+                    help="with --worst: also the model's worst response to an arrival at the cell's worst phase, "
+                         "and its conditioned twin's (explores the models)")
+    sp.add_argument("--workers", type=int_range(1, MAX_WORKERS), default=os.cpu_count() or 1,
+                    help="with --worst: worker processes (the result does not depend on their number)")
+
+
+def _sim_worst(args, model) -> int:
+    from .conformance import variant_of
+    from .worst import report, search_pair, search_single
+
+    if args.scene is not None or args.render or args.gif:
+        raise UsageError("--worst searches the kitting cell and prints a table: not with --scene, --render or --gif")
+    variant_of(model)  # UsageError unless the kitting cell runs the model
+    if args.worst == 1:
+        found = search_single(model, workers=args.workers, step=args.step or 1)
+    else:
+        found = search_pair(model, workers=args.workers, coarse=args.step or 10)
+    text, code = report(model, found, phase_models=args.at_phase)
+    print(text)
+    return code
 
 
 def cli_sim(args) -> int:
@@ -205,6 +232,10 @@ def cli_sim(args) -> int:
 
     needs(*picture_modules(args))
     model = load_cli_model(args)
+    if args.worst:
+        return _sim_worst(args, model)
+    if args.step is not None or args.at_phase:
+        raise UsageError("--step and --at-phase go with --worst")
     if args.gif and not (args.fps > 0 and args.max_frames >= 1):
         raise UsageError("--gif needs --fps > 0 and --max-frames >= 1")
     scene = _scene_of(args, model)

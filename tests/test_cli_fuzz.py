@@ -106,7 +106,9 @@ TABLE = {
                                        "--fps": _floats(0.01, 100.0) + ["0", "-1", "1e-9", "0.001"],
                                        "--max-frames": _ints(1, MAX_FRAMES) + ["0"],
                                        "--render": BAD_OUTPUT_FILES + ["x.jpg", "x"],
-                                       "--gif": BAD_OUTPUT_FILES + ["x.png", "x"]}),
+                                       "--gif": BAD_OUTPUT_FILES + ["x.png", "x"],
+                                       "--worst": _ints(1, 2), "--step": _ints(1, 1000),
+                                       "--workers": _ints(1, MAX_WORKERS) + ["0"]}),
     "import": ([XML], {"--output": BAD_OUTPUT_FILES + ["x.txt", "x"], "--leaves": BAD_INPUTS,
                        "--semantics": CHOICE_BAD}),
     "conform": ([ARIAC, "--scenarios", "1", "--time", "0.5"], {
@@ -122,7 +124,9 @@ STRUCTURAL = ([[]] + [[c] for c in COMMANDS if c not in ("experiment", "sweep")]
               ["experiment", "--k", "1", "--trials"], ["validate", TWO, "--strict=yes"],
               ["sweep", "positional"], ["sweep", "--belt-speed"], ["sweep", "--belt-speed", "-0.1"],
               ["sweep", "--period", "0"], ["sweep", "--pick-window", "nan"], ["sweep", "--workers", "0"],
-              ["bound", TWO], ["bound", TWO, "--trigger", "x"]]
+              ["bound", TWO], ["bound", TWO, "--trigger", "x"], ["sim", ARIAC, "--step", "3"],
+              ["sim", ARIAC, "--at-phase"], ["sim", TWO, "--worst", "1"], ["sim", ARIAC, "--worst", "1", "--gif", "w.gif"],
+              ["sim", ARIAC, "--worst", "2", "--scene", "models/scenes/two_area.yaml"]]
               + [[c, bad] for c in COMMANDS if c not in ("experiment", "sweep", "replay") for bad in BAD_INPUTS]
               + [["replay", bad, TWO] for bad in BAD_INPUTS if bad != A_FILE]
               + [["replay", A_FILE + ".jsonl", bad] for bad in BAD_INPUTS])

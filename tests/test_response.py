@@ -131,6 +131,13 @@ def test_model_figures_equal_a_brute_force_walk(model, data):
         return
     assert rb.worst == brute_model_worst(ts, rb.stop, rb.triggers)
     assert prog is model.program
+    if rb.trigger_edges is not None and rb.worst != INF:  # the worst run from one trigger source
+        src = int(ts.src[rb.trigger_edges[data.draw(st.integers(0, len(rb.trigger_edges) - 1))]])
+        edges = rb.trigger_edges[ts.src[rb.trigger_edges] == src]
+        path, k, loop = rb.witness_from(edges)
+        assert loop is None and path[k - 1] in edges.tolist() and ts.src[path[0]] == 0
+        assert all(ts.dst[a] == ts.src[b] for a, b in zip(path, path[1:])) and rb.stop[ts.dst[path[-1]]]
+        assert len(path) - k == brute_model_worst(ts, rb.stop, np.unique(ts.dst[edges]))
 
 
 TIMED = """

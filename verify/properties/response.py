@@ -257,6 +257,21 @@ class ResponseBound:
             return prefix + self._longest_walk(t, worst), len(prefix), None
         return self._lasso(prefix, t)
 
+    def witness_from(self, edges) -> "tuple | None":
+        """(transitions, trigger step index, loop or None): the worst run among those whose
+        trigger is one of ``edges`` (trigger transitions, e.g. the arrivals from one state),
+        as ``worst_witness`` (the nearest source on a tie)."""
+        ts = self.ts
+        edges = np.asarray(edges, np.int64)
+        w = self.worst_at[ts.dst[edges]]
+        edges = edges[w == w.max()]
+        e = int(edges[np.lexsort((edges, ts.src[edges]))[0]])
+        prefix, t = ts.path_to(int(ts.src[e])) + [e], int(ts.dst[e])
+        worst = int(self.worst_at[t])
+        if worst != INF:
+            return prefix + self._longest_walk(t, worst), len(prefix), None
+        return self._lasso(prefix, t)
+
     def violation_witness(self, bound: int) -> "tuple | None":
         """(transitions, trigger step index, loop or None) of the shortest run whose response
         takes more than ``bound`` ticks: the lasso when the response never comes. None on a
