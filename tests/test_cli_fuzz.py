@@ -20,7 +20,7 @@ import tempfile
 
 import pytest
 from hypothesis import HealthCheck, event, given, settings
-from hypothesis import strategies as st
+from memo_strategies import st
 
 from btfsm.cli import COMMANDS, MAX_FRAMES, MAX_SCENARIOS, MAX_SIM_TIME, MAX_STATES_LIMIT, MAX_TICKS, MAX_WORKERS, main
 

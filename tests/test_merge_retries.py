@@ -9,7 +9,7 @@ from __future__ import annotations
 import os
 
 from hypothesis import HealthCheck, given, reject, settings
-from hypothesis import strategies as st
+from memo_strategies import st
 
 from btfsm import Bool, Int, Model
 from btfsm.bt import (Action, Condition, Inverter, MemoryFallback, MemorySequence, Parallel, PipelineSequence,
