@@ -1,13 +1,13 @@
 """``hypothesis.strategies`` as ``st``, with the strategies the test generators build at
 every draw memoised (``from memo_strategies import st``).
 
-The generators (core_strategies.py, strategies.py, the tests' own) write ``draw(st.integers(0, 4))``,
-``draw(st.sampled_from(names))`` deep inside their recursion, so each example builds
-hundreds of new strategy objects, and hypothesis validates (and analyses) each new
-strategy object the first time it draws from it: that, not building the models, was most
-of their cost. A memoised strategy is the same strategy (equal arguments of equal types),
-so the same choices give the same examples (objects other than plain values are keyed by
-identity, so a draw gives the very objects it was given).
+The generators (core_strategies.py, strategies.py, the tests' own) write
+``draw(st.integers(0, 4))``, ``draw(st.sampled_from(names))`` deep inside their recursion,
+so each example builds hundreds of new strategy objects, and hypothesis validates (and
+analyses) each new strategy object the first time it draws from it: that, not building
+the models, was most of their cost. A memoised strategy is the same strategy (equal
+arguments of equal types), so the same choices give the same examples (objects other than
+plain values are keyed by identity, so a draw gives the very objects it was given).
 """
 from __future__ import annotations
 
