@@ -21,7 +21,7 @@ from __future__ import annotations
 import random
 from dataclasses import dataclass, replace
 
-from hypothesis import strategies as st
+from memo_strategies import st
 
 from btfsm import (FSM, Action, Bool, Condition, Edge, Effects, Enum, EnvChoice, EnvEvent,
                    ForceFailure, ForceSuccess, Guard, Int, Inverter, Marker, MemoryFallback,
@@ -438,9 +438,13 @@ def variables(draw):
     return out
 
 
+def _by_name(x):
+    return x.name
+
+
 def _effects(draw, env, writable, max_n=2):
     """Random effects that always stay in their variables' domains."""
-    targets = draw(st.lists(st.sampled_from(writable), max_size=max_n, unique_by=lambda x: x.name)) if writable else []
+    targets = draw(st.lists(st.sampled_from(writable), max_size=max_n, unique_by=_by_name)) if writable else []
     out = []
     for var in targets:
         if var.kind == "bool":

@@ -8,7 +8,7 @@ as strings or as plain bool/int constants, the forms a model file can hold.
 """
 from __future__ import annotations
 
-from hypothesis import strategies as st
+from memo_strategies import st
 
 from btfsm import (FSM, Action, Condition, Edge, EnvChoice, EnvEvent, Marker, Model, ModelError,
                    Outcome, Primitive, State)
@@ -82,10 +82,14 @@ def _value_expr(draw, var, variables):
                                  f"{var.lo} if {_atom(draw, variables, ())} else {var.hi}"]))
 
 
+def _by_name(v):
+    return v.name
+
+
 def _effects(draw, variables):
     if not variables:
         return ()
-    targets = draw(st.lists(st.sampled_from(variables), unique_by=lambda v: v.name, max_size=2))
+    targets = draw(st.lists(st.sampled_from(variables), unique_by=_by_name, max_size=2))
     pairs = tuple((v.name, _value_expr(draw, v, variables)) for v in targets)
     return dict(pairs) if draw(st.booleans()) else pairs
 

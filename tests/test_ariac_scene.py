@@ -7,7 +7,7 @@ import math
 
 import pytest
 from hypothesis import HealthCheck, given, settings
-from hypothesis import strategies as st
+from memo_strategies import st
 
 from btfsm.errors import ModelError
 from btfsm.sim.protocol import TrialSpec

@@ -14,7 +14,7 @@ from pathlib import Path
 import pytest
 import yaml
 from hypothesis import HealthCheck, given, settings
-from hypothesis import strategies as st
+from memo_strategies import st
 
 from btfsm import cli
 from btfsm.errors import ModelError

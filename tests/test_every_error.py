@@ -11,7 +11,7 @@ from pathlib import Path
 
 import pytest
 from hypothesis import given, settings
-from hypothesis import strategies as st
+from memo_strategies import st
 
 from btfsm import cli
 from btfsm.errors import ModelError, ModelErrors

@@ -18,7 +18,7 @@ from pathlib import Path
 import jsonschema
 import pytest
 from hypothesis import HealthCheck, given, settings
-from hypothesis import strategies as st
+from memo_strategies import st
 
 from btfsm import (FSM, Action, Bool, Condition, EnvEvent, Guard, Model, ModelError, Parallel,
                    ReactiveFallback, ReactiveSequence, SkillRequest, State, Edge, Marker, running, success)

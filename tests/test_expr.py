@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 import z3
 from hypothesis import HealthCheck, given, settings
-from hypothesis import strategies as st
+from memo_strategies import st
 
 from btfsm import (FSM, Action, Bool, Condition, Edge, Enum, EnvEvent, Int, Marker, Model, ModelError,
                    SkillRequest, State, parse, success, to_text, v)

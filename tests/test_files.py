@@ -14,7 +14,7 @@ import jsonschema
 import pytest
 import yaml
 from hypothesis import HealthCheck, given, settings
-from hypothesis import strategies as st
+from memo_strategies import st
 
 from btfsm import ModelError
 from btfsm.files import (builtin_models, dump_model, dumps_model, expand_templates, load_data, load_model,

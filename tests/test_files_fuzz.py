@@ -20,7 +20,7 @@ from pathlib import Path
 import pytest
 import yaml
 from hypothesis import HealthCheck, given, settings
-from hypothesis import strategies as st
+from memo_strategies import st
 
 from btfsm import ModelError
 from btfsm.files import builtin_models, dumps_model, load_model, loads_data, loads_model, model_from_data

@@ -18,7 +18,7 @@ import jsonschema
 import pytest
 import yaml
 from hypothesis import HealthCheck, given, settings
-from hypothesis import strategies as st
+from memo_strategies import st
 
 from btfsm import ModelError
 from btfsm.bt import Action, Condition, ReactiveFallback

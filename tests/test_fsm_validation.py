@@ -7,7 +7,7 @@ import dataclasses
 
 import pytest
 from hypothesis import HealthCheck, given, settings
-from hypothesis import strategies as st
+from memo_strategies import st
 
 from btfsm import (FSM, Bool, Edge, Int, Marker, Model, ModelError, Primitive, SkillRequest, State, Status,
                    failure, running, success)

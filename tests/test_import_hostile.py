@@ -13,7 +13,7 @@ from __future__ import annotations
 import pytest
 import yaml
 from hypothesis import HealthCheck, given, settings
-from hypothesis import strategies as st
+from memo_strategies import st
 
 from btfsm import Guard, Model, walk
 from btfsm.errors import ModelError

@@ -3,7 +3,7 @@ executives, random runs in the runtime, and the full btfsm check."""
 import importlib
 import pytest
 from hypothesis import given, settings
-from hypothesis import strategies as st
+from memo_strategies import st
 
 from btfsm.oracles import RandomOracle
 from btfsm.runtime import Runtime

@@ -13,7 +13,7 @@ import os
 
 import pytest
 from hypothesis import HealthCheck, given, settings
-from hypothesis import strategies as st
+from memo_strategies import st
 
 pytest.importorskip("behaviortreepy")
 

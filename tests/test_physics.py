@@ -9,7 +9,7 @@ import copy
 import math
 
 from hypothesis import HealthCheck, given, settings
-from hypothesis import strategies as st
+from memo_strategies import st
 
 from btfsm.errors import ModelError
 from btfsm.sim.scene import FLOOR, Place, World, scene_from_data

@@ -24,7 +24,7 @@ import json
 
 import pytest
 from hypothesis import HealthCheck, given, settings
-from hypothesis import strategies as st
+from memo_strategies import st
 
 import btfsm.cli as cli
 import btfsm.files.loading as files  # where load_cli_model looks load_model up (the cache below)

@@ -9,7 +9,7 @@ import random
 
 import pytest
 from hypothesis import HealthCheck, given, settings
-from hypothesis import strategies as st
+from memo_strategies import st
 
 from btfsm import (FSM, Action, Bool, Condition, ConformanceError, Edge, Effects, EnvChoice, EnvEvent, Int,
                    Marker, Model, Parallel, ReactiveFallback, ReactiveSequence, SkillRequest, State, Status,

@@ -14,7 +14,7 @@ import sys
 
 import pytest
 from hypothesis import HealthCheck, given, settings
-from hypothesis import strategies as st
+from memo_strategies import st
 
 from btfsm.errors import ModelError
 from btfsm.files import load_model

@@ -17,7 +17,7 @@ from pathlib import Path
 
 import pytest
 from hypothesis import HealthCheck, given, settings
-from hypothesis import strategies as st
+from memo_strategies import st
 
 from btfsm import (FSM, Action, Bool, Condition, DomainError, Edge, Effects, EnvChoice, EnvEvent, FailureIsRunning,
                    RunningIsFailure, RunningIsSuccess,

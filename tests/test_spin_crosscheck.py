@@ -24,7 +24,7 @@ import tempfile
 
 import pytest
 from hypothesis import HealthCheck, Phase, given, settings
-from hypothesis import strategies as st
+from memo_strategies import st
 
 from btfsm import (FSM, Bool, Edge, Enum, EnvChoice, EnvEvent, Int, Marker, Model, Outcome, SkillRequest, State,
                    failure, success)

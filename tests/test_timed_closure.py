@@ -14,7 +14,7 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 from hypothesis import HealthCheck, assume, given, settings
-from hypothesis import strategies as st
+from memo_strategies import st
 
 import btfsm.verify.traced as traced
 import btfsm.verify.visited as visited

@@ -10,7 +10,7 @@ from collections import Counter
 import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings
-from hypothesis import strategies as st
+from memo_strategies import st
 
 from btfsm import FSM, Action, Bool, Edge, Int, Model, ReactiveFallback, SkillRequest, State, success
 from btfsm.errors import ModelError

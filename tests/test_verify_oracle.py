@@ -7,7 +7,7 @@ import itertools
 
 import pytest
 from hypothesis import HealthCheck, given, settings
-from hypothesis import strategies as st
+from memo_strategies import st
 
 from btfsm import (FSM, Action, Bool, Condition, Edge, Enum, EnvChoice, EnvEvent, Int, Marker,
                    MemorySequence, Model, ModelError, Outcome, ReactiveFallback, ReactiveSequence,

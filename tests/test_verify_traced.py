@@ -10,7 +10,7 @@ import os
 import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings
-from hypothesis import strategies as st
+from memo_strategies import st
 
 import btfsm.verify.traced as traced
 import btfsm.verify.visited as visited

@@ -11,7 +11,7 @@ from pathlib import Path
 
 import pytest
 from hypothesis import HealthCheck, given, settings
-from hypothesis import strategies as st
+from memo_strategies import st
 
 import btfsm.verify.traced as traced
 from btfsm import EnvChoice, EnvEvent, Int, Model
