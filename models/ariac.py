@@ -41,7 +41,7 @@ __all__ = ["AREAS", "ROTATIONS", "SKILLS", "PRIMITIVES", "ARM_REQUESTS", "genera
            "tree", "preemptive", "baseline", "states_of", "HUBS", "ARM_DURATIONS", "ARRIVAL_MIN_INTERVAL",
            "PICK_WINDOW", "TIMING_FILE", "TIMING_FILE_NO_LOSS", "NO_LOSS", "derived_timing", "timed", "preemptive_timed",
            "baseline_timed", "preemptive_timed_no_loss", "baseline_timed_no_loss", "with_bins", "BIN_VARIABLES",
-           "PLACE_BINS"]
+           "PLACE_BINS", "PICK_BINS", "BIN_COPIES"]
 
 AREAS = ("agv", "bins", "conveyor")
 # the authors' rotation order: (area, area before, area after)
@@ -325,6 +325,17 @@ PLACE_BINS = {
     "bin3": {"guard": "bin2_free == 0", "bins": ["bin3"], "free": False},
     "bins": {"guard": "bin2_free < 0", "bins": ["bin2", "bin3"], "free": False},
 }
+_T2, _T3 = "(bin_target == 0 or bin_target == 2 or bin_target == 3 or bin_target == 6 or bin_target == 7)", \
+    "(bin_target == 1 or bin_target == 4 or bin_target == 5)"
+#: Which bin a pick at the bins goes to (its target: chosen from the turn's bin, or kept, or
+#: held): the copies of a pick's approach at the bins, as ``PLACE_BINS``
+PICK_BINS = {
+    "bin2": {"guard": f"bin2_free >= 0 and {_T2}", "bins": ["bin2"], "free": True},
+    "bin3": {"guard": f"bin2_free >= 0 and {_T3}", "bins": ["bin3"], "free": True},
+    "bins": {"guard": f"bin2_free < 0 or bin_target == 8", "bins": ["bin2", "bin3"], "free": False},
+}
+#: ``derive``'s guard splits: {goal: copies}
+BIN_COPIES = {"place_bins": PLACE_BINS, "pick_bins": PICK_BINS}
 #: ``bin_target``'s values: the bins' pick target, the bin it was chosen from, where it is
 BIN_TARGET = ("none chosen, the next from bin2", "none chosen, the next from bin3", "chosen from bin2, in bin2",
               "chosen from bin2, held", "chosen from bin3, in bin3", "chosen from bin3, held (taken from bin3)",
@@ -400,7 +411,7 @@ def with_bins(model: Model) -> Model:
              ("disable_gripper_bins", "approach_bins"): back, ("release_agv", "detach_place_agv"): tray,
              ("release_conveyor", "detach_place_conveyor"): belt}
     f = model.fsms[0]
-    seen = set()
+    seen: set = set()
     edges = []
     for e in f.edges:
         src, dst = base_state(e.source), base_state(e.target)
@@ -435,7 +446,8 @@ def derived_timing(assume: "str | None" = None) -> dict:
 
 
 def timed(model: Model, durations: str = "derived", *, timing: "dict | None" = None,
-          window: float = PICK_WINDOW, assume: "str | None" = None, arrivals: str = "job") -> Model:
+          window: float = PICK_WINDOW, assume: "str | None" = None, arrivals: str = "job",
+          bins: str = "wide") -> Model:
     """``model`` (an ARIAC variant) with the arm's durations, the arrivals' minimum
     interval and the requirement ``reach``: every detected belt part is reached (the arm
     starts grasping at the conveyor) within dt* = 16 s. Picking it cannot be bounded in this
@@ -455,7 +467,14 @@ def timed(model: Model, durations: str = "derived", *, timing: "dict | None" = N
     ``arrivals="job"`` (the default): belt parts arrive only while the kit is incomplete
     (``tray < n`` in the arrival's guard, ``ARRIVALS_JOB``), as in the experiment, whose trial
     ends when the kit is complete (``btfsm.sim.trial.KittingHooks.done``); ``"any"``: also
-    after, the model's own environment (the figures before issue 21's scoping)."""
+    after, the model's own environment (the figures before issue 21's scoping).
+
+    ``bins="wide"`` (the default): no bins' variables, every pick and place in the bins may
+    go to either bin (only the copies ``%bins`` are entered: the states and figures of the
+    models before the bins were tracked); ``"tracked"``: the model tracks the bins'
+    occupancy (``with_bins``) and a pick or place in the bins has one copy per bin it can
+    go to (``BIN_COPIES``), with the durations of moves to that bin (named
+    ``...-tracked-bins``; about 2 to 5 times the states, docs/verification.md 2.1)."""
     import dataclasses
 
     from btfsm.expr import as_expr, to_text
@@ -470,8 +489,13 @@ def timed(model: Model, durations: str = "derived", *, timing: "dict | None" = N
         t = derived_timing() if timing is None else timing
         table = {s: {u: tuple(iv) for u, iv in rows.items()} for s, rows in t["table"].items()}
         split = split_by_goal(model, f.name, t["classes"])
-        if t.get("guards"):  # the place copies read the bins' occupancy
+        if bins not in ("tracked", "wide"):
+            raise ValueError(f"bins: 'tracked' or 'wide', not {bins!r}")
+        if t.get("guards") and bins == "tracked":  # the place copies read the bins' occupancy
             split = split_by_guard(with_bins(split), f.name, t["guards"])
+        elif t.get("guards"):  # only the copy that may go to either bin is ever entered
+            split = split_by_guard(split, f.name, {s: {c: "true" if c == "bins" else "false" for c in g}
+                                                   for s, g in t["guards"].items()})
         split = split_history(split, f.name, t["history"])
         if assume is None:
             model = split_by_entry(split, f.name, table)
@@ -500,7 +524,7 @@ def timed(model: Model, durations: str = "derived", *, timing: "dict | None" = N
                 for e in events)
     grasp = [s.id for s in model.fsms[0].states if s.id.split("#")[0].split("@")[0] == "grasp_conveyor"]
     reach = Response("reach", "event:arrive", " or ".join(f"arm.state == '{g}'" for g in grasp), window)
-    suffix = "-timed" if assume is None else "-timed-no-loss"
+    suffix = ("-timed" if assume is None else "-timed-no-loss") + ("-tracked-bins" if bins == "tracked" else "")
     return dataclasses.replace(model, name=model.name + suffix, environment=env, responses=(reach,),
                                description=model.description + "; durations " + how
                                + ("; " + ARRIVALS_JOB if job else "; arrivals also after the kit is complete"))

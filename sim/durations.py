@@ -340,12 +340,12 @@ def derive(model, scene=None, no_loss: bool = False, place_spots: "dict | None" 
     and ``contact`` poses of its place goal) is limited to them (e.g. the first bin's
     spots: where a rescue goes when the first bin has a free spot, docs/verification.md 2.1).
 
-    ``bins`` ({tag: {"guard": .., "bins": [bin, ..], "free": bool}}, e.g.
-    ``btfsm.models.ariac.PLACE_BINS`` on a model with ``ariac.with_bins``): the copies of
-    a place's approach at the bins split by guard (``split_by_guard``), each copy's target
-    in its bins (``free``: it has one there; else it may find none and stay at the hub); the
-    poses that follow keep the tag (the put, the release, the escape and the move after it
-    start in those bins). ``track``: a function giving the model split by goal class the
+    ``bins`` ({goal: {tag: {"guard": .., "bins": [bin, ..], "free": bool}}}, e.g.
+    ``btfsm.models.ariac.BIN_COPIES`` on a model with ``ariac.with_bins``): the copies of
+    a pick's or place's approach at the bins split by guard (``split_by_guard``), each
+    copy's target in its bins (``free``: it has one there; else it may find none and stay at
+    the hub); the poses that follow keep the tag (the grasp, the put, the release, the
+    escape and the moves after them start in those bins). ``track``: a function giving the model split by goal class the
     variables the guards read (``ariac.with_bins``)."""
     from btfsm.positions import entries_of, split_by_goal, split_by_guard, split_history
 
@@ -391,10 +391,10 @@ def derive(model, scene=None, no_loss: bool = False, place_spots: "dict | None" 
             if len(groups) > 1:
                 classes[s.id] = {c: tuple(gs) for c, gs in groups.items()}
     guards: dict = {}
-    for s, cl in classes.items():  # a place's approach at the bins: one copy per guard of ``bins``
+    for s, cl in classes.items():  # a pick's or place's approach at the bins: one copy per guard of ``bins``
         for c in cl:
-            if bins and area(s) == "bins" and c == place_goal.get("bins"):
-                guards[f"{s}#{c}"] = {tag: spec["guard"] for tag, spec in bins.items()}
+            if bins and area(s) == "bins" and c in bins:
+                guards[f"{s}#{c}"] = {tag: spec["guard"] for tag, spec in bins[c].items()}
     def by_guard(m):
         return split_by_guard(track(m) if track is not None and guards else m, d.fsm, guards)
 
@@ -422,7 +422,7 @@ def derive(model, scene=None, no_loss: bool = False, place_spots: "dict | None" 
         placed[a] = (c, ((c[0][0], c[0][1], c[0][2] + h), (c[1][0], c[1][1], c[1][2] + h)))
 
     binbox = {}  # tag -> (contact box, above box) of its bins' spots
-    for tag, spec in (bins or {}).items():
+    for tag, spec in ((tag, spec) for copies in (bins or {}).values() for tag, spec in copies.items()):
         c = _box([(x, y, z) for b in spec["bins"] for x, y in geo.g["bin"][b][0] for z in geo.g["bin"][b][1]])
         h = geo.g["clearance"]
         binbox[tag] = (c, ((c[0][0], c[0][1], c[0][2] + h), (c[1][0], c[1][1], c[1][2] + h)))
@@ -472,7 +472,9 @@ def derive(model, scene=None, no_loss: bool = False, place_spots: "dict | None" 
         if k == "grasp":
             if p[0] == "none" or g != pick_goal.get(x):
                 return 0.0, {p}  # nothing to grasp: it fails at once
-            t = ("contact", x, pick_goal[x])
+            t: tuple = ("contact", x, pick_goal[x])
+            if tagged(p) is not None and p[2] == t[2] and p[1] == x:
+                t += (tagged(p),)  # the part the approach went above: in its bins
             if x == "conveyor":
                 zs = geo.spec["z"]
                 if same(p, t) or (p[0] == "above" and same(("contact",) + p[1:], t)):
@@ -489,6 +491,8 @@ def derive(model, scene=None, no_loss: bool = False, place_spots: "dict | None" 
             return geo.rest_time(0.0, max(0.0, hz - box(p)[0][2])), {q}
         if role == "put_back":
             t = ("contact", x, pick_goal.get(x))
+            if tagged(p) is not None and p[2] == t[2] and p[1] == x:
+                t += (tagged(p),)  # back where it was taken: in its bins
             return rest(p, t), {t}
         if role == "put":
             if p[0] == "none":
@@ -501,7 +505,7 @@ def derive(model, scene=None, no_loss: bool = False, place_spots: "dict | None" 
         sure = False
         if t[0] == "above" and tag_of(sid) is not None:
             t += (tag_of(sid),)
-            sure = bool((bins or {})[tag_of(sid)]["free"])
+            sure = bool((bins or {})[g][tag_of(sid)]["free"])
         if t[0] == "above" and x == "conveyor":
             if same(p, t):
                 return geo.dt + geo.TRACK_MARGIN, {t}
@@ -599,7 +603,7 @@ def derive_ariac(scene=None, no_loss: bool = False) -> Timing:
     models); ``models/ariac_timing.json``."""
     from btfsm.models import ariac
 
-    return derive(ariac.preemptive(), scene, no_loss=no_loss, bins=ariac.PLACE_BINS, track=ariac.with_bins)
+    return derive(ariac.preemptive(), scene, no_loss=no_loss, bins=ariac.BIN_COPIES, track=ariac.with_bins)
 
 
 class Derived(NamedTuple):

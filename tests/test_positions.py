@@ -45,7 +45,17 @@ def test_the_split_fsm_behaves_as_the_original(variant):
     m = getattr(ariac, variant)(n_tray=1)
     split = _untimed(ariac.timed(m, arrivals="any"))
     assert len(split.fsms[0].states) > len(m.fsms[0].states)
-    assert any("%" in s.id for s in split.fsms[0].states)  # the place copies split by the bins' guards
+    assert _projected(explore(split)) == _projected(explore(m))
+
+
+def test_the_fsm_split_by_the_bins_behaves_as_the_original():
+    """With the bins' occupancy (``timed(m, bins="tracked")``: the pick and place copies at
+    the bins split by guards on it, ``split_by_guard``), the split model's states and
+    transitions are those of the model with the bins' variables (``ariac.with_bins``), and
+    those, without the variables, the original's (1 tray part, arrivals unscoped)."""
+    m = ariac.preemptive(n_tray=1)
+    split = _untimed(ariac.timed(m, arrivals="any", bins="tracked"))
+    assert any("%bin3" in s.id for s in split.fsms[0].states)
     tracked = explore(ariac.with_bins(split_by_goal(m, "arm", ariac.derived_timing()["classes"])))
     assert _projected(explore(split)) == _projected(tracked)
     # the bins' variables only observe (no guard reads them): without them, the original's runs
@@ -292,7 +302,7 @@ def test_a_guard_split_has_the_original_runs(data):
     m = Model("m", variables=[Int("n", 0, 3)], primitives=[Primitive("move", (running(), success()))], fsms=[f],
               tree=SkillRequest("go", fsm="arm", goal="g"), environment=[EnvEvent("bump", "n < 3", {"n": "n + 1"})])
     target = data.draw(st.sampled_from(("b", "c")))
-    cut = data.draw(st.integers(0, 4))
+    cut = data.draw(st.integers(0, 3))
     split = split_by_guard(m, "arm", {target: {"lo": f"n < {cut}", "hi": f"n >= {cut}"}})
     assert [s.id for s in split.fsms[0].states if base_state(s.id) == target] == [f"{target}%lo", f"{target}%hi"]
     ts = explore(split)
