@@ -41,7 +41,7 @@ __all__ = ["AREAS", "ROTATIONS", "SKILLS", "PRIMITIVES", "ARM_REQUESTS", "genera
            "tree", "preemptive", "baseline", "states_of", "HUBS", "ARM_DURATIONS", "ARRIVAL_MIN_INTERVAL",
            "PICK_WINDOW", "TIMING_FILE", "TIMING_FILE_NO_LOSS", "NO_LOSS", "derived_timing", "timed", "preemptive_timed",
            "baseline_timed", "preemptive_timed_no_loss", "baseline_timed_no_loss", "with_bins", "BIN_VARIABLES",
-           "PLACE_BINS", "PICK_BINS", "BIN_COPIES"]
+           "PLACE_BINS", "PICK_BINS", "BIN_COPIES", "BIN_TARGET"]
 
 AREAS = ("agv", "bins", "conveyor")
 # the authors' rotation order: (area, area before, area after)
@@ -427,7 +427,7 @@ def with_bins(model: Model) -> Model:
             e = dataclasses.replace(e, effects=tuple(e.effects) + tuple(Edge("x", "y", effects=more).effects))
         edges.append(e)
     if seen != set(added) | {"choose"}:
-        raise ValueError(f"{model.name}: no edge {sorted(set(added) | {'choose'} - seen)} to track the bins on "
+        raise ValueError(f"{model.name}: no edge {sorted(map(str, (set(added) | {'choose'}) - seen))} to track the bins on "
                          "(the arm FSM must be split by goal class)")
     # 9 free spots (bin2 empty) is "not known": -1
     variables = tuple(model.variables) + (_Int("bin2_free", -1, 8, 0), _Int(t, 0, 8, 0))
