@@ -363,7 +363,7 @@ def split_by_guard(model, fsm: str, guards: dict):
     always true. The copy ``s%tag`` is entered when its guard holds in the state the
     entering edge leads to (the guard read after the edge's effects: each edge into s
     becomes one edge per copy, in its place, guarded by ``edge guard and copy guard``
-    with the edge's effects substituted), so a copy's duration may depend on what the
+    with the edge's effects substituted; a guard ``false`` adds no edge), so a copy's duration may depend on what the
     variables say when its run starts (the token does not leave s while it runs, and only
     the FSM's edges change the variables a copy's guard reads in the models this is for:
     that is the caller's to ensure). Edges and markers leaving s are copied for every copy.
@@ -409,6 +409,8 @@ def split_by_guard(model, fsm: str, guards: dict):
                 continue
             values = dict(e.effects)
             for name, g in tagged[e.target]:
+                if isinstance(g, Const) and g.value is False:
+                    continue  # never entered this way
                 g = substitute(g, values)
                 edges.append(dataclasses.replace(e, source=src, target=name, id="",
                                                  guard=g if e.guard is None else flat("and", e.guard, g)))

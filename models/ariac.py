@@ -470,7 +470,7 @@ def timed(model: Model, durations: str = "derived", *, timing: "dict | None" = N
     after, the model's own environment (the figures before issue 21's scoping).
 
     ``bins="wide"`` (the default): no bins' variables, every pick and place in the bins may
-    go to either bin (only the copies ``%bins`` are entered: the states and figures of the
+    go to either bin (only the copies ``%bins`` are kept: the states and figures of the
     models before the bins were tracked); ``"tracked"``: the model tracks the bins'
     occupancy (``with_bins``) and a pick or place in the bins has one copy per bin it can
     go to (``BIN_COPIES``), with the durations of moves to that bin (named
@@ -493,10 +493,13 @@ def timed(model: Model, durations: str = "derived", *, timing: "dict | None" = N
             raise ValueError(f"bins: 'tracked' or 'wide', not {bins!r}")
         if t.get("guards") and bins == "tracked":  # the place copies read the bins' occupancy
             split = split_by_guard(with_bins(split), f.name, t["guards"])
-        elif t.get("guards"):  # only the copy that may go to either bin is ever entered
+        elif t.get("guards"):  # only the copy that may go to either bin is kept (the others never entered)
             split = split_by_guard(split, f.name, {s: {c: "true" if c == "bins" else "false" for c in g}
                                                    for s, g in t["guards"].items()})
         split = split_history(split, f.name, t["history"])
+        if bins == "wide":  # the rows of the copies that can be entered
+            ids = {st.id for st in split.fsms[0].states}
+            table = {s: rows for s, rows in table.items() if s in ids}
         if assume is None:
             model = split_by_entry(split, f.name, table)
         else:  # the same copies (state names) as without the assumption, each with its conditioned maximum

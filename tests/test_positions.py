@@ -51,15 +51,20 @@ def test_the_split_fsm_behaves_as_the_original(variant):
 def test_the_fsm_split_by_the_bins_behaves_as_the_original():
     """With the bins' occupancy (``timed(m, bins="tracked")``: the pick and place copies at
     the bins split by guards on it, ``split_by_guard``), the split model's states and
-    transitions are those of the model with the bins' variables (``ariac.with_bins``), and
-    those, without the variables, the original's (1 tray part, arrivals unscoped)."""
+    transitions without the bins' variables are the original's, and with them (BTFSM_LONG=1)
+    those of the unsplit model with the variables (``ariac.with_bins``); 1 tray part,
+    arrivals unscoped."""
+    import os
+
     m = ariac.preemptive(n_tray=1)
     split = _untimed(ariac.timed(m, arrivals="any", bins="tracked"))
     assert any("%bin3" in s.id for s in split.fsms[0].states)
-    tracked = explore(ariac.with_bins(split_by_goal(m, "arm", ariac.derived_timing()["classes"])))
-    assert _projected(explore(split)) == _projected(tracked)
+    ts = explore(split)
     # the bins' variables only observe (no guard reads them): without them, the original's runs
-    assert _projected(tracked, drop=ariac.BIN_VARIABLES) == _projected(explore(m))
+    assert _projected(ts, drop=ariac.BIN_VARIABLES) == _projected(explore(m))
+    if os.environ.get("BTFSM_LONG") == "1":  # and with them, the unsplit model's with the variables
+        tracked = explore(ariac.with_bins(split_by_goal(m, "arm", ariac.derived_timing()["classes"])))
+        assert _projected(ts) == _projected(tracked)
 
 
 def test_expressions_name_every_copy():
@@ -278,7 +283,7 @@ def test_a_requirement_naming_no_state_is_still_an_error(tmp_path, capsys):
 _EFFECTS = ({}, {"n": "n + 1 if n < 3 else 0"}, {"n": "0"}, {"n": "3 - n"})
 
 
-@settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(data=st.data())
 def test_a_guard_split_has_the_original_runs(data):
     """``split_by_guard`` against explicit exploration (the brute-force oracle): on random
