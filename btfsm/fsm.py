@@ -143,10 +143,20 @@ class FSM:
         raise KeyError(sid)
 
     def edges_from(self, sid: str, goal: str) -> list:
-        return [e for e in self.edges if e.source == sid and goal in e.goals]
+        return [e for e in self._by_state("_edges_by_source", self.edges, "source").get(sid, ()) if goal in e.goals]
 
     def markers_at(self, sid: str, goal: str) -> list:
-        return [m for m in self.markers if m.state == sid and goal in m.goals]
+        return [m for m in self._by_state("_markers_by_state", self.markers, "state").get(sid, ()) if goal in m.goals]
+
+    def _by_state(self, attr: str, items, key: str) -> dict:
+        """{state: its items in declaration order}, built once (the FSM is immutable)."""
+        idx = self.__dict__.get(attr)
+        if idx is None:
+            idx = {}
+            for x in items:
+                idx.setdefault(getattr(x, key), []).append(x)
+            object.__setattr__(self, attr, idx)
+        return idx
 
     # ------------------------------------------------------------------ validation
     def validate(self, statuses_of: "dict | None" = None, element: str = "") -> list:

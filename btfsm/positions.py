@@ -31,20 +31,21 @@ from .errors import ModelError
 from .fsm import Edge
 from .expr import BoolOp, Compare, Const, Expr, Name, Unary, flat
 
-__all__ = ["split_by_entry", "split_history", "split_by_goal", "base_state", "entries_of", "widen_to_copies", "copies_named", "SEP",
-           "GOAL_SEP"]
+__all__ = ["split_by_entry", "split_history", "split_by_goal", "split_by_guard", "base_state", "entries_of",
+           "widen_to_copies", "copies_named", "substitute", "SEP", "GOAL_SEP", "GUARD_SEP"]
 
 SEP = "@"  # a copy by entry: "<state>@<predecessor>"
 GOAL_SEP = "#"  # a copy by goal: "<state>#<class>"
+GUARD_SEP = "%"  # a copy by a guard on the variables: "<state>%<tag>"
 
 
 def base_state(name: str) -> str:
     """The state a copy was split from (the name itself for a state that was not split).
 
-    >>> base_state("approach_bins#hub@escape_bins+2"), base_state("grasp_bins")
-    ('approach_bins', 'grasp_bins')
+    >>> base_state("approach_bins#hub@escape_bins+2"), base_state("grasp_bins"), base_state("put%a@b%c")
+    ('approach_bins', 'grasp_bins', 'put')
     """
-    return name.split(SEP, 1)[0].split(GOAL_SEP, 1)[0]
+    return name.split(SEP, 1)[0].split(GOAL_SEP, 1)[0].split(GUARD_SEP, 1)[0]
 
 
 def widen_to_copies(x: Any, model: Any) -> Any:
@@ -70,7 +71,8 @@ def widen_to_copies(x: Any, model: Any) -> Any:
         ids = {s.id for s in f.states}
         copies: dict = {}
         for s in f.states:
-            for name in dict.fromkeys((base_state(s.id), s.id.split(SEP, 1)[0])):
+            head = s.id.split(SEP, 1)[0]
+            for name in dict.fromkeys((base_state(s.id), head.split(GUARD_SEP, 1)[0], head)):
                 if name != s.id and name not in ids:
                     copies.setdefault(name, []).append(s.id)
         if copies:
@@ -331,6 +333,90 @@ def split_by_goal(model, fsm: str, classes: dict):
                for src in copies[m.state]]
     new_f = dataclasses.replace(f, states=tuple(states), edges=tuple(edges), markers=tuple(markers),
                                 initial=copies[f.initial][0])
+    others = {k: _rename_any(getattr(model, k), field, copies)
+              for k in ("tree", "environment", "invariants", "workable", "terminal", "responses")}
+    fsms = tuple(new_f if x.name == fsm else _rename_any(x, field, copies) for x in model.fsms)
+    return dataclasses.replace(model, fsms=fsms, **others)
+
+
+def substitute(x, values: dict):
+    """Expression ``x`` with every variable named in ``values`` replaced by its expression
+    there: what ``x`` reads after simultaneous effects ``values`` (``{name: Expr}``).
+
+    >>> from btfsm.expr import parse, to_text
+    >>> to_text(substitute(parse("n > 0 and not b"), {"n": parse("n - 1"), "b": parse("false")}))
+    'n - 1 > 0 and not false'
+    """
+    if isinstance(x, Name):
+        return values.get(x.id, x)
+    if isinstance(x, Expr):
+        changes = {f.name: substitute(getattr(x, f.name), values) for f in dataclasses.fields(cast(Any, x))}
+        return dataclasses.replace(cast(Any, x), **changes)
+    if isinstance(x, tuple):
+        return tuple(substitute(v, values) for v in x)
+    return x
+
+
+def split_by_guard(model, fsm: str, guards: dict):
+    """``model`` with FSM ``fsm``'s states of ``guards`` split by the model's variables:
+    ``guards`` is ``{state: {tag: guard}}``, the guards of a state disjoint and together
+    always true. The copy ``s%tag`` is entered when its guard holds in the state the
+    entering edge leads to (the guard read after the edge's effects: each edge into s
+    becomes one edge per copy, in its place, guarded by ``edge guard and copy guard``
+    with the edge's effects substituted; a guard ``false`` adds no edge), so a copy's duration may depend on what the
+    variables say when its run starts (the token does not leave s while it runs, and only
+    the FSM's edges change the variables a copy's guard reads in the models this is for:
+    that is the caller's to ensure). Edges and markers leaving s are copied for every copy.
+    The initial state cannot be split. Same runs as the original up to the renaming
+    (``tests/test_positions.py`` checks it against explicit exploration).
+
+    >>> from btfsm import FSM, Edge, Int, Model, State, Primitive, running, success
+    >>> from btfsm.expr import to_text
+    >>> f = FSM("arm", states=[State("a", "move"), State("b", "move")], initial="a", goals=("g",),
+    ...         edges=[Edge("a", "b", "g", effects={"n": "n + 1 if n < 2 else 0"}), Edge("b", "a", "g")])
+    >>> m = Model("m", variables=[Int("n", 0, 2)], primitives=[Primitive("move", (running(), success()))], fsms=[f])
+    >>> s = split_by_guard(m, "arm", {"b": {"lo": "n == 0", "hi": "n > 0"}})
+    >>> [st.id for st in s.fsms[0].states]
+    ['a', 'b%lo', 'b%hi']
+    >>> [(e.source, e.target, to_text(e.guard)) for e in s.fsms[0].edges if e.source == "a"]
+    [('a', 'b%lo', '(n + 1 if n < 2 else 0) == 0'), ('a', 'b%hi', '(n + 1 if n < 2 else 0) > 0')]
+    """
+    from .expr import as_expr
+
+    f = next((x for x in model.fsms if x.name == fsm), None)
+    if f is None:
+        raise ModelError("positions", f"no FSM named '{fsm}'")
+    ids = {st.id for st in f.states}
+    for s in guards:
+        if s not in ids:
+            raise ModelError(f"positions.{s}", "no such state")
+        if s == f.initial:
+            raise ModelError(f"positions.{s}", "the initial state cannot be split by guard")
+    copies = {st.id: [f"{st.id}{GUARD_SEP}{t}" for t in guards[st.id]] if st.id in guards else [st.id]
+              for st in f.states}
+    field = f"{fsm}.state"
+    tagged = {s: [(f"{s}{GUARD_SEP}{t}", _rename_any(as_expr(g), field, copies)) for t, g in by.items()]
+              for s, by in guards.items()}
+    states = []
+    for st in f.states:
+        states += [dataclasses.replace(st, id=n) for n in copies[st.id]] if st.id in guards else [st]
+    edges = []
+    for e in f.edges:
+        e = _rename_any(e, field, copies)
+        for src in copies[e.source]:
+            if e.target not in tagged:
+                edges.append(dataclasses.replace(e, source=src, id=""))
+                continue
+            values = dict(e.effects)
+            for name, g in tagged[e.target]:
+                if isinstance(g, Const) and g.value is False:
+                    continue  # never entered this way
+                g = substitute(g, values)
+                edges.append(dataclasses.replace(e, source=src, target=name, id="",
+                                                 guard=g if e.guard is None else flat("and", e.guard, g)))
+    markers = [dataclasses.replace(_rename_any(m, field, copies), state=src, id="") for m in f.markers
+               for src in copies[m.state]]
+    new_f = dataclasses.replace(f, states=tuple(states), edges=tuple(edges), markers=tuple(markers))
     others = {k: _rename_any(getattr(model, k), field, copies)
               for k in ("tree", "environment", "invariants", "workable", "terminal", "responses")}
     fsms = tuple(new_f if x.name == fsm else _rename_any(x, field, copies) for x in model.fsms)

@@ -40,7 +40,8 @@ from btfsm.timing import Response
 __all__ = ["AREAS", "ROTATIONS", "SKILLS", "PRIMITIVES", "ARM_REQUESTS", "generate_fsm", "unite", "arm_fsm",
            "tree", "preemptive", "baseline", "states_of", "HUBS", "ARM_DURATIONS", "ARRIVAL_MIN_INTERVAL",
            "PICK_WINDOW", "TIMING_FILE", "TIMING_FILE_NO_LOSS", "NO_LOSS", "derived_timing", "timed", "preemptive_timed",
-           "baseline_timed", "preemptive_timed_no_loss", "baseline_timed_no_loss"]
+           "baseline_timed", "preemptive_timed_no_loss", "baseline_timed_no_loss", "with_bins", "BIN_VARIABLES",
+           "PLACE_BINS", "PICK_BINS", "BIN_COPIES", "BIN_TARGET"]
 
 AREAS = ("agv", "bins", "conveyor")
 # the authors' rotation order: (area, area before, area after)
@@ -313,6 +314,126 @@ NO_LOSS = ("no part lost yet: sound up to the first detected part that leaves th
            "late response within dt* (arrivals spaced more than dt*), not for figures past dt*")
 
 
+#: The bins' occupancy that ``with_bins`` adds (the timed models' variables; the untimed models have none)
+BIN_VARIABLES = ("bin2_free", "bin_target")
+#: Where a place in the bins goes, by the cell's rule (``KittingBinding._choose_spot``: the first
+#: free spot of bin2 in grid order, else of bin3): the copies of a place's approach at the bins
+#: (``btfsm.positions.split_by_guard``) and the bins their target can be in; ``free``: the guard
+#: says the bin has a free spot (no run of the copy ends at the hub for want of one)
+PLACE_BINS = {
+    "bin2": {"guard": "bin2_free > 0", "bins": ["bin2"], "free": True},
+    "bin3": {"guard": "bin2_free == 0", "bins": ["bin3"], "free": False},
+    "bins": {"guard": "bin2_free < 0", "bins": ["bin2", "bin3"], "free": False},
+}
+_T2, _T3 = "(bin_target == 0 or bin_target == 2 or bin_target == 3 or bin_target == 6 or bin_target == 7)", \
+    "(bin_target == 1 or bin_target == 4 or bin_target == 5)"
+#: Which bin a pick at the bins goes to (its target: chosen from the turn's bin, or kept, or
+#: held): the copies of a pick's approach at the bins, as ``PLACE_BINS``
+PICK_BINS = {
+    "bin2": {"guard": f"bin2_free >= 0 and {_T2}", "bins": ["bin2"], "free": True},
+    "bin3": {"guard": f"bin2_free >= 0 and {_T3}", "bins": ["bin3"], "free": True},
+    "bins": {"guard": f"bin2_free < 0 or bin_target == 8", "bins": ["bin2", "bin3"], "free": False},
+}
+#: ``derive``'s guard splits: {goal: copies}
+BIN_COPIES = {"place_bins": PLACE_BINS, "pick_bins": PICK_BINS}
+#: ``bin_target``'s values: the bins' pick target, the bin it was chosen from, where it is
+BIN_TARGET = ("none chosen, the next from bin2", "none chosen, the next from bin3", "chosen from bin2, in bin2",
+              "chosen from bin2, held", "chosen from bin3, in bin3", "chosen from bin3, held (taken from bin3)",
+              "chosen from bin3, in bin2 (a rescue put it there)", "chosen from bin3, held (taken from bin2)",
+              "none chosen, the next from bin2; a part taken from bin3 held")
+#: the states whose runs choose the place's target at the bins (their ``#place_bins`` copies)
+_PLACE_MOVES = ("approach_bins", "agv_to_bins", "conveyor_to_bins")
+
+
+def with_bins(model: Model) -> Model:
+    """``model`` (an ARIAC variant, at most 18 tray parts, its arm FSM split by goal class:
+    ``btfsm.positions.split_by_goal``) with what a timed model needs to know which bin a
+    place in the bins goes to, as the cell's rules make it (``btfsm.sim.binding``): a place
+    goes to the first free spot of bin2, else of bin3; a pick's new target comes from bin2
+    and bin3 in turn; a target still in a bin is kept, until a place at the bins chooses its
+    spot (the cell keeps one target per area: the place's spot replaces the pick's part, so
+    the next pick chooses anew). Two variables (``BIN_VARIABLES``), changed only by arm FSM
+    edges:
+
+    * ``bin2_free``: bin2's free spots (3 x 3, full at the start); -1: not known any more
+      (a place's target may be in either bin: the wide durations). It becomes so when a pick
+      takes bin2's last part (the cell's choice would skip an empty bin2), or a part not
+      taken from bin3 is put in the bins while bin2 is full (bin3 may be full too, and the
+      part then drops at the bins' hub);
+    * ``bin_target`` (``BIN_TARGET``): the pick target, the bin it was chosen from (which
+      says the next new one's bin) and where it is: in bin2, in bin3 or held (and taken
+      from which bin). A target chosen from bin2 stays in bin2 (held from bin2, bin2 has a
+      free spot for its rescue); one from bin3 may move to bin2.
+
+    Edges: a grasp at the bins succeeds (``grasp_bins -> record_pose_bins``): the target
+    (chosen now if none: the cell chooses it when the pick's approach starts, from the same
+    turn; no other choice can come between) leaves its bin; the token enters a place's
+    approach at the bins (``approach_bins#place_bins``, the transits' place copies; not
+    from ``disable_gripper_bins``, a put-back that counts as a place): the place chooses its
+    spot, the pick target is forgotten (the turn, and whether the held part came from bin3,
+    stay); a release in the bins (``release_bins -> detach_place_bins``): the held part goes
+    to bin2 if it has a free spot, else to bin3; the gripper switched off at the bins
+    holding the target (``disable_gripper_bins -> approach_bins``): it is back where it was
+    taken; a release on the tray: the target is used up; on the belt (never requested): not
+    known. bin3 is never empty when its turn comes while the bins are known: parts leave
+    bin3 only as targets chosen from it, and a job of at most 18 parts chooses at most 9
+    there, each after the one before left its bin for good. The variables only observe: no
+    guard of the model reads them, so the model has the original's runs
+    (``tests/test_positions.py``); ``tests/test_ariac_timing.py`` compares them with the
+    cell in trials."""
+    import dataclasses
+
+    from btfsm import Int as _Int
+    from btfsm.positions import base_state
+
+    n_tray = next(v for v in model.variables if v.name == "tray").hi
+    if n_tray > 18:
+        raise ValueError(f"{model.name}: the bins hold 18 parts, the kit {n_tray}")
+    if any(v.name in BIN_VARIABLES for v in model.variables):
+        raise ValueError(f"{model.name} tracks the bins already")
+    t = "bin_target"
+    from2 = f"({t} == 0 or {t} == 2 or {t} == 6)"  # the target to grasp lies in bin2
+    gone = f"(bin2_free < 0 or ({t} != 0 and {t} != 1 and {t} != 2 and {t} != 4 and {t} != 6) or " \
+           f"({from2} and bin2_free == 8))"
+    grasp = {"bin2_free": f"-1 if {gone} else (bin2_free + 1 if {from2} else bin2_free)",
+             t: f"0 if {gone} else ({t} + 1 if {t} >= 2 else (3 if {t} == 0 else 5))"}
+    forget = f"({t} if {t} <= 1 or {t} == 8 else 1 if {t} <= 3 else 8 if {t} == 5 else 0)"
+    bin3 = f"({t} == 5 or {t} == 8)"  # the held part was taken from bin3: its spot there is free
+    lost = f"(bin2_free < 0 or (bin2_free == 0 and not {bin3}))"  # bin2 full: bin3 may be full too
+    place = {"bin2_free": f"-1 if {lost} else (bin2_free - 1 if bin2_free > 0 else bin2_free)",
+             t: f"0 if {lost} or {bin3} else {forget}"}
+    held = f"({t} == 3 or {t} == 5 or {t} == 7)"
+    back = {"bin2_free": f"bin2_free - 1 if gripper_full and ({t} == 3 or {t} == 7) else bin2_free",
+            t: f"{t} - 1 if gripper_full and {held} else {t}"}
+    tray = {t: f"1 if {t} == 3 else 0 if {held} or {t} == 8 else {t}"}
+    belt = {"bin2_free": f"-1 if {held} or {t} == 8 else bin2_free", t: f"0 if {held} or {t} == 8 else {t}"}
+    added = {("grasp_bins", "record_pose_bins"): grasp, ("release_bins", "detach_place_bins"): place,
+             ("disable_gripper_bins", "approach_bins"): back, ("release_agv", "detach_place_agv"): tray,
+             ("release_conveyor", "detach_place_conveyor"): belt}
+    f = model.fsms[0]
+    seen: set = set()
+    edges = []
+    for e in f.edges:
+        src, dst = base_state(e.source), base_state(e.target)
+        more = dict(added.get((src, dst), {})) if not e.direct else {}
+        if more:
+            seen.add((src, dst))
+        if dst in _PLACE_MOVES and "#place_bins" in e.target and src != "disable_gripper_bins":
+            seen.add("choose")
+            if t in more:
+                raise ValueError(f"{model.name}: edge {e.source} -> {e.target} both chooses a place and tracks a pick")
+            more[t] = forget
+        if more:
+            e = dataclasses.replace(e, effects=tuple(e.effects) + tuple(Edge("x", "y", effects=more).effects))
+        edges.append(e)
+    if seen != set(added) | {"choose"}:
+        raise ValueError(f"{model.name}: no edge {sorted(map(str, (set(added) | {'choose'}) - seen))} to track the bins on "
+                         "(the arm FSM must be split by goal class)")
+    # 9 free spots (bin2 empty) is "not known": -1
+    variables = tuple(model.variables) + (_Int("bin2_free", -1, 8, 0), _Int(t, 0, 8, 0))
+    return dataclasses.replace(model, variables=variables, fsms=(dataclasses.replace(f, edges=tuple(edges)),))
+
+
 def derived_timing(assume: "str | None" = None) -> dict:
     """The position abstraction with the durations derived from the ARIAC scene
     (``btfsm.sim.durations.derive``): ``{"classes": .., "table": .., "where": ..}``;
@@ -325,7 +446,8 @@ def derived_timing(assume: "str | None" = None) -> dict:
 
 
 def timed(model: Model, durations: str = "derived", *, timing: "dict | None" = None,
-          window: float = PICK_WINDOW, assume: "str | None" = None, arrivals: str = "job") -> Model:
+          window: float = PICK_WINDOW, assume: "str | None" = None, arrivals: str = "job",
+          bins: str = "wide") -> Model:
     """``model`` (an ARIAC variant) with the arm's durations, the arrivals' minimum
     interval and the requirement ``reach``: every detected belt part is reached (the arm
     starts grasping at the conveyor) within dt* = 16 s. Picking it cannot be bounded in this
@@ -345,11 +467,18 @@ def timed(model: Model, durations: str = "derived", *, timing: "dict | None" = N
     ``arrivals="job"`` (the default): belt parts arrive only while the kit is incomplete
     (``tray < n`` in the arrival's guard, ``ARRIVALS_JOB``), as in the experiment, whose trial
     ends when the kit is complete (``btfsm.sim.trial.KittingHooks.done``); ``"any"``: also
-    after, the model's own environment (the figures before issue 21's scoping)."""
+    after, the model's own environment (the figures before issue 21's scoping).
+
+    ``bins="wide"`` (the default): no bins' variables, every pick and place in the bins may
+    go to either bin (only the copies ``%bins`` are kept: the states and figures of the
+    models before the bins were tracked); ``"tracked"``: the model tracks the bins'
+    occupancy (``with_bins``) and a pick or place in the bins has one copy per bin it can
+    go to (``BIN_COPIES``), with the durations of moves to that bin (named
+    ``...-tracked-bins``; about 2 to 5 times the states, docs/verification.md 2.1)."""
     import dataclasses
 
     from btfsm.expr import as_expr, to_text
-    from btfsm.positions import split_by_entry, split_by_goal, split_history
+    from btfsm.positions import split_by_entry, split_by_goal, split_by_guard, split_history
 
     f = model.fsms[0]
     if arrivals not in ("job", "any"):
@@ -359,12 +488,23 @@ def timed(model: Model, durations: str = "derived", *, timing: "dict | None" = N
     if durations == "derived":
         t = derived_timing() if timing is None else timing
         table = {s: {u: tuple(iv) for u, iv in rows.items()} for s, rows in t["table"].items()}
-        split = split_history(split_by_goal(model, f.name, t["classes"]), f.name, t["history"])
+        split = split_by_goal(model, f.name, t["classes"])
+        if bins not in ("tracked", "wide"):
+            raise ValueError(f"bins: 'tracked' or 'wide', not {bins!r}")
+        if t.get("guards") and bins == "tracked":  # the place copies read the bins' occupancy
+            split = split_by_guard(with_bins(split), f.name, t["guards"])
+        elif t.get("guards"):  # only the copy that may go to either bin is kept (the others never entered)
+            split = split_by_guard(split, f.name, {s: {c: "true" if c == "bins" else "false" for c in g}
+                                                   for s, g in t["guards"].items()})
+        split = split_history(split, f.name, t["history"])
+        if bins == "wide":  # the rows of the copies that can be entered
+            ids = {st.id for st in split.fsms[0].states}
+            table = {s: rows for s, rows in table.items() if s in ids}
         if assume is None:
             model = split_by_entry(split, f.name, table)
         else:  # the same copies (state names) as without the assumption, each with its conditioned maximum
             cond = derived_timing(assume)
-            if (cond["classes"], cond["history"]) != (t["classes"], t["history"]):
+            if (cond["classes"], cond["history"], cond.get("guards")) != (t["classes"], t["history"], t.get("guards")):
                 raise ValueError(f"{TIMING_FILE_NO_LOSS} splits the FSM unlike {TIMING_FILE}: derive both again")
             model = split_by_entry(split, f.name, table, cond["table"])
         how = "derived from the scene per goal class and entry (models/" + \
@@ -387,7 +527,7 @@ def timed(model: Model, durations: str = "derived", *, timing: "dict | None" = N
                 for e in events)
     grasp = [s.id for s in model.fsms[0].states if s.id.split("#")[0].split("@")[0] == "grasp_conveyor"]
     reach = Response("reach", "event:arrive", " or ".join(f"arm.state == '{g}'" for g in grasp), window)
-    suffix = "-timed" if assume is None else "-timed-no-loss"
+    suffix = ("-timed" if assume is None else "-timed-no-loss") + ("-tracked-bins" if bins == "tracked" else "")
     return dataclasses.replace(model, name=model.name + suffix, environment=env, responses=(reach,),
                                description=model.description + "; durations " + how
                                + ("; " + ARRIVALS_JOB if job else "; arrivals also after the kit is complete"))

@@ -355,7 +355,8 @@ class KittingBinding(Binding):
         belt's pick stretch as its two ends); ``contact`` {model area: [z]} the heights of
         the contact poses (a part's top, or a held part touching the surface, for every
         part type); ``clearance``, ``speed`` (the velocity scale; accelerations scale by
-        its square), ``home`` (x, y, z)."""
+        its square), ``home`` (x, y, z); ``bin`` {bin: (spots, contact heights)}, each bin's
+        share of the bins' spots and heights."""
         sc = self.scene
         heights = sorted({float(h) for h in sc.part_heights.values()})
         surface = {"agv": sc.areas[self.tray]["height"], "conveyor": sc.belts[self.belt]["height"]}
@@ -368,7 +369,8 @@ class KittingBinding(Binding):
         r = sc.robots[self.robot]
         return {"hub": {a: self._hub(a) for a in ("agv", "bins", "conveyor")}, "spots": spots, "contact": contact,
                 "clearance": self.clearance, "speed": self.speed,
-                "home": (r["home"][0], r["home"][1], r["z"]["home"])}
+                "home": (r["home"][0], r["home"][1], r["z"]["home"]),
+                "bin": {k: (self._bin_grid(k), sorted({sc.areas[k]["height"] + p for p in heights})) for k in self.bins}}
 
     # ------------------------------------------------------------------ targets
     def _target(self, area: str, kind: str):

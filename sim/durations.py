@@ -37,7 +37,7 @@ from collections import defaultdict
 from btfsm.errors import ModelError
 from btfsm.status import Status
 
-__all__ = ["measure", "declared", "derive", "Derivation", "Timing", "derive_scene", "timed_in_scene", "Derived", "print_scene_table", "measure_scene", "main"]
+__all__ = ["measure", "declared", "derive", "derive_ariac", "Derivation", "Timing", "derive_scene", "timed_in_scene", "Derived", "print_scene_table", "measure_scene", "main"]
 
 
 def _visits(spec) -> dict:
@@ -109,8 +109,8 @@ def main(argv=None) -> int:
     args = p.parse_args(argv)
     from btfsm.models import ariac
 
-    timing = derive(ariac.preemptive())
-    no_loss = derive(ariac.preemptive(), no_loss=True)
+    timing = derive_ariac()
+    no_loss = derive_ariac(no_loss=True)
     for path, t in ((args.write, timing), (args.write_no_loss, no_loss)):
         if path:
             with open(path, "w", encoding="utf-8") as fh:
@@ -122,7 +122,7 @@ def main(argv=None) -> int:
     from btfsm.positions import base_state
 
     copies: dict = {}
-    split = next(f for f in timing.apply(ariac.preemptive()).fsms if f.name == timing.fsm)
+    split = next(f for f in ariac.timed(ariac.preemptive(), timing=timing.to_data()).fsms if f.name == timing.fsm)
     for st in split.states:
         if st.duration is not None:
             copies[base_state(st.id)] = copies.get(base_state(st.id), 0) + 1
@@ -267,11 +267,15 @@ class Timing:
     ``where``: ``{state: sorted poses}``, where the arm can be when
     a run of the copy starts (the fixed point). Poses: ``home``, ``hub:A`` (area A's
     approach pose), ``above:A:G`` / ``contact:A:G`` / ``lifted:A:G`` (above, at, or lifted
-    from the target of goal G at A; G ``*``: any target there, after the gripper let go)."""
+    from the target of goal G at A; G ``*``: any target there, after the gripper let go;
+    a fourth field names the bin copy's tag, ``above:bins:place_bins:bin2``: the target is
+    in those bins); ``guards``: ``{goal copy: {tag: guard}}``, the place copies split by
+    which bin their target is in (``split_by_guard``)."""
 
-    def __init__(self, fsm, classes, table, where, history=(), assume=None):
+    def __init__(self, fsm, classes, table, where, history=(), assume=None, guards=None):
         self.fsm, self.classes, self.table, self.where = fsm, classes, table, where
         self.history = list(history)
+        self.guards = dict(guards or {})  # {goal copy: {tag: guard}}: ``split_by_guard`` (the bins a place goes to)
         self.assume = assume  # None, or "no_loss": derived under "no part lost yet" (``derive``)
 
     def to_data(self) -> dict:
@@ -283,13 +287,19 @@ class Timing:
                "where": self.where}
         if self.assume:
             out["assume"] = self.assume
+        if self.guards:
+            out["guards"] = self.guards
         return out
 
     def apply(self, model):
+        """``model`` split and timed (without guards; a timing with guards reads variables the
+        model must track: ``btfsm.models.ariac.timed(m, timing=t.to_data())`` for ARIAC)."""
         from btfsm.positions import split_by_entry, split_by_goal, split_history
 
-        split = split_history(split_by_goal(model, self.fsm, self.classes), self.fsm, self.history)
-        return split_by_entry(split, self.fsm, self.table)
+        if self.guards:
+            raise ValueError("this timing splits by guards on the bins' occupancy: apply it with ariac.timed")
+        split = split_by_goal(model, self.fsm, self.classes)
+        return split_by_entry(split_history(split, self.fsm, self.history), self.fsm, self.table)
 
     def slowest(self) -> dict:
         """{state: the slowest derived run over its copies and entries} (for the table)."""
@@ -302,7 +312,8 @@ class Timing:
         return out
 
 
-def derive(model, scene=None, no_loss: bool = False, place_spots: "dict | None" = None) -> Timing:
+def derive(model, scene=None, no_loss: bool = False, place_spots: "dict | None" = None,
+           bins: "dict | None" = None, track=None) -> Timing:
     """The position abstraction of a kitting model's arm FSM with each state's duration
     derived from the scene, per goal class and per entry, two states deep: a copy's
     duration depends on the copy it was entered from, and on the state that one was
@@ -327,8 +338,16 @@ def derive(model, scene=None, no_loss: bool = False, place_spots: "dict | None" 
     ``place_spots`` ({area: [(x, y)]}): a what-if for diagnosis, not a sound derivation
     unless the cell only ever chooses those spots: a place's target at that area (``above``
     and ``contact`` poses of its place goal) is limited to them (e.g. the first bin's
-    spots: where a rescue goes when the first bin has a free spot, docs/verification.md 2.1)."""
-    from btfsm.positions import entries_of, split_by_goal, split_history
+    spots: where a rescue goes when the first bin has a free spot, docs/verification.md 2.1).
+
+    ``bins`` ({goal: {tag: {"guard": .., "bins": [bin, ..], "free": bool}}}, e.g.
+    ``btfsm.models.ariac.BIN_COPIES`` on a model with ``ariac.with_bins``): the copies of
+    a pick's or place's approach at the bins split by guard (``split_by_guard``), each
+    copy's target in its bins (``free``: it has one there; else it may find none and stay at
+    the hub); the poses that follow keep the tag (the grasp, the put, the release, the
+    escape and the moves after them start in those bins). ``track``: a function giving the model split by goal class the
+    variables the guards read (``ariac.with_bins``)."""
+    from btfsm.positions import entries_of, split_by_goal, split_by_guard, split_history
 
     scene, binding = _kitting(model, scene)
     d = binding.d
@@ -371,14 +390,29 @@ def derive(model, scene=None, no_loss: bool = False, place_spots: "dict | None" 
                 groups.setdefault("hub" if t[0] == "hub" else g, []).append(g)
             if len(groups) > 1:
                 classes[s.id] = {c: tuple(gs) for c, gs in groups.items()}
-    f = next(x for x in split_by_goal(model, d.fsm, classes).fsms if x.name == d.fsm)
+    guards: dict = {}
+    for s, cl in classes.items():  # a pick's or place's approach at the bins: one copy per guard of ``bins``
+        for c in cl:
+            if bins and area(s) == "bins" and c in bins:
+                guards[f"{s}#{c}"] = {tag: spec["guard"] for tag, spec in bins[c].items()}
+    def by_guard(m):
+        return split_by_guard(track(m) if track is not None and guards else m, d.fsm, guards)
+
+    f = next(x for x in by_guard(split_by_goal(model, d.fsm, classes)).fsms if x.name == d.fsm)
     base = {}
     for s in f.states:
         base[s.id] = s.id.split("#", 1)[0]
     goals_of = {}  # the goals a copy's runs serve: its class's
     for s in f.states:
         b, _, c = s.id.partition("#")
-        goals_of[s.id] = set(classes[b][c]) if c else served(f0, b)
+        goals_of[s.id] = set(classes[b][c.split("%", 1)[0]]) if c else served(f0, b)
+
+    def tag_of(sid):
+        """The bin copy's tag of a (history-split) copy, or None."""
+        return sid.split("@", 1)[0].partition("%")[2] or None
+
+    def tagged(p):
+        return p[3] if len(p) > 3 else None
 
     # 2. poses: geometry and moves
     placed = {}  # area -> (contact box, above box) of the place targets limited by place_spots
@@ -387,8 +421,20 @@ def derive(model, scene=None, no_loss: bool = False, place_spots: "dict | None" 
         h = geo.g["clearance"]
         placed[a] = (c, ((c[0][0], c[0][1], c[0][2] + h), (c[1][0], c[1][1], c[1][2] + h)))
 
+    binbox = {}  # tag -> (contact box, above box) of its bins' spots
+    for tag, spec in ((tag, spec) for copies in (bins or {}).values() for tag, spec in copies.items()):
+        c = _box([(x, y, z) for b in spec["bins"] for x, y in geo.g["bin"][b][0] for z in geo.g["bin"][b][1]])
+        h = geo.g["clearance"]
+        binbox[tag] = (c, ((c[0][0], c[0][1], c[0][2] + h), (c[1][0], c[1][1], c[1][2] + h)))
+
     def box(p):
         k, x = p[0], (p[1] if len(p) > 1 else None)
+        if tagged(p) is not None and k in ("above", "contact", "lifted"):
+            c, a = binbox[tagged(p)]
+            if k == "lifted":
+                hz = geo.hub[x][0][2]
+                return ((c[0][0], c[0][1], hz), (c[1][0], c[1][1], hz))
+            return a if k == "above" else c
         if k in ("above", "contact") and x in placed and len(p) > 2 and p[2] is not None \
                 and p[2] == place_goal.get(x):
             return placed[x][k == "above"]
@@ -405,8 +451,8 @@ def derive(model, scene=None, no_loss: bool = False, place_spots: "dict | None" 
         return ((c[0][0], c[0][1], hz), (c[1][0], c[1][1], hz))
 
     def same(p, q):
-        return (len(p) == 3 and len(q) == 3 and p[1] == q[1] and p[2] is not None and p[2] == q[2]
-                and "none" not in (p[0], q[0]))
+        return (len(p) >= 3 and len(q) >= 3 and p[1] == q[1] and p[2] is not None and p[2] == q[2]
+                and tagged(p) == tagged(q) and "none" not in (p[0], q[0]))
 
     def rest(p, q) -> float:
         a, b = box(p), box(q)
@@ -417,7 +463,7 @@ def derive(model, scene=None, no_loss: bool = False, place_spots: "dict | None" 
 
     def lifted(p, x):
         if p[0] in ("above", "contact", "lifted") and p[1] == x:
-            return ("lifted", x, p[2])
+            return ("lifted", x, p[2]) + tuple(p[3:])
         return p  # at a hub or home: already at least that high
 
     def run(sid, g, p) -> tuple:
@@ -426,7 +472,9 @@ def derive(model, scene=None, no_loss: bool = False, place_spots: "dict | None" 
         if k == "grasp":
             if p[0] == "none" or g != pick_goal.get(x):
                 return 0.0, {p}  # nothing to grasp: it fails at once
-            t = ("contact", x, pick_goal[x])
+            t: tuple = ("contact", x, pick_goal[x])
+            if tagged(p) is not None and p[2] == t[2] and p[1] == x:
+                t += (tagged(p),)  # the part the approach went above: in its bins
             if x == "conveyor":
                 zs = geo.spec["z"]
                 if same(p, t) or (p[0] == "above" and same(("contact",) + p[1:], t)):
@@ -443,13 +491,21 @@ def derive(model, scene=None, no_loss: bool = False, place_spots: "dict | None" 
             return geo.rest_time(0.0, max(0.0, hz - box(p)[0][2])), {q}
         if role == "put_back":
             t = ("contact", x, pick_goal.get(x))
+            if tagged(p) is not None and p[2] == t[2] and p[1] == x:
+                t += (tagged(p),)  # back where it was taken: in its bins
             return rest(p, t), {t}
         if role == "put":
             if p[0] == "none":
                 return 0.0, {p}  # nowhere to put it: done at once
             t = ("contact", x, place_goal.get(x))
+            if tagged(p) is not None and p[2] == t[2] and p[1] == x:
+                t += (tagged(p),)  # the spot the approach went above: in its bins
             return rest(p, t), {t, p}
         t = approach_target(x, g)
+        sure = False
+        if t[0] == "above" and tag_of(sid) is not None:
+            t += (tag_of(sid),)
+            sure = bool((bins or {})[g][tag_of(sid)]["free"])
         if t[0] == "above" and x == "conveyor":
             if same(p, t):
                 return geo.dt + geo.TRACK_MARGIN, {t}
@@ -459,10 +515,12 @@ def derive(model, scene=None, no_loss: bool = False, place_spots: "dict | None" 
             slow = max(geo.track(box(p), box(t)[0][2]), rest(p, ("hub", x)))
             return slow, {t, ("hub", x), p}
         if t[0] == "above":
-            if p == ("none", x, g):
+            if p == ("none", x, g) and not sure:
                 return 0.0, {p}  # still no target: it stays at the hub
             if same(p, t):
                 return 0.0, {t}  # already above it (the same target while nothing changed)
+            if sure:  # the guard says there is one
+                return rest(p, t), {t}
             # no target (no part, no free spot): the hub, until the gripper changes something
             return max(rest(p, t), rest(p, ("hub", x))), {t, ("none", x, g)}
         return rest(p, t), {t}
@@ -470,8 +528,8 @@ def derive(model, scene=None, no_loss: bool = False, place_spots: "dict | None" 
     def forget(ps, kinds=("pick", "place")):
         out = set()
         for p in ps:
-            if len(p) == 3 and p[2] is not None and d.goal(p[2])[0] in kinds:
-                p = ("hub", p[1]) if p[0] == "none" else (p[0], p[1], None)
+            if len(p) >= 3 and p[2] is not None and d.goal(p[2])[0] in kinds:
+                p = ("hub", p[1]) if p[0] == "none" else (p[0], p[1], None) + tuple(p[3:])
             out.add(p)
         return out
 
@@ -497,7 +555,7 @@ def derive(model, scene=None, no_loss: bool = False, place_spots: "dict | None" 
     # history: a copy s@u's runs start where u's own runs, from u's entries, left the arm)
     entries = entries_of(f)
     timed_states = list(entries)  # instants too: a state after an instant knows what preceded it
-    f2 = next(x for x in split_history(split_by_goal(model, d.fsm, classes), d.fsm, timed_states).fsms
+    f2 = next(x for x in split_history(by_guard(split_by_goal(model, d.fsm, classes)), d.fsm, timed_states).fsms
               if x.name == d.fsm)
     for s2 in f2.states:
         b1 = s2.id.split("@", 1)[0]
@@ -534,7 +592,18 @@ def derive(model, scene=None, no_loss: bool = False, place_spots: "dict | None" 
             table.setdefault(s2, {})[u] = (0.0, round(hi + geo.dt + 1e-3, 3))
             where.setdefault(s1, set()).update(starts)
     where = {s: sorted(":".join("*" if v is None else str(v) for v in p) for p in ps) for s, ps in where.items()}
-    return Timing(d.fsm, classes, table, where, history=sorted(timed_states), assume="no_loss" if no_loss else None)
+    return Timing(d.fsm, classes, table, where, history=sorted(timed_states), assume="no_loss" if no_loss else None,
+                  guards=guards)
+
+
+def derive_ariac(scene=None, no_loss: bool = False) -> Timing:
+    """``derive`` for the timed ARIAC models (``btfsm.models.ariac.timed``): the arm FSM of
+    ``ariac.preemptive()``, its places at the bins split by which bin they go to
+    (``ariac.PLACE_BINS``, read from the bins' occupancy ``ariac.with_bins`` gives the timed
+    models); ``models/ariac_timing.json``."""
+    from btfsm.models import ariac
+
+    return derive(ariac.preemptive(), scene, no_loss=no_loss, bins=ariac.BIN_COPIES, track=ariac.with_bins)
 
 
 class Derived(NamedTuple):

@@ -108,7 +108,7 @@ def reach_at(variant: str, speed: float, n_tray: int = 2) -> tuple:
     from btfsm.verify.explore import explore
     from btfsm.verify.properties.response import INF, ResponseBound
 
-    from .durations import derive
+    from .durations import derive_ariac
     from .protocol import TrialSpec
     from .sweep import WINDOW_M
     from .trial import ariac_scene
@@ -117,7 +117,7 @@ def reach_at(variant: str, speed: float, n_tray: int = 2) -> tuple:
     no_loss = window < ariac.ARRIVAL_MIN_INTERVAL
     if (speed, no_loss) not in _TIMINGS:
         scene = ariac_scene(TrialSpec("preemptive", 1, belt_speed=speed, pick_window=window))
-        _TIMINGS[(speed, no_loss)] = derive(ariac.preemptive(), scene, no_loss=no_loss).to_data()
+        _TIMINGS[(speed, no_loss)] = derive_ariac(scene, no_loss=no_loss).to_data()
     model = ariac.timed({"preemptive": ariac.preemptive, "baseline": ariac.baseline}[variant](n_tray=n_tray),
                         timing=_TIMINGS[(speed, no_loss)], window=window)
     ts = explore(model)

@@ -8,10 +8,11 @@ import dataclasses
 import math
 
 import pytest
+from hypothesis import HealthCheck, given, settings, strategies as st
 
 from btfsm import FSM, Edge, Model, ModelError, Primitive, State, running, success
 from btfsm.models import ariac
-from btfsm.positions import base_state, entries_of, split_by_entry, split_by_goal
+from btfsm.positions import base_state, entries_of, split_by_entry, split_by_goal, split_by_guard
 from btfsm.verify.explore import explore
 
 
@@ -22,10 +23,12 @@ def _untimed(model):
         environment=tuple(dataclasses.replace(e, min_interval=None) for e in model.environment))
 
 
-def _projected(ts) -> tuple:
-    """(states, transitions) of ``ts`` with every FSM copy named by the state it was split from."""
+def _projected(ts, drop=()) -> tuple:
+    """(states, transitions) of ``ts`` with every FSM copy named by the state it was split from
+    (and the variables ``drop`` left out)."""
     def one(i):
-        return tuple(sorted((k, base_state(v) if k.endswith(".state") else v) for k, v in ts.decode(i).items()))
+        return tuple(sorted((k, base_state(v) if k.endswith(".state") else v) for k, v in ts.decode(i).items()
+                            if k not in drop))
     def label(lab):  # an outcome's site is "fsm/state"
         return tuple(tuple(f"{x.split('/')[0]}/{base_state(x.split('/', 1)[1])}" if isinstance(x, str) and "/" in x
                            else x for x in item) for item in lab)
@@ -43,6 +46,25 @@ def test_the_split_fsm_behaves_as_the_original(variant):
     split = _untimed(ariac.timed(m, arrivals="any"))
     assert len(split.fsms[0].states) > len(m.fsms[0].states)
     assert _projected(explore(split)) == _projected(explore(m))
+
+
+def test_the_fsm_split_by_the_bins_behaves_as_the_original():
+    """With the bins' occupancy (``timed(m, bins="tracked")``: the pick and place copies at
+    the bins split by guards on it, ``split_by_guard``), the split model's states and
+    transitions without the bins' variables are the original's, and with them (BTFSM_LONG=1)
+    those of the unsplit model with the variables (``ariac.with_bins``); 1 tray part,
+    arrivals unscoped."""
+    import os
+
+    m = ariac.preemptive(n_tray=1)
+    split = _untimed(ariac.timed(m, arrivals="any", bins="tracked"))
+    assert any("%bin3" in s.id for s in split.fsms[0].states)
+    ts = explore(split)
+    # the bins' variables only observe (no guard reads them): without them, the original's runs
+    assert _projected(ts, drop=ariac.BIN_VARIABLES) == _projected(explore(m))
+    if os.environ.get("BTFSM_LONG") == "1":  # and with them, the unsplit model's with the variables
+        tracked = explore(ariac.with_bins(split_by_goal(m, "arm", ariac.derived_timing()["classes"])))
+        assert _projected(ts) == _projected(tracked)
 
 
 def test_expressions_name_every_copy():
@@ -96,9 +118,9 @@ def test_the_stored_table_is_the_derivation(tmp_path):
     stored = ariac.derived_timing()
     if os.environ.get("BTFSM_LONG") != "1":
         pytest.skip("the derivation runs a minute of pursuits (BTFSM_LONG=1)")
-    got = durations.derive(ariac.preemptive()).to_data()
-    assert got["classes"] == stored["classes"] and got["table"] == stored["table"]
-    got = durations.derive(ariac.preemptive(), no_loss=True).to_data()  # models/ariac_timing_no_loss.json
+    got = durations.derive_ariac().to_data()
+    assert (got["classes"], got["guards"], got["table"]) == (stored["classes"], stored["guards"], stored["table"])
+    got = durations.derive_ariac(no_loss=True).to_data()  # models/ariac_timing_no_loss.json
     assert got == ariac.derived_timing("no_loss")
 
 
@@ -256,3 +278,51 @@ def test_a_requirement_naming_no_state_is_still_an_error(tmp_path, capsys):
     assert main(["validate", str(path)]) == 2
     err = capsys.readouterr().err
     assert "responses.back.response: 'c' is not one of a@start, a@b, b" in err and "Traceback" not in err
+
+
+_EFFECTS = ({}, {"n": "n + 1 if n < 3 else 0"}, {"n": "0"}, {"n": "3 - n"})
+
+
+@settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(data=st.data())
+def test_a_guard_split_has_the_original_runs(data):
+    """``split_by_guard`` against explicit exploration (the brute-force oracle): on random
+    three-state FSMs whose edges change a variable n (an environment event bumps it too),
+    a state split by a random partition of n's values has exactly the original's states and
+    transitions once each copy is named by its state, and the token enters a copy only
+    where the copy's guard holds (read after the entering edge's effects)."""
+    from btfsm import EnvEvent, Int, SkillRequest
+
+    names = ("a", "b", "c")
+    edges = []
+    for src in names:
+        if data.draw(st.booleans(), label=f"{src} guarded"):
+            k = data.draw(st.integers(1, 3))
+            pairs = ((f"n < {k}", data.draw(st.sampled_from(names))), (f"n >= {k}", data.draw(st.sampled_from(names))))
+        else:
+            pairs = ((None, data.draw(st.sampled_from(names))),)
+        for guard, dst in pairs:
+            edges.append(Edge(src, dst, "g", guard=guard, effects=data.draw(st.sampled_from(_EFFECTS))))
+    f = FSM("arm", states=[State(x, "move") for x in names], initial="a", goals=("g",), edges=edges)
+    m = Model("m", variables=[Int("n", 0, 3)], primitives=[Primitive("move", (running(), success()))], fsms=[f],
+              tree=SkillRequest("go", fsm="arm", goal="g"), environment=[EnvEvent("bump", "n < 3", {"n": "n + 1"})])
+    target = data.draw(st.sampled_from(("b", "c")))
+    cut = data.draw(st.integers(0, 3))
+    split = split_by_guard(m, "arm", {target: {"lo": f"n < {cut}", "hi": f"n >= {cut}"}})
+    assert [s.id for s in split.fsms[0].states if base_state(s.id) == target] == [f"{target}%lo", f"{target}%hi"]
+    ts = explore(split)
+    assert _projected(ts) == _projected(explore(m))
+    for s, d in zip(ts.src, ts.dst):
+        a, b = ts.decode(int(s)), ts.decode(int(d))
+        if b["arm.state"] != a["arm.state"] and "%" in b["arm.state"]:
+            assert (b["n"] < cut) == b["arm.state"].endswith("%lo"), (a, b)
+
+
+def test_a_guard_split_refuses_the_initial_state_and_unknown_states():
+    f = FSM("arm", states=[State("a", "move"), State("b", "move")], initial="a", goals=("g",),
+            edges=[Edge("a", "b", "g"), Edge("b", "a", "g")])
+    m = Model("m", primitives=[Primitive("move", (running(), success()))], fsms=[f])
+    with pytest.raises(ModelError, match="the initial state cannot be split"):
+        split_by_guard(m, "arm", {"a": {"x": "true"}})
+    with pytest.raises(ModelError, match="positions.zz"):
+        split_by_guard(m, "arm", {"zz": {"x": "true"}})
