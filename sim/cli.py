@@ -202,8 +202,9 @@ def args_sim(sp) -> None:
     sp.add_argument("--at-phase", action="store_true",
                     help="with --worst: also the model's worst response to an arrival at the cell's worst phase, "
                          "and its conditioned twin's (explores the models)")
-    sp.add_argument("--workers", type=int_range(1, MAX_WORKERS), default=os.cpu_count() or 1,
-                    help="with --worst: worker processes (the result does not depend on their number)")
+    sp.add_argument("--workers", type=int_range(1, MAX_WORKERS), default=None,
+                    help="with --worst: worker processes (default: the CPU count; the result does not depend on "
+                         "their number)")
 
 
 def _sim_worst(args, model) -> int:
@@ -213,10 +214,11 @@ def _sim_worst(args, model) -> int:
     if args.scene is not None or args.render or args.gif:
         raise UsageError("--worst searches the kitting cell and prints a table: not with --scene, --render or --gif")
     variant_of(model)  # UsageError unless the kitting cell runs the model
+    workers = args.workers or os.cpu_count() or 1
     if args.worst == 1:
-        found = search_single(model, workers=args.workers, step=args.step or 1)
+        found = search_single(model, workers=workers, step=args.step or 1)
     else:
-        found = search_pair(model, workers=args.workers, coarse=args.step or 10)
+        found = search_pair(model, workers=workers, coarse=args.step or 10)
     text, code = report(model, found, phase_models=args.at_phase)
     print(text)
     return code
@@ -234,8 +236,8 @@ def cli_sim(args) -> int:
     model = load_cli_model(args)
     if args.worst:
         return _sim_worst(args, model)
-    if args.step is not None or args.at_phase:
-        raise UsageError("--step and --at-phase go with --worst")
+    if args.step is not None or args.at_phase or args.workers is not None:
+        raise UsageError("--step, --at-phase and --workers go with --worst")
     if args.gif and not (args.fps > 0 and args.max_frames >= 1):
         raise UsageError("--gif needs --fps > 0 and --max-frames >= 1")
     scene = _scene_of(args, model)
