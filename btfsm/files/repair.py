@@ -234,7 +234,7 @@ def _repaired_var(var: Var) -> "Var | None":
                 if isinstance(v, str) and v not in keep:
                     keep.append(check_label(v, ""))
             except ModelError:
-                pass
+                continue  # not a valid label: left out (its problem is reported where it is declared)
         new = Enum(var.name, keep, var.init if var.init in keep else None) if keep else None
     elif var.kind == "int":
         if not all(isinstance(b, int) and not isinstance(b, bool) for b in (var.lo, var.hi)):
