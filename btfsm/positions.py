@@ -192,6 +192,23 @@ def _rename_any(x, field: str, copies: dict):
     return x
 
 
+def _fsm_named(model, fsm: str):
+    """FSM ``fsm`` of ``model``, or a ModelError."""
+    f = next((x for x in model.fsms if x.name == fsm), None)
+    if f is None:
+        raise ModelError("positions", f"no FSM named '{fsm}'")
+    return f
+
+
+def _with_fsm(model, new_f, field: str, copies: dict):
+    """``model`` with ``new_f`` in place of its FSM of that name, and every other part's
+    ``field == 's'`` widened to the copies of s (``copies``: {state: [copy names]})."""
+    others = {k: _rename_any(getattr(model, k), field, copies)
+              for k in ("tree", "environment", "invariants", "workable", "terminal", "responses")}
+    fsms = tuple(new_f if x.name == new_f.name else _rename_any(x, field, copies) for x in model.fsms)
+    return dataclasses.replace(model, fsms=fsms, **others)
+
+
 def split_by_entry(model, fsm: str, table: dict, durations: "dict | None" = None):
     """``model`` with FSM ``fsm``'s states of ``table`` split by entry (see the module text).
     ``durations`` (the same shape as ``table``): the copies are still ``table``'s, each
@@ -206,9 +223,7 @@ def split_by_entry(model, fsm: str, table: dict, durations: "dict | None" = None
     >>> [(st.id, st.duration) for st in s.fsms[0].states]
     [('a', None), ('b', (0.0, 1.5)), ('c', None)]
     """
-    f = next((x for x in model.fsms if x.name == fsm), None)
-    if f is None:
-        raise ModelError("positions", f"no FSM named '{fsm}'")
+    f = _fsm_named(model, fsm)
     entries = entries_of(f)
     groups = _groups(table, entries, durations)
     copies = {s.id: [n for n, _, _ in groups[s.id]] if s.id in groups else [s.id] for s in f.states}
@@ -232,10 +247,7 @@ def split_by_entry(model, fsm: str, table: dict, durations: "dict | None" = None
     initial = entered.get((f.initial, ""), f.initial)
     new_f = dataclasses.replace(_rename_any(f, field, copies), states=tuple(states), edges=tuple(edges),
                                 markers=tuple(markers), initial=initial)
-    others = {k: _rename_any(getattr(model, k), field, copies)
-              for k in ("tree", "environment", "invariants", "workable", "terminal", "responses")}
-    fsms = tuple(new_f if x.name == fsm else _rename_any(x, field, copies) for x in model.fsms)
-    return dataclasses.replace(model, fsms=fsms, **others)
+    return _with_fsm(model, new_f, field, copies)
 
 
 def split_history(model, fsm: str, states):
@@ -251,9 +263,7 @@ def split_history(model, fsm: str, states):
     >>> [st.id for st in split_history(m, "arm", ["b"]).fsms[0].states]
     ['a', 'b@a', 'b@c', 'c']
     """
-    f = next((x for x in model.fsms if x.name == fsm), None)
-    if f is None:
-        raise ModelError("positions", f"no FSM named '{fsm}'")
+    f = _fsm_named(model, fsm)
     entries = entries_of(f)
     for s in states:
         if s not in entries:
@@ -281,9 +291,7 @@ def split_by_goal(model, fsm: str, classes: dict):
     >>> sorted((e.source, e.target, e.goals, e.direct) for e in s.fsms[0].edges)[:3]
     [('a#G', 'a#H', ('h',), True), ('a#G', 'b', ('g',), False), ('a#H', 'a#G', ('g',), True)]
     """
-    f = next((x for x in model.fsms if x.name == fsm), None)
-    if f is None:
-        raise ModelError("positions", f"no FSM named '{fsm}'")
+    f = _fsm_named(model, fsm)
     ids = {st.id for st in f.states}
 
     def goals_of(e):
@@ -333,10 +341,7 @@ def split_by_goal(model, fsm: str, classes: dict):
                for src in copies[m.state]]
     new_f = dataclasses.replace(f, states=tuple(states), edges=tuple(edges), markers=tuple(markers),
                                 initial=copies[f.initial][0])
-    others = {k: _rename_any(getattr(model, k), field, copies)
-              for k in ("tree", "environment", "invariants", "workable", "terminal", "responses")}
-    fsms = tuple(new_f if x.name == fsm else _rename_any(x, field, copies) for x in model.fsms)
-    return dataclasses.replace(model, fsms=fsms, **others)
+    return _with_fsm(model, new_f, field, copies)
 
 
 def substitute(x, values: dict):
@@ -383,9 +388,7 @@ def split_by_guard(model, fsm: str, guards: dict):
     """
     from .expr import as_expr
 
-    f = next((x for x in model.fsms if x.name == fsm), None)
-    if f is None:
-        raise ModelError("positions", f"no FSM named '{fsm}'")
+    f = _fsm_named(model, fsm)
     ids = {st.id for st in f.states}
     for s in guards:
         if s not in ids:
@@ -417,7 +420,4 @@ def split_by_guard(model, fsm: str, guards: dict):
     markers = [dataclasses.replace(_rename_any(m, field, copies), state=src, id="") for m in f.markers
                for src in copies[m.state]]
     new_f = dataclasses.replace(f, states=tuple(states), edges=tuple(edges), markers=tuple(markers))
-    others = {k: _rename_any(getattr(model, k), field, copies)
-              for k in ("tree", "environment", "invariants", "workable", "terminal", "responses")}
-    fsms = tuple(new_f if x.name == fsm else _rename_any(x, field, copies) for x in model.fsms)
-    return dataclasses.replace(model, fsms=fsms, **others)
+    return _with_fsm(model, new_f, field, copies)

@@ -518,12 +518,6 @@ class Program:
         scope = self.fsm_scope(f)
         where = f"fsms.{f.name}"
         index = {sid: k for k, sid in enumerate(ids)}
-        out_edges: dict[str, list[Any]] = {}  # by source, in declaration order (linear in the edges)
-        for e in f.edges:
-            out_edges.setdefault(e.source, []).append(e)
-        at_markers: dict[str, list[Any]] = {}
-        for m in f.markers:
-            at_markers.setdefault(m.state, []).append(m)
         rows = []
         for st in f.states:
             runner, leave = self._state_runner(f, st, f"{where}.states.{st.id}")
@@ -534,17 +528,13 @@ class Program:
                 edges: tuple[list[Any], list[Any], list[Any]] = ([], [], [])
                 markers: tuple[list[Any], list[Any], list[Any]] = ([], [], [])
                 applicable = False
-                for e in out_edges.get(st.id, ()):
-                    if g not in e.goals:
-                        continue
+                for e in f.edges_from(st.id, g):  # in declaration order, indexed by source once
                     applicable = True
                     ew = f"{where}.edges.{e.id}"
                     guard = compile_fn(e.guard, scope, f"{ew}.guard", BOOL) if e.guard is not None else None
                     item = (guard, index[e.target], compile_effects(e.effects, self.scope, f"{ew}.effects"), e.id)
                     (dedges if e.direct else edges[int(e.on)]).append(item)
-                for m in at_markers.get(st.id, ()):
-                    if g not in m.goals:
-                        continue
+                for m in f.markers_at(st.id, g):
                     applicable = True
                     guard = compile_fn(m.guard, scope, f"{where}.markers.{m.id}.guard", BOOL) if m.guard is not None else None
                     mitem = (guard, int(m.outcome), m.id)

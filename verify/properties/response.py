@@ -224,9 +224,22 @@ class ResponseBound:
             return ts.path_to(t), t
         mask = np.zeros(ts.n_states, bool)
         mask[states] = True
-        edges = self.trigger_edges[mask[ts.dst[self.trigger_edges]]]
-        e = int(edges[np.lexsort((edges, ts.src[edges]))[0]])  # the nearest source, then the first tick
+        return self._through(self.trigger_edges[mask[ts.dst[self.trigger_edges]]])
+
+    def _through(self, edges) -> tuple:
+        """(prefix transitions, trigger state) through the trigger transition of ``edges``
+        with the nearest source (BFS order), then the first tick."""
+        ts = self.ts
+        e = int(edges[np.lexsort((edges, ts.src[edges]))[0]])
         return ts.path_to(int(ts.src[e])) + [e], int(ts.dst[e])
+
+    def _worst_from(self, prefix: list, t: int) -> "tuple | None":
+        """(transitions, trigger step index, loop or None): ``prefix`` then a longest
+        response-free path from trigger state ``t`` (the lasso when it is unbounded)."""
+        worst = int(self.worst_at[t])
+        if worst != INF:
+            return prefix + self._longest_walk(t, worst), len(prefix), None
+        return self._lasso(prefix, t)
 
     def _longest_walk(self, u: int, steps: int) -> list:
         """``steps`` transitions from ``u`` along a longest response-free path (fewer if a
@@ -251,26 +264,15 @@ class ResponseBound:
         the worst case and following a longest response-free path; for an unbounded worst
         case, the lasso into a response-free cycle (or the path to a state without successors)."""
         worst: Any = self.worst
-        at = self.triggers[self.worst_at[self.triggers] == worst]
-        prefix, t = self._entry(at)
-        if worst != INF:
-            return prefix + self._longest_walk(t, worst), len(prefix), None
-        return self._lasso(prefix, t)
+        return self._worst_from(*self._entry(self.triggers[self.worst_at[self.triggers] == worst]))
 
     def witness_from(self, edges) -> "tuple | None":
         """(transitions, trigger step index, loop or None): the worst run among those whose
         trigger is one of ``edges`` (trigger transitions, e.g. the arrivals from one state),
         as ``worst_witness`` (the nearest source on a tie)."""
-        ts = self.ts
         edges = np.asarray(edges, np.int64)
-        w = self.worst_at[ts.dst[edges]]
-        edges = edges[w == w.max()]
-        e = int(edges[np.lexsort((edges, ts.src[edges]))[0]])
-        prefix, t = ts.path_to(int(ts.src[e])) + [e], int(ts.dst[e])
-        worst = int(self.worst_at[t])
-        if worst != INF:
-            return prefix + self._longest_walk(t, worst), len(prefix), None
-        return self._lasso(prefix, t)
+        w = self.worst_at[self.ts.dst[edges]]
+        return self._worst_from(*self._through(edges[w == w.max()]))
 
     def violation_witness(self, bound: int) -> "tuple | None":
         """(transitions, trigger step index, loop or None) of the shortest run whose response
