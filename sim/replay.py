@@ -16,7 +16,7 @@ from typing import Any, cast
 
 from .loop import Hooks, run_loop, start
 
-__all__ = ["CellReplay", "triggers_of", "phases_of", "replay_in_cell", "SceneReplay", "scene_triggers", "replay_in_scene",
+__all__ = ["CellReplay", "cell_window", "triggers_of", "phases_of", "replay_in_cell", "SceneReplay", "scene_triggers", "replay_in_scene",
            "replay_for_cli"]
 
 
@@ -140,16 +140,22 @@ def decomposition(ce: dict, fsm: str, result: "CellReplay", rate: float) -> list
     ce_side = _by_state((states[k], 1.0 / rate) for k in range(k0, k1))
     tl = result.timeline
     end = next(t for t, st, _g in tl if t > 0 and st in result.grasp_states and t >= result.injected[-1][0])
-    start = end - cell_r
+    cell_side = cell_window(tl, end - cell_r, end, result.end_time)
+    return [(st, round(ce_side.get(st, 0.0), 2), round(cell_side.get(st, 0.0), 2))
+            for st in list(ce_side) + [x for x in cell_side if x not in ce_side]]
+
+
+def cell_window(timeline, start: float, end: float, end_time: float) -> dict:
+    """{state the copies were split from: seconds} the cell's FSM spent in each state
+    between ``start`` and ``end`` (``timeline``: [(time, state, goal)] of its visits, the
+    last one lasting until ``end_time``), in order."""
     segs = []
-    for j, (t, st, _g) in enumerate(tl):
-        t1 = tl[j + 1][0] if j + 1 < len(tl) else result.end_time
+    for j, (t, st, _g) in enumerate(timeline):
+        t1 = timeline[j + 1][0] if j + 1 < len(timeline) else end_time
         lo, hi = max(t, start), min(t1, end)
         if hi > lo + 1e-9:
             segs.append((st, hi - lo))
-    cell_side = _by_state(segs)
-    return [(st, round(ce_side.get(st, 0.0), 2), round(cell_side.get(st, 0.0), 2))
-            for st in list(ce_side) + [x for x in cell_side if x not in ce_side]]
+    return _by_state(segs)
 
 
 def phases_of(ce: dict, fsm: str, event: str = "arrive", variables=()) -> list:

@@ -155,16 +155,9 @@ def _breakdown(timeline, end: float, response: float) -> tuple:
     """((state split from, s), ...): the cell's response window split per FSM state, copies
     summed (the cell side of ``replay.decomposition``: the window ends when the belt grasp's
     visit begins, ``end``, and lasts ``response`` s)."""
-    from btfsm.positions import base_state
+    from .replay import cell_window
 
-    start = end - response
-    out: dict = {}
-    for j, (t, st, _g) in enumerate(timeline):
-        t1 = timeline[j + 1][0] if j + 1 < len(timeline) else end
-        lo, hi = max(t, start), min(t1, end)
-        if hi > lo + 1e-9:
-            out[base_state(st)] = round(out.get(base_state(st), 0.0) + hi - lo, 2)
-    return tuple(out.items())
+    return tuple((st, round(sec, 2)) for st, sec in cell_window(timeline, end - response, end, end).items())
 
 
 def probe(model, ticks, *, to_end: bool = False, time_limit: "float | None" = None, last: bool = False) -> Probe:
