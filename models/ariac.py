@@ -478,7 +478,7 @@ def timed(model: Model, durations: str = "derived", *, timing: "dict | None" = N
     import dataclasses
 
     from btfsm.expr import as_expr, to_text
-    from btfsm.positions import split_by_entry, split_by_goal, split_by_guard, split_history
+    from btfsm.positions import base_state, split_by_entry, split_by_goal, split_by_guard, split_history
 
     f = model.fsms[0]
     if arrivals not in ("job", "any"):
@@ -525,7 +525,7 @@ def timed(model: Model, durations: str = "derived", *, timing: "dict | None" = N
                                     guard=f"({to_text(as_expr(e.guard))}){job}" if job and e.guard is not None
                                     else f"tray < {n_tray}" if job else e.guard)
                 for e in events)
-    grasp = [s.id for s in model.fsms[0].states if s.id.split("#")[0].split("@")[0] == "grasp_conveyor"]
+    grasp = [s.id for s in model.fsms[0].states if base_state(s.id) == "grasp_conveyor"]
     reach = Response("reach", "event:arrive", " or ".join(f"arm.state == '{g}'" for g in grasp), window)
     suffix = ("-timed" if assume is None else "-timed-no-loss") + ("-tracked-bins" if bins == "tracked" else "")
     return dataclasses.replace(model, name=model.name + suffix, environment=env, responses=(reach,),

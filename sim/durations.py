@@ -415,17 +415,18 @@ def derive(model, scene=None, no_loss: bool = False, place_spots: "dict | None" 
         return p[3] if len(p) > 3 else None
 
     # 2. poses: geometry and moves
+    def boxes(points) -> tuple:
+        """(contact box, above box: raised by the clearance) of contact ``points``."""
+        c, h = _box(points), geo.g["clearance"]
+        return c, ((c[0][0], c[0][1], c[0][2] + h), (c[1][0], c[1][1], c[1][2] + h))
+
     placed = {}  # area -> (contact box, above box) of the place targets limited by place_spots
     for a, xs in (place_spots or {}).items():
-        c = _box([(x, y, z) for x, y in xs for z in geo.g["contact"][a]])
-        h = geo.g["clearance"]
-        placed[a] = (c, ((c[0][0], c[0][1], c[0][2] + h), (c[1][0], c[1][1], c[1][2] + h)))
+        placed[a] = boxes([(x, y, z) for x, y in xs for z in geo.g["contact"][a]])
 
     binbox = {}  # tag -> (contact box, above box) of its bins' spots
     for tag, spec in ((tag, spec) for copies in (bins or {}).values() for tag, spec in copies.items()):
-        c = _box([(x, y, z) for b in spec["bins"] for x, y in geo.g["bin"][b][0] for z in geo.g["bin"][b][1]])
-        h = geo.g["clearance"]
-        binbox[tag] = (c, ((c[0][0], c[0][1], c[0][2] + h), (c[1][0], c[1][1], c[1][2] + h)))
+        binbox[tag] = boxes([(x, y, z) for b in spec["bins"] for x, y in geo.g["bin"][b][0] for z in geo.g["bin"][b][1]])
 
     def box(p):
         k, x = p[0], (p[1] if len(p) > 1 else None)
