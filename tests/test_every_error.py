@@ -415,8 +415,9 @@ def test_template_problems_are_reported_together(tmp_path, capsys):
      ["variables: duplicate key 'a' (line 4)", "fsms.f.edges[0]: duplicate key 'to' (line 9)",
       "fsms.f.edges[0].gaurd: unknown field 'gaurd' (did you mean 'guard'?) (line 9)",
       "tree: duplicate key 'expr' (line 10)", "duplicate key 'variables' (line 11)"]),
-    ("m.json", '{"name": "x", "name": "y", "variables": {"a": "bool", "a": "bol"}, "tree": {"Condition": "c", "expr": "zz"}}',
-     ["duplicate key 'a' in a JSON object", "duplicate key 'name' in a JSON object"]),
+    ("m.json", '{"name": "x", "name": "y", "variables": {"a": "bool", "a": "bol"}, "tree": {"Condition": "c", "expr": "zz"}, '
+     '"fsms": {"f": {"goals": ["g"], "states": ["s", "t"], "edges": [{"from": "s", "to": "t", "to": "s"}]}}}',
+     ["duplicate key 'name'", "variables: duplicate key 'a'", "fsms.f.edges[0]: duplicate key 'to'"]),
 ])
 def test_keys_given_twice_are_reported_with_the_shape(tmp_path, capsys, name, text, expected):
     """A key given twice in a mapping is reported with the problems of the file's shape

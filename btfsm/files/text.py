@@ -194,14 +194,13 @@ def read_model_bytes(path, name: "str | None" = None, limit: int = MAX_FILE_BYTE
 
 
 def _parse_json(text: str, file: str, duplicates: "list | None" = None):
+    seen: list = []  # (the object, the key given again in it)
+
     def pairs(items):
-        out = {}
+        out: dict = {}
         for k, v in items:
             if k in out:
-                again = err("", f"duplicate key '{k}' in a JSON object", file)
-                if duplicates is None:
-                    raise again
-                duplicates.append(again)
+                seen.append((out, k))  # the later value is left out
                 continue
             out[k] = v
         return out
@@ -220,7 +219,29 @@ def _parse_json(text: str, file: str, duplicates: "list | None" = None):
     except ValueError as exc:  # e.g. an integer with too many digits
         raise err("", f"JSON: {_one_line(exc)}", file) from None
     check_size(data, file)
+    if seen:
+        where = _paths_of_objects(data)  # in the file's order: an object's own keys before the objects inside it
+        order = {i: n for n, i in enumerate(where)}
+        seen.sort(key=lambda dup: order[id(dup[0])])  # stable: one object's keys as given
+        again = [err(where[id(obj)], f"duplicate key '{k}'", file) for obj, k in seen]
+        if duplicates is None:
+            raise again[0]
+        duplicates.extend(again)
     return data
+
+
+def _paths_of_objects(data) -> dict:
+    """id of every dict in ``data`` -> its path (``fsms.f.edges[0]``; the top: ''), in the
+    order the objects begin in the text."""
+    out, stack = {}, [(data, "")]
+    while stack:
+        x, path = stack.pop()
+        if isinstance(x, dict):
+            out[id(x)] = path
+            stack.extend(reversed([(v, join_path(path, k)) for k, v in x.items()]))
+        elif isinstance(x, list):
+            stack.extend(reversed([(v, f"{path}[{i}]") for i, v in enumerate(x)]))
+    return out
 
 
 def check_size(data, file):
