@@ -1029,6 +1029,16 @@ class Program:
             status = self.root(ctx)
         return status
 
+    def without_environment(self) -> "Program":
+        """The program of this model's tick without its environment phase (tick step 1),
+        with the same slots (the 'Event spacing' counters that ``since(E)`` reads too): what
+        the exploration engines step after they applied the environment themselves."""
+        import dataclasses
+
+        prog = Program(dataclasses.replace(self.model, responses=()))
+        prog.env, prog.env_timers, prog._env_rows = [], {}, ()
+        return prog
+
     def environment_phase(self, s: list[int], oracle: Any, rec: Optional[list[Any]] = None,
                           indices: Any = None) -> "str | None":
         """Tick step 1 (docs/semantics.md section 1): the environment entries (those at
