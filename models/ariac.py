@@ -344,8 +344,9 @@ BIN_TARGET = ("none chosen, the next from bin2", "none chosen, the next from bin
 #: The goal copies that pursue a belt part, split by its age (``derive``'s ``ages``): a pursuit
 #: that starts late finds the part far down the pick stretch, and is shorter
 AGE_STATES = ("bins_to_conveyor#pick_conveyor", "agv_to_conveyor#pick_conveyor")
-#: the ages (s) that start a copy: [0, 9) and [9, ...) seconds since the last arrival
-AGE_BOUNDS = (9.0,)
+#: the ages (s) that start a copy: [0, 6) and [6, ...) seconds since the last arrival (from the bins' hub a
+#: pursuit takes at most 2.49 s for a part of any age, 1.92 s for one at least 6 s old: no less later)
+AGE_BOUNDS = (6.0,)
 
 
 def age_copies(states=AGE_STATES, bounds=AGE_BOUNDS, rate: float = 10.0) -> dict:
