@@ -309,13 +309,13 @@ class Program:
         for var in model.variables:
             self._slot(var.name, "var", var.hi - var.lo + 1, var.lo)
             self.scope[var.name] = Scope.of([var], len(self.slots) - 1)[var.name]
-        self._since: dict[str, int] = {}  # event -> its 'Event spacing' slot, laid out before the expressions that read it
+        self.since_slots: dict[str, int] = {}  # event -> its 'Event spacing' slot, laid out before the expressions that read it
         spaced = [(ev.name, interval_ticks(ev.min_interval, model.tick_rate)) for ev in model.environment
                   if getattr(ev, "min_interval", None)]
         read = _since_read(model) if any(wait > 1 for _, wait in spaced) else ()
         for name, wait in spaced:
             if wait > 1 and name in read:
-                self._since[name] = self._since_slot(name, wait)
+                self.since_slots[name] = self._since_slot(name, wait)
         self.prims = model.all_primitives()
         self._fsm_timers: dict[str, int] = {}  # FSM name -> the slot counting its state's run (rule 'Durations')
         self._layout_fsms()
@@ -451,7 +451,7 @@ class Program:
             if any(n.startswith("since(") for n in names_in(x)):  # its value would depend on the entries' order
                 raise ModelError(where, "since() cannot be read by an environment entry (docs/semantics.md 7)")
         if wait > 1:  # rule 'Event spacing' (section 6.1): ticks since it happened, saturated at wait
-            slot = self._since.get(ev.name)
+            slot = self.since_slots.get(ev.name)
             self.env_timers.append((i, self._since_slot(ev.name, wait) if slot is None else slot, wait))
         return (ev.name, guard, compile_effects(ev.effects, self.scope, f"{where}.effects"), None)
 
