@@ -41,7 +41,8 @@ __all__ = ["AREAS", "ROTATIONS", "SKILLS", "PRIMITIVES", "ARM_REQUESTS", "genera
            "tree", "preemptive", "baseline", "states_of", "HUBS", "ARM_DURATIONS", "ARRIVAL_MIN_INTERVAL",
            "PICK_WINDOW", "TIMING_FILE", "TIMING_FILE_NO_LOSS", "NO_LOSS", "derived_timing", "timed", "preemptive_timed",
            "baseline_timed", "preemptive_timed_no_loss", "baseline_timed_no_loss", "with_bins", "BIN_VARIABLES",
-           "PLACE_BINS", "PICK_BINS", "BIN_COPIES", "BIN_TARGET", "AGE_STATES", "AGE_BOUNDS", "age_copies", "AGE_COPIES"]
+           "PLACE_BINS", "PICK_BINS", "BIN_COPIES", "BIN_TARGET", "AGE_STATES", "AGE_BOUNDS", "age_copies", "AGE_COPIES",
+           "spaced"]
 
 AREAS = ("agv", "bins", "conveyor")
 # the authors' rotation order: (area, area before, area after)
@@ -373,6 +374,15 @@ def age_copies(states=AGE_STATES, bounds=AGE_BOUNDS, rate: float = 10.0) -> dict
 
 #: ``derive``'s age splits
 AGE_COPIES = age_copies()
+
+
+def spaced(model: Model) -> Model:
+    """``model`` with its belt parts arriving at least ``ARRIVAL_MIN_INTERVAL`` apart (what
+    ``since(arrive)``, which the copies by age read, needs)."""
+    import dataclasses
+
+    return dataclasses.replace(model, environment=tuple(
+        dataclasses.replace(cast(EnvEvent, e), min_interval=ARRIVAL_MIN_INTERVAL) for e in model.environment))
 #: the states whose runs choose the place's target at the bins (their ``#place_bins`` copies)
 _PLACE_MOVES = ("approach_bins", "agv_to_bins", "conveyor_to_bins")
 

@@ -616,15 +616,12 @@ def derive_ariac(scene=None, no_loss: bool = False) -> Timing:
     """``derive`` for the timed ARIAC models (``btfsm.models.ariac.timed``): the arm FSM of
     ``ariac.preemptive()``, its places at the bins split by which bin they go to
     (``ariac.PLACE_BINS``, read from the bins' occupancy ``ariac.with_bins`` gives the timed
-    models); ``models/ariac_timing.json``."""
+    models), and its belt pursuits by the part's age (``ariac.AGE_COPIES``, read from the
+    arrivals' spacing); ``models/ariac_timing.json``."""
     from btfsm.models import ariac
 
-    import dataclasses
-
-    m = ariac.preemptive()  # the splits by age read the arrivals' spacing
-    m = dataclasses.replace(m, environment=tuple(dataclasses.replace(e, min_interval=ariac.ARRIVAL_MIN_INTERVAL)
-                                                 for e in m.environment))
-    return derive(m, scene, no_loss=no_loss, bins=ariac.BIN_COPIES, track=ariac.with_bins, ages=ariac.AGE_COPIES)
+    return derive(ariac.spaced(ariac.preemptive()), scene, no_loss=no_loss, bins=ariac.BIN_COPIES,
+                  track=ariac.with_bins, ages=ariac.AGE_COPIES)
 
 
 class Derived(NamedTuple):
