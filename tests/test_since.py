@@ -129,3 +129,15 @@ def test_engines_agree_on_a_model_that_reads_since():
                 for j in t.successors(i) if d[i]["arm.state"] == "a" and d[int(j)]["arm.state"] == "b"}
 
     assert min(ages_entering_b(ts)) == 2 and min(ages_entering_b(explore(free, engine="scalar"))) < 2
+
+
+def test_since_in_a_model_file():
+    """The file syntax is the expression's: written and read back, the same program."""
+    from btfsm.files import dumps_model, loads_model
+
+    m = since_model()
+    text = dumps_model(m)
+    assert "since(go) >= 2" in text
+    back = loads_model(text)
+    assert back.program.scope["since(go)"] == m.program.scope["since(go)"]
+    assert_same(explore(back, engine="scalar"), explore(m, engine="scalar"))
