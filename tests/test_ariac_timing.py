@@ -334,7 +334,8 @@ def test_the_preemptive_worst_first_arrival_in_the_cell():
 
 def test_the_preemptive_first_late_scenario_with_arrivals_after_the_kit():
     """Without the experiment's scope (``timed(m, arrivals="any")``: belt parts also after
-    the kit is complete) the conditioned worst first late response is 18.0 s: it answers a
+    the kit is complete) the conditioned worst first late response is 17.5 s (18.0 s before
+    the belt pursuits were split by the part's age): it answers a
     part B that arrives 30 s after part A, as the arm, holding A with the 2-part tray full,
     starts to rescue it into the bins. The cell, sent each part at the counterexample's
     phase, idles holding A in that phase before the arrivals' 30 s spacing allows B and
@@ -349,17 +350,17 @@ def test_the_preemptive_first_late_scenario_with_arrivals_after_the_kit():
     m = ariac.timed(ariac.preemptive(n_tray=2), assume="no_loss", arrivals="any")
     rb = ResponseBound(explore(m), m.responses[0])
     worst, path, k = rb.first_late(160)
-    assert worst == 180
+    assert worst == 175
     ce = counterexample(rb, path, k, None, "first late", 160).to_json()
     r = replay_in_cell(ariac.timed(ariac.preemptive(n_tray=2), arrivals="any"), ce, pace="phase")
     assert r.at_phase and len(r.injected) == 2 and not r.lost and not r.mismatch, r.text()
     assert r.injected[1][0] - r.injected[0][0] == pytest.approx(30.0, abs=0.05)  # as soon as the spacing allows
     assert dict(r.responses)[r.injected[-1][2]] == pytest.approx(12.5, abs=0.3)
     parts = {st: (c, x) for st, c, x in r.decomposition}
-    assert sum(c for c, _ in parts.values()) == pytest.approx(18.0)
+    assert sum(c for c, _ in parts.values()) == pytest.approx(17.5)
     assert parts["approach_conveyor"] == pytest.approx((4.3, 1.4), abs=0.25)
     assert parts["approach_bins"] == pytest.approx((3.3, 1.9), abs=0.25)
-    assert parts["bins_to_conveyor"] == pytest.approx((2.6, 1.7), abs=0.25)
+    assert parts["bins_to_conveyor"] == pytest.approx((2.1, 1.7), abs=0.25)
 
 
 def test_lever_3_which_bin_the_rescue_goes_to(monkeypatch):
