@@ -1032,10 +1032,9 @@ class Program:
     def without_environment(self) -> "Program":
         """The program of this model's tick without its environment phase (tick step 1),
         with the same slots (the 'Event spacing' counters that ``since(E)`` reads too): what
-        the exploration engines step after they applied the environment themselves."""
-        import dataclasses
-
-        prog = Program(dataclasses.replace(self.model, responses=()))
+        the exploration engines step after they applied the environment themselves (the
+        same model compiled again: its layout is this one's, whatever reads ``since(E)``)."""
+        prog = Program(self.model)
         prog.env, prog.env_timers, prog._env_rows = [], {}, ()
         return prog
 

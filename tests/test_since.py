@@ -141,3 +141,17 @@ def test_since_in_a_model_file():
     back = loads_model(text)
     assert back.program.scope["since(go)"] == m.program.scope["since(go)"]
     assert_same(explore(back, engine="scalar"), explore(m, engine="scalar"))
+
+
+def test_the_tree_program_has_the_full_programs_layout():
+    """``Program.without_environment`` (what the engines step after the environment) lays
+    out the slots as the full program, when only a requirement reads since(E) too."""
+    from btfsm.timing import Response
+
+    m = since_model()
+    plain = dataclasses.replace(m.fsms[0], edges=(Edge("a", "b", "g"), Edge("b", "a", "g")))
+    m2 = dataclasses.replace(m, fsms=(plain,), responses=(Response("r", "event:go", "since(go) >= 2"),))
+    for model in (m, m2):
+        full, tree = model.program, model.program.without_environment()
+        assert [s.name for s in tree.slots] == [s.name for s in full.slots] and not tree.env
+    assert_same(explore(m2, engine="scalar"), explore(m2, engine="traced"))
