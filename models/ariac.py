@@ -346,7 +346,8 @@ BIN_TARGET = ("none chosen, the next from bin2", "none chosen, the next from bin
 #: that starts late finds the part far down the pick stretch, and is shorter
 AGE_STATES = ("bins_to_conveyor#pick_conveyor", "agv_to_conveyor#pick_conveyor")
 #: the ages (s) that start a copy: [0, 6) and [6, ...) seconds since the last arrival (from the bins' hub a
-#: pursuit takes at most 2.49 s for a part of any age, 1.92 s for one at least 6 s old: no less later)
+#: pursuit takes at most 2.49 s for a part of any age, 1.92 s for one at least 6 s old: ``Derivation.track``'s
+#: samples plus its margin; one bound at 9 s, or three at 4, 8 and 12 s, give the same figures)
 AGE_BOUNDS = (6.0,)
 
 
@@ -383,6 +384,8 @@ def spaced(model: Model) -> Model:
 
     return dataclasses.replace(model, environment=tuple(
         dataclasses.replace(cast(EnvEvent, e), min_interval=ARRIVAL_MIN_INTERVAL) for e in model.environment))
+
+
 #: the states whose runs choose the place's target at the bins (their ``#place_bins`` copies)
 _PLACE_MOVES = ("approach_bins", "agv_to_bins", "conveyor_to_bins")
 

@@ -274,7 +274,8 @@ class Timing:
     from the target of goal G at A; G ``*``: any target there, after the gripper let go;
     a fourth field names the bin copy's tag, ``above:bins:place_bins:bin2``: the target is
     in those bins); ``guards``: ``{goal copy: {tag: guard}}``, the place copies split by
-    which bin their target is in (``split_by_guard``)."""
+    which bin their target is in (``split_by_guard``); ``ages``: ``{goal copy: {tag:
+    guard}}``, the belt pursuits split by the part's age (``since(arrive)``)."""
 
     def __init__(self, fsm, classes, table, where, history=(), assume=None, guards=None, ages=None):
         self.fsm, self.classes, self.table, self.where = fsm, classes, table, where
@@ -304,7 +305,8 @@ class Timing:
         from btfsm.positions import split_by_entry, split_by_goal, split_history
 
         if self.guards or self.ages:
-            raise ValueError("this timing splits by guards on the bins' occupancy: apply it with ariac.timed")
+            raise ValueError("this timing splits by guards (the bins' occupancy, a belt part's age): apply it with "
+                             "ariac.timed")
         split = split_by_goal(model, self.fsm, self.classes)
         return split_by_entry(split_history(split, self.fsm, self.history), self.fsm, self.table)
 
