@@ -29,7 +29,7 @@ from .errors import DomainError, ModelError
 
 __all__ = [
     "Expr", "Const", "Name", "Unary", "BoolOp", "Compare", "BinOp", "Call", "IfElse",
-    "E", "v", "flat", "parse", "as_expr", "to_text", "names_in",
+    "E", "v", "since", "flat", "parse", "as_expr", "to_text", "names_in",
     "Type", "BOOL", "INT", "Slot", "Scope", "check", "check_effects",
     "compile_fn", "compile_effects", "to_python_source", "to_numpy_source", "to_z3",
     "TRUE", "FALSE", "is_true", "MAX_DEPTH", "MAX_LENGTH", "INT_LIMIT", "depth", "int_range", "int_text",
@@ -189,6 +189,19 @@ class _Vars:
 
 v = _Vars()
 
+
+def since(event: str) -> E:
+    """``since(E)``: the ticks since environment event E last happened, 0 on the tick it
+    happens, saturated at its minimum interval in ticks (its value before it ever
+    happened); an int that only events with a ``min_interval`` of 2 ticks or more have
+    (rule 'Event spacing', docs/semantics.md 6.1 and 7). A name of the scope, read like a
+    variable by every translation: ``Program`` puts ``since(E)`` in its scope.
+
+    >>> to_text(parse("since(arrive) >= 90")), parse("since(arrive)") == since("arrive").node
+    ('since(arrive) >= 90', True)
+    """
+    return E(Name(f"since({event})"))
+
 #: what ``as_expr`` accepts (the fields of the model's classes take any of these)
 ExprLike = Union["Expr", E, str, int]
 
@@ -341,6 +354,10 @@ def _from_py(n: ast.AST) -> Expr:
         if isinstance(n.value, (bool, int, str)):
             return Const(n.value)
         raise _SyntaxProblem(f"constant {n.value!r} is not a bool, int or enum name")
+    if isinstance(n, ast.Call) and isinstance(n.func, ast.Name) and n.func.id == "since":
+        if len(n.args) != 1 or n.keywords or not isinstance(n.args[0], ast.Name):
+            raise _SyntaxProblem("since() takes one environment event's name: since(arrive)")
+        return since(n.args[0].id).node
     if isinstance(n, ast.Call) and isinstance(n.func, ast.Name) and n.func.id in _FUNCS and not n.keywords:
         if len(n.args) != _FUNCS[n.func.id]:
             raise _SyntaxProblem(f"{n.func.id}() takes {_FUNCS[n.func.id]} argument(s)")
@@ -576,6 +593,9 @@ def _check(e: Expr, scope, expected: "Type | None") -> Type:
         raise _SyntaxProblem(f"'{e.value}' can only be compared with or assigned to an enum")
     if isinstance(e, Name):
         slot = scope.get(e.id)
+        if slot is None and e.id.startswith("since("):
+            raise _SyntaxProblem(f"{e.id}: no environment event {e.id[6:-1]!r} with a min_interval of 2 ticks or more "
+                                 "(since() reads the ticks since it last happened, docs/semantics.md 7)")
         if slot is None:
             hint = " (quote enum values: 'name')" if expected is not None and expected.kind == "enum" else ""
             raise _SyntaxProblem(f"unknown name '{e.id}'{hint}")

@@ -35,7 +35,7 @@ from .bt import (Action, Condition, Effects, FailureIsRunning, ForceFailure, For
                  SkillRequest, SubTree, WhileDoElse, check_arity, check_bounds)
 from .errors import ModelError
 from .expr import (BOOL, INT, BinOp, Compare, Const, Expr, Name, Scope, Slot, Type, compile_effects, compile_fn,
-                   flat)
+                   flat, names_in)
 from .profiles import profile
 from .timing import duration_ticks, interval_ticks
 from .status import Status
@@ -275,6 +275,27 @@ class NodeRule:
         return tuple((k.flag, k.halt) for k in self.info.kids[i + 1:] if k.can_run)
 
 
+def _since_read(model: Any) -> set[str]:
+    """The events whose ``since(E)`` an expression of ``model`` reads (a walk of its
+    dataclasses: the FSMs, the trees, the requirements...)."""
+    out: set[str] = set()
+    stack: list[Any] = [model]
+    seen: set[int] = set()
+    while stack:
+        x = stack.pop()
+        if isinstance(x, Name):
+            if x.id.startswith("since("):
+                out.add(x.id[len("since("):-1])
+        elif isinstance(x, (tuple, list)):
+            stack.extend(x)
+        elif isinstance(x, dict):
+            stack.extend(x.values())
+        elif hasattr(x, "__dataclass_fields__") and not isinstance(x, type) and id(x) not in seen:
+            seen.add(id(x))
+            stack.extend(getattr(x, f) for f in x.__dataclass_fields__)
+    return out
+
+
 class Program:
     """A model compiled for execution and exploration. Build it with ``model.program``."""
 
@@ -288,6 +309,13 @@ class Program:
         for var in model.variables:
             self._slot(var.name, "var", var.hi - var.lo + 1, var.lo)
             self.scope[var.name] = Scope.of([var], len(self.slots) - 1)[var.name]
+        self.since_slots: dict[str, int] = {}  # event -> its 'Event spacing' slot, laid out before the expressions that read it
+        spaced = [(ev.name, interval_ticks(ev.min_interval, model.tick_rate)) for ev in model.environment
+                  if getattr(ev, "min_interval", None)]
+        read = _since_read(model) if any(wait > 1 for _, wait in spaced) else ()
+        for name, wait in spaced:
+            if wait > 1 and name in read:
+                self.since_slots[name] = self._since_slot(name, wait)
         self.prims = model.all_primitives()
         self._fsm_timers: dict[str, int] = {}  # FSM name -> the slot counting its state's run (rule 'Durations')
         self._layout_fsms()
@@ -320,6 +348,13 @@ class Program:
             init = self.model.var(name).init_code
         self._initial.append(init)
         return len(self.slots) - 1
+
+    def _since_slot(self, event: str, wait: int) -> int:
+        """The slot of rule 'Event spacing' (ticks since ``event`` happened, saturated at
+        ``wait``, its initial value), readable as ``since(event)`` (docs/semantics.md 7)."""
+        slot = self._slot(f"{event}:since", "timer", wait + 1, 0, wait)
+        self.scope[f"since({event})"] = Slot(slot, INT, 0, wait, writable=False)
+        return slot
 
     def _layout_fsms(self) -> None:
         self.fsm_index = {}
@@ -412,8 +447,12 @@ class Program:
         wait = interval_ticks(ev.min_interval, self.model.tick_rate) if getattr(ev, "min_interval", None) else 0
         if wait > 1 and option:
             raise ModelError(f"{where}.min_interval", "an option of an environment choice cannot have a minimum interval")
+        for x in (ev.guard, *(value for _, value in ev.effects)):
+            if any(n.startswith("since(") for n in names_in(x)):  # its value would depend on the entries' order
+                raise ModelError(where, "since() cannot be read by an environment entry (docs/semantics.md 7)")
         if wait > 1:  # rule 'Event spacing' (section 6.1): ticks since it happened, saturated at wait
-            self.env_timers.append((i, self._slot(f"{ev.name}:since", "timer", wait + 1, 0, wait), wait))
+            slot = self.since_slots.get(ev.name)
+            self.env_timers.append((i, self._since_slot(ev.name, wait) if slot is None else slot, wait))
         return (ev.name, guard, compile_effects(ev.effects, self.scope, f"{where}.effects"), None)
 
     def _check_responses(self) -> None:
@@ -989,6 +1028,15 @@ class Program:
                 ctx.rec.append(("wake-up", self.model.tree.name))
             status = self.root(ctx)
         return status
+
+    def without_environment(self) -> "Program":
+        """The program of this model's tick without its environment phase (tick step 1),
+        with the same slots (the 'Event spacing' counters that ``since(E)`` reads too): what
+        the exploration engines step after they applied the environment themselves (the
+        same model compiled again: its layout is this one's, whatever reads ``since(E)``)."""
+        prog = Program(self.model)
+        prog.env, prog.env_timers, prog._env_rows = [], {}, ()
+        return prog
 
     def environment_phase(self, s: list[int], oracle: Any, rec: Optional[list[Any]] = None,
                           indices: Any = None) -> "str | None":

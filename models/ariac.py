@@ -41,7 +41,8 @@ __all__ = ["AREAS", "ROTATIONS", "SKILLS", "PRIMITIVES", "ARM_REQUESTS", "genera
            "tree", "preemptive", "baseline", "states_of", "HUBS", "ARM_DURATIONS", "ARRIVAL_MIN_INTERVAL",
            "PICK_WINDOW", "TIMING_FILE", "TIMING_FILE_NO_LOSS", "NO_LOSS", "derived_timing", "timed", "preemptive_timed",
            "baseline_timed", "preemptive_timed_no_loss", "baseline_timed_no_loss", "with_bins", "BIN_VARIABLES",
-           "PLACE_BINS", "PICK_BINS", "BIN_COPIES", "BIN_TARGET"]
+           "PLACE_BINS", "PICK_BINS", "BIN_COPIES", "BIN_TARGET", "AGE_STATES", "AGE_BOUNDS", "age_copies", "AGE_COPIES",
+           "spaced"]
 
 AREAS = ("agv", "bins", "conveyor")
 # the authors' rotation order: (area, area before, area after)
@@ -341,6 +342,50 @@ BIN_TARGET = ("none chosen, the next from bin2", "none chosen, the next from bin
               "chosen from bin2, held", "chosen from bin3, in bin3", "chosen from bin3, held (taken from bin3)",
               "chosen from bin3, in bin2 (a rescue put it there)", "chosen from bin3, held (taken from bin2)",
               "none chosen, the next from bin2; a part taken from bin3 held")
+#: The goal copies that pursue a belt part, split by its age (``derive``'s ``ages``): a pursuit
+#: that starts late finds the part far down the pick stretch, and is shorter
+AGE_STATES = ("bins_to_conveyor#pick_conveyor", "agv_to_conveyor#pick_conveyor")
+#: the ages (s) that start a copy: [0, 6) and [6, ...) seconds since the last arrival (from the bins' hub a
+#: pursuit takes at most 2.49 s for a part of any age, 1.92 s for one at least 6 s old: ``Derivation.track``'s
+#: samples plus its margin; one bound at 9 s, or three at 4, 8 and 12 s, give the same figures)
+AGE_BOUNDS = (6.0,)
+
+
+def age_copies(states=AGE_STATES, bounds=AGE_BOUNDS, rate: float = 10.0) -> dict:
+    """``{goal copy: {tag: {"guard": .., "age": seconds}}}``: each of ``states`` split by
+    the ticks since the last arrival (``since(arrive)``, docs/semantics.md 7) at ``bounds``
+    seconds; a copy's ``age`` is the least age of the part its run pursues (the part was
+    detected no later than the last arrival).
+
+    >>> age_copies(("s",), (9.0,))["s"]["age9"]
+    {'guard': 'since(arrive) >= 90', 'age': 9.0}
+    """
+    import math
+
+    ticks = [math.ceil(b * rate) for b in bounds]
+    out: dict = {}
+    for s in states:
+        out[s] = {}
+        for k, lo in enumerate([0] + ticks):
+            hi = ticks[k] if k < len(ticks) else None
+            guard = " and ".join(([f"since(arrive) >= {lo}"] if lo else []) + ([f"since(arrive) < {hi}"] if hi else []))
+            out[s][f"age{lo / rate:g}"] = {"guard": guard or "true", "age": lo / rate}
+    return out
+
+
+#: ``derive``'s age splits
+AGE_COPIES = age_copies()
+
+
+def spaced(model: Model) -> Model:
+    """``model`` with its belt parts arriving at least ``ARRIVAL_MIN_INTERVAL`` apart (what
+    ``since(arrive)``, which the copies by age read, needs)."""
+    import dataclasses
+
+    return dataclasses.replace(model, environment=tuple(
+        dataclasses.replace(cast(EnvEvent, e), min_interval=ARRIVAL_MIN_INTERVAL) for e in model.environment))
+
+
 #: the states whose runs choose the place's target at the bins (their ``#place_bins`` copies)
 _PLACE_MOVES = ("approach_bins", "agv_to_bins", "conveyor_to_bins")
 
@@ -483,6 +528,14 @@ def timed(model: Model, durations: str = "derived", *, timing: "dict | None" = N
     f = model.fsms[0]
     if arrivals not in ("job", "any"):
         raise ValueError(f"arrivals: 'job' or 'any', not {arrivals!r}")
+    n_tray = next(v for v in model.variables if v.name == "tray").hi
+    job = f" and tray < {n_tray}" if arrivals == "job" else ""
+    events = [cast(EnvEvent, e) for e in model.environment]
+    env = tuple(dataclasses.replace(e, min_interval=ARRIVAL_MIN_INTERVAL,
+                                    guard=f"({to_text(as_expr(e.guard))}){job}" if job and e.guard is not None
+                                    else f"tray < {n_tray}" if job else e.guard)
+                for e in events)
+    model = dataclasses.replace(model, environment=env)  # the splits by age read the arrivals' spacing
     if assume not in (None, "no_loss") or (assume and timing is not None):
         raise ValueError(f"assume: None or 'no_loss' (with the stored derivation), not {assume!r}")
     if durations == "derived":
@@ -496,6 +549,8 @@ def timed(model: Model, durations: str = "derived", *, timing: "dict | None" = N
         elif t.get("guards"):  # only the copy that may go to either bin is kept (the others never entered)
             split = split_by_guard(split, f.name, {s: {c: "true" if c == "bins" else "false" for c in g}
                                                    for s, g in t["guards"].items()})
+        if t.get("ages"):  # the pursuits of a belt part by its age (``since(arrive)``, read once arrivals are spaced)
+            split = split_by_guard(split, f.name, t["ages"])
         split = split_history(split, f.name, t["history"])
         if bins == "wide":  # the rows of the copies that can be entered
             ids = {st.id for st in split.fsms[0].states}
@@ -504,7 +559,8 @@ def timed(model: Model, durations: str = "derived", *, timing: "dict | None" = N
             model = split_by_entry(split, f.name, table)
         else:  # the same copies (state names) as without the assumption, each with its conditioned maximum
             cond = derived_timing(assume)
-            if (cond["classes"], cond["history"], cond.get("guards")) != (t["classes"], t["history"], t.get("guards")):
+            if (cond["classes"], cond["history"], cond.get("guards"), cond.get("ages")) != \
+                    (t["classes"], t["history"], t.get("guards"), t.get("ages")):
                 raise ValueError(f"{TIMING_FILE_NO_LOSS} splits the FSM unlike {TIMING_FILE}: derive both again")
             model = split_by_entry(split, f.name, table, cond["table"])
         how = "derived from the scene per goal class and entry (models/" + \
@@ -518,13 +574,6 @@ def timed(model: Model, durations: str = "derived", *, timing: "dict | None" = N
         how = "measured in the cell (ARM_DURATIONS)"
     else:
         raise ValueError(f"durations: 'derived' or 'measured', not {durations!r}")
-    n_tray = next(v for v in model.variables if v.name == "tray").hi
-    job = f" and tray < {n_tray}" if arrivals == "job" else ""
-    events = [cast(EnvEvent, e) for e in model.environment]
-    env = tuple(dataclasses.replace(e, min_interval=ARRIVAL_MIN_INTERVAL,
-                                    guard=f"({to_text(as_expr(e.guard))}){job}" if job and e.guard is not None
-                                    else f"tray < {n_tray}" if job else e.guard)
-                for e in events)
     grasp = [s.id for s in model.fsms[0].states if base_state(s.id) == "grasp_conveyor"]
     reach = Response("reach", "event:arrive", " or ".join(f"arm.state == '{g}'" for g in grasp), window)
     suffix = ("-timed" if assume is None else "-timed-no-loss") + ("-tracked-bins" if bins == "tracked" else "")

@@ -27,6 +27,9 @@ waits and doors from their seconds; a wait the scene cannot bound is reported as
 model may declare it). ``btfsm check MODEL --timed [--scene S]`` checks the model so timed.
 
     python -m btfsm.sim.durations --scene FILE [MODEL] --trigger T --response R --within S
+
+The module has more than 1,000 lines: the ARIAC derivation and the scene route share its
+helpers (boxes, moves, the pursuit of a belt part).
 """
 from __future__ import annotations
 
@@ -205,10 +208,11 @@ class Derivation:
             v, a = min(v, zs["speed"] / dz), min(a, zs["acceleration"] / dz)
         return Profile(1.0 if v != math.inf else 0.0, v * s, a * s * s).total
 
-    def track(self, start, z: float) -> float:
+    def track(self, start, z: float, age: float = 0.0) -> float:
         """The slowest sampled pursuit from the corners of box ``start`` to a belt part
-        anywhere on the pick stretch, ending at height z (plus ``TRACK_MARGIN``)."""
-        key = (start, round(z, 6))
+        anywhere on the pick stretch, ending at height z (plus ``TRACK_MARGIN``); ``age``:
+        only parts detected at least that many seconds before the pursuit starts."""
+        key = (start, round(z, 6), age)
         if key not in self._tracks:
             corners = {(x, y, zz) for x in (start[0][0], start[1][0]) for y in (start[0][1], start[1][1])
                        for zz in (start[0][2], start[1][2])}
@@ -216,7 +220,7 @@ class Derivation:
             speed = self.scene.belts[self.b.belt]["speed"]
             stretch = math.hypot(bx - ax, by - ay)
             n = max(1, math.ceil(stretch / self.TRACK_PITCH))
-            delays = [stretch * k / n / speed for k in range(n + 1)]
+            delays = [age] + [stretch * k / n / speed for k in range(n + 1) if stretch * k / n / speed > age]
             worst = max(self._pursuit(p, d, z) for p in sorted(corners) for d in delays)
             self._tracks[key] = worst + self.TRACK_MARGIN
         return self._tracks[key]
@@ -270,13 +274,15 @@ class Timing:
     from the target of goal G at A; G ``*``: any target there, after the gripper let go;
     a fourth field names the bin copy's tag, ``above:bins:place_bins:bin2``: the target is
     in those bins); ``guards``: ``{goal copy: {tag: guard}}``, the place copies split by
-    which bin their target is in (``split_by_guard``)."""
+    which bin their target is in (``split_by_guard``); ``ages``: ``{goal copy: {tag:
+    guard}}``, the belt pursuits split by the part's age (``since(arrive)``)."""
 
-    def __init__(self, fsm, classes, table, where, history=(), assume=None, guards=None):
+    def __init__(self, fsm, classes, table, where, history=(), assume=None, guards=None, ages=None):
         self.fsm, self.classes, self.table, self.where = fsm, classes, table, where
         self.history = list(history)
         self.guards = dict(guards or {})  # {goal copy: {tag: guard}}: ``split_by_guard`` (the bins a place goes to)
         self.assume = assume  # None, or "no_loss": derived under "no part lost yet" (``derive``)
+        self.ages = dict(ages or {})  # {goal copy: {tag: guard}}: ``split_by_guard`` by a belt part's age
 
     def to_data(self) -> dict:
         """The JSON form (``models/ariac_timing.json``): classes, history, table and poses
@@ -289,6 +295,8 @@ class Timing:
             out["assume"] = self.assume
         if self.guards:
             out["guards"] = self.guards
+        if self.ages:
+            out["ages"] = self.ages
         return out
 
     def apply(self, model):
@@ -296,8 +304,9 @@ class Timing:
         model must track: ``btfsm.models.ariac.timed(m, timing=t.to_data())`` for ARIAC)."""
         from btfsm.positions import split_by_entry, split_by_goal, split_history
 
-        if self.guards:
-            raise ValueError("this timing splits by guards on the bins' occupancy: apply it with ariac.timed")
+        if self.guards or self.ages:
+            raise ValueError("this timing splits by guards (the bins' occupancy, a belt part's age): apply it with "
+                             "ariac.timed")
         split = split_by_goal(model, self.fsm, self.classes)
         return split_by_entry(split_history(split, self.fsm, self.history), self.fsm, self.table)
 
@@ -313,7 +322,7 @@ class Timing:
 
 
 def derive(model, scene=None, no_loss: bool = False, place_spots: "dict | None" = None,
-           bins: "dict | None" = None, track=None) -> Timing:
+           bins: "dict | None" = None, track=None, ages: "dict | None" = None) -> Timing:
     """The position abstraction of a kitting model's arm FSM with each state's duration
     derived from the scene, per goal class and per entry, two states deep: a copy's
     duration depends on the copy it was entered from, and on the state that one was
@@ -346,7 +355,11 @@ def derive(model, scene=None, no_loss: bool = False, place_spots: "dict | None" 
     copy's target in its bins (``free``: it has one there; else it may find none and stay at
     the hub); the poses that follow keep the tag (the grasp, the put, the release, the
     escape and the moves after them start in those bins). ``track``: a function giving the model split by goal class the
-    variables the guards read (``ariac.with_bins``)."""
+    variables the guards read (``ariac.with_bins``). ``ages`` ({goal copy: {tag: {"guard": ..,
+    "age": seconds}}}, e.g. ``btfsm.models.ariac.AGE_COPIES``): goal copies that pursue a belt
+    part split by guards on its age (``since(arrive) >= 90``: the copy chosen when the
+    state is entered; the part pursued was detected no later than the last arrival), each
+    copy's pursuit bounded over parts at least ``age`` seconds old only."""
     from btfsm.positions import entries_of, split_by_goal, split_by_guard, split_history
 
     scene, binding = _kitting(model, scene)
@@ -395,8 +408,10 @@ def derive(model, scene=None, no_loss: bool = False, place_spots: "dict | None" 
         for c in cl:
             if bins and area(s) == "bins" and c in bins:
                 guards[f"{s}#{c}"] = {tag: spec["guard"] for tag, spec in bins[c].items()}
+    aged = {c: {tag: spec["guard"] for tag, spec in by.items()} for c, by in (ages or {}).items()}
     def by_guard(m):
-        return split_by_guard(track(m) if track is not None and guards else m, d.fsm, guards)
+        return split_by_guard(split_by_guard(track(m) if track is not None and guards else m, d.fsm, guards),
+                              d.fsm, aged)
 
     f = next(x for x in by_guard(split_by_goal(model, d.fsm, classes)).fsms if x.name == d.fsm)
     base = {}
@@ -504,16 +519,18 @@ def derive(model, scene=None, no_loss: bool = False, place_spots: "dict | None" 
             return rest(p, t), {t, p}
         t = approach_target(x, g)
         sure = False
-        if t[0] == "above" and tag_of(sid) is not None:
+        head, _, tag = sid.split("@", 1)[0].partition("%")
+        age = float((ages or {}).get(head, {}).get(tag, {}).get("age", 0.0))  # its part's least age
+        if t[0] == "above" and tag_of(sid) is not None and head not in (ages or {}):
             t += (tag_of(sid),)
             sure = bool((bins or {})[g][tag_of(sid)]["free"])
         if t[0] == "above" and x == "conveyor":
             if same(p, t):
                 return geo.dt + geo.TRACK_MARGIN, {t}
             if no_loss:  # the part is on the belt until it is grasped: the pursuit reaches it
-                return geo.track(box(p), box(t)[0][2]), {t}
+                return geo.track(box(p), box(t)[0][2], age), {t}
             # ended where the part left the belt (lost, or taken), or at the hub when none was there
-            slow = max(geo.track(box(p), box(t)[0][2]), rest(p, ("hub", x)))
+            slow = max(geo.track(box(p), box(t)[0][2], age), rest(p, ("hub", x)))
             return slow, {t, ("hub", x), p}
         if t[0] == "above":
             if p == ("none", x, g) and not sure:
@@ -594,17 +611,19 @@ def derive(model, scene=None, no_loss: bool = False, place_spots: "dict | None" 
             where.setdefault(s1, set()).update(starts)
     where = {s: sorted(":".join("*" if v is None else str(v) for v in p) for p in ps) for s, ps in where.items()}
     return Timing(d.fsm, classes, table, where, history=sorted(timed_states), assume="no_loss" if no_loss else None,
-                  guards=guards)
+                  guards=guards, ages=aged)
 
 
 def derive_ariac(scene=None, no_loss: bool = False) -> Timing:
     """``derive`` for the timed ARIAC models (``btfsm.models.ariac.timed``): the arm FSM of
     ``ariac.preemptive()``, its places at the bins split by which bin they go to
     (``ariac.PLACE_BINS``, read from the bins' occupancy ``ariac.with_bins`` gives the timed
-    models); ``models/ariac_timing.json``."""
+    models), and its belt pursuits by the part's age (``ariac.AGE_COPIES``, read from the
+    arrivals' spacing); ``models/ariac_timing.json``."""
     from btfsm.models import ariac
 
-    return derive(ariac.preemptive(), scene, no_loss=no_loss, bins=ariac.BIN_COPIES, track=ariac.with_bins)
+    return derive(ariac.spaced(ariac.preemptive()), scene, no_loss=no_loss, bins=ariac.BIN_COPIES,
+                  track=ariac.with_bins, ages=ariac.AGE_COPIES)
 
 
 class Derived(NamedTuple):

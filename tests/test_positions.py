@@ -16,11 +16,34 @@ from btfsm.positions import base_state, entries_of, split_by_entry, split_by_goa
 from btfsm.verify.explore import explore
 
 
+#: the arrivals' spacing the untimed comparisons keep (s): 2 ticks, and the copies by a belt
+#: part's age split at 1 tick (``_aged_at_ticks``), so every copy is entered
+SPACING = 0.2
+
+
+def _aged_at_ticks() -> dict:
+    """The stored derivation with its copies by age (``since(arrive) >= 60``...) split at
+    1, 2... ticks instead: the same copies and entries, the same structure, a small counter."""
+    t = ariac.derived_timing()
+    for copies in t["ages"].values():
+        tags = sorted(copies, key=lambda tag: float(tag[len("age"):]))
+        for k, tag in enumerate(tags):
+            lo, hi = (f"since(arrive) >= {k}" if k else ""), (f"since(arrive) < {k + 1}" if k + 1 < len(tags) else "")
+            copies[tag] = " and ".join(x for x in (lo, hi) if x) or "true"
+    return t
+
+
 def _untimed(model):
     f = model.fsms[0]
     return dataclasses.replace(model, fsms=(dataclasses.replace(f, states=tuple(
         dataclasses.replace(s, duration=None) for s in f.states)),), responses=(),
-        environment=tuple(dataclasses.replace(e, min_interval=None) for e in model.environment))
+        environment=tuple(dataclasses.replace(e, min_interval=SPACING) for e in model.environment))
+
+
+def _spaced(model):
+    """``model`` with the arrivals spaced as ``_untimed`` spaces them."""
+    return dataclasses.replace(model, environment=tuple(dataclasses.replace(e, min_interval=SPACING)
+                                                        for e in model.environment))
 
 
 def _projected(ts, drop=()) -> tuple:
@@ -41,11 +64,13 @@ def _projected(ts, drop=()) -> tuple:
 def test_the_split_fsm_behaves_as_the_original(variant):
     """Without its durations, the split model's reachable states and transitions, each copy
     named by its state, are exactly the original model's (1 tray part keeps it small; the
-    arrivals unscoped, as in the original: ``arrivals="any"``)."""
+    arrivals unscoped, as in the original: ``arrivals="any"``; both spaced by ``SPACING``,
+    which the copies by age read)."""
     m = getattr(ariac, variant)(n_tray=1)
-    split = _untimed(ariac.timed(m, arrivals="any"))
+    split = _untimed(ariac.timed(m, arrivals="any", timing=_aged_at_ticks()))
     assert len(split.fsms[0].states) > len(m.fsms[0].states)
-    assert _projected(explore(split)) == _projected(explore(m))
+    assert any("%age" in s.id for s in split.fsms[0].states)
+    assert _projected(explore(split)) == _projected(explore(_spaced(m)))
 
 
 def test_the_fsm_split_by_the_bins_behaves_as_the_original():
@@ -57,13 +82,13 @@ def test_the_fsm_split_by_the_bins_behaves_as_the_original():
     import os
 
     m = ariac.preemptive(n_tray=1)
-    split = _untimed(ariac.timed(m, arrivals="any", bins="tracked"))
+    split = _untimed(ariac.timed(m, arrivals="any", bins="tracked", timing=_aged_at_ticks()))
     assert any("%bin3" in s.id for s in split.fsms[0].states)
     ts = explore(split)
     # the bins' variables only observe (no guard reads them): without them, the original's runs
-    assert _projected(ts, drop=ariac.BIN_VARIABLES) == _projected(explore(m))
+    assert _projected(ts, drop=ariac.BIN_VARIABLES) == _projected(explore(_spaced(m)))
     if os.environ.get("BTFSM_LONG") == "1":  # and with them, the unsplit model's with the variables
-        tracked = explore(ariac.with_bins(split_by_goal(m, "arm", ariac.derived_timing()["classes"])))
+        tracked = explore(ariac.with_bins(split_by_goal(_spaced(m), "arm", ariac.derived_timing()["classes"])))
         assert _projected(ts) == _projected(tracked)
 
 

@@ -53,10 +53,8 @@ class TreeCache:
     LIMIT = 20_000
 
     def __init__(self, model, limit: "int | None" = None):
-        import dataclasses
-
         self.env = model.program  # the environment phase runs on the full program
-        self.tree = dataclasses.replace(model, environment=(), responses=()).program
+        self.tree = model.program.without_environment()
         self.limit = limit or self.LIMIT
         self.cache: dict = {}  # this generation
         self.old: dict = {}  # the previous one: entries used again move up

@@ -101,6 +101,10 @@ def step_spec(model, fsm: "str | None" = None, goals=None) -> StepSpec:
     """The step description of FSM ``fsm`` as an open system, or (``fsm`` None) of the
     whole model, whose tree must then be a single SkillRequest."""
     prog = model.program
+    if prog.since_slots:  # the environment phases of these routes keep no 'Event spacing' counter
+        ev = next(iter(prog.since_slots))
+        raise ModelError("environment", f"since({ev}) is read: whole-model and FSM exports and vectorised exploration do not "
+                                        "model rule 'Event spacing' (docs/semantics.md 6.1); explore with the scalar or traced engine")
     if fsm is None:
         tree = model.tree
         if not isinstance(tree, SkillRequest):

@@ -1278,14 +1278,12 @@ class _Staged:
     TABLE = 1 << 22  # (environment key, tree leaf) pairs looked up in a dense table, else hashed
 
     def __init__(self, model, kept, s0):
-        import dataclasses
-
         prog = model.program
         self.prog, self.run, self.op = prog, prog.step, None
         self.stages = []
         for i in range(len(prog.env)):
             self.stages.append(_Engine(model, self._entry(prog, i), kept, s0, None))
-        tree = dataclasses.replace(model, environment=(), responses=()).program
+        tree = model.program.without_environment()
         self.tree = _Engine(model, tree.step, kept, s0, None)
         self.engines = self.stages + [self.tree]
         # an entry's readable picks: an event happened or not; a choice's option, or none
