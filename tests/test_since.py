@@ -88,8 +88,25 @@ def test_since_is_refused_where_event_spacing_is_not_modelled():
     from btfsm.verify.stepspec import step_spec
 
     for run in (lambda m: vector.explore(m), lambda m: step_spec(m, "arm")):
-        with pytest.raises(ModelError, match=r"since\(go\) is read: .* do not model rule 'Event spacing'"):
+        with pytest.raises(ModelError, match=r"since\(go\) is read: .* do not model rules 'Durations' and 'Event spacing'"):
             run(since_model())
+
+
+def test_time_is_refused_where_it_is_not_modelled():
+    """Any declared time (a duration, an event's spacing) is refused there too, not only
+    since(): those routes would explore the model as if it had none (7 states where the
+    step function has 25, measured on a timed model)."""
+    from btfsm.verify import vector
+    from btfsm.verify.stepspec import step_spec
+
+    m = since_model()
+    spaced = dataclasses.replace(m, fsms=(dataclasses.replace(m.fsms[0], edges=(Edge("a", "b", "g"), Edge("b", "a", "g"))),))
+    timed = dataclasses.replace(spaced, environment=tuple(dataclasses.replace(e, min_interval=None) for e in m.environment),
+                                primitives=[Primitive("move", (running(), success()), duration=(0.1, 0.3))])
+    for m, counter in ((timed, "arm:ran"), (spaced, "go:since")):
+        for run in (lambda m: vector.explore(m), lambda m: step_spec(m, "arm")):
+            with pytest.raises(ModelError, match=f"the model declares time \\(the counter '{counter}'"):
+                run(m)
 
 
 @settings(max_examples=60, deadline=None, derandomize=True, database=None, suppress_health_check=[HealthCheck.too_slow])

@@ -101,10 +101,14 @@ def step_spec(model, fsm: "str | None" = None, goals=None) -> StepSpec:
     """The step description of FSM ``fsm`` as an open system, or (``fsm`` None) of the
     whole model, whose tree must then be a single SkillRequest."""
     prog = model.program
-    if prog.since_slots:  # the environment phases of these routes keep no 'Event spacing' counter
-        ev = next(iter(prog.since_slots))
-        raise ModelError("environment", f"since({ev}) is read: whole-model and FSM exports and vectorised exploration do not "
-                                        "model rule 'Event spacing' (docs/semantics.md 6.1); explore with the scalar or traced engine")
+    timed = next((info.name for info in prog.slots if info.kind == "timer"), None)
+    if timed is not None:  # the environment phases and steps of these routes keep no timer (docs/semantics.md 6.1)
+        ev = next(iter(prog.since_slots), None)
+        what = f"since({ev}) is read" if ev is not None else \
+            f"the model declares time (the counter '{timed}': a duration or an event's min_interval)"
+        raise ModelError("environment" if ev is not None or timed.endswith(":since") else "durations",
+                         f"{what}: whole-model and FSM exports and vectorised exploration do not model rules 'Durations' "
+                         "and 'Event spacing' (docs/semantics.md 6.1); explore with the scalar or traced engine")
     if fsm is None:
         tree = model.tree
         if not isinstance(tree, SkillRequest):
