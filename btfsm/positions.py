@@ -32,7 +32,7 @@ from .fsm import Edge
 from .expr import BoolOp, Compare, Const, Expr, Name, Unary, flat
 
 __all__ = ["split_by_entry", "split_history", "split_by_goal", "split_by_guard", "split_deeper", "base_state", "entries_of",
-           "widen_to_copies", "copies_named", "substitute", "SEP", "GOAL_SEP", "GUARD_SEP"]
+           "requested_goals", "check_requests", "widen_to_copies", "copies_named", "substitute", "SEP", "GOAL_SEP", "GUARD_SEP"]
 
 SEP = "@"  # a copy by entry: "<state>@<predecessor>"
 GOAL_SEP = "#"  # a copy by goal: "<state>#<class>"
@@ -470,3 +470,20 @@ def split_deeper(model, fsm: str, table: dict, deep: dict, cond: "tuple | None" 
                         new[y][name] = (0.0, hi)
         out.append(new)
     return (split, *out)
+
+
+def requested_goals(model, fsm: str) -> set:
+    """The goals of FSM ``fsm`` that some skill request of ``model`` asks for (no other goal
+    ever runs one of its states: docs/semantics.md 5)."""
+    from .bt import SkillRequest
+
+    return {n.goal for n in model.nodes() if isinstance(n, SkillRequest) and n.fsm == fsm}
+
+
+def check_requests(model, fsm: str, requested) -> None:
+    """ValueError when ``model`` asks FSM ``fsm`` for a goal a derivation (its ``requested``
+    goals; empty: not recorded) assumed no request asks for."""
+    more = sorted(requested_goals(model, fsm) - set(requested)) if requested else []
+    if more:
+        raise ValueError(f"{model.name} requests {', '.join(more)} of FSM '{fsm}', which the derivation's "
+                         "model never asks for (its copies' runs for them are not bounded): derive it for this model")

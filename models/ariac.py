@@ -496,7 +496,8 @@ def timed(model: Model, durations: str = "derived", *, timing: "dict | None" = N
     import dataclasses
 
     from btfsm.expr import as_expr, to_text
-    from btfsm.positions import base_state, split_by_entry, split_by_goal, split_by_guard, split_deeper, split_history
+    from btfsm.positions import (base_state, check_requests, split_by_entry, split_by_goal, split_by_guard, split_deeper,
+                                 split_history)
 
     f = model.fsms[0]
     if arrivals not in ("job", "any"):
@@ -505,6 +506,7 @@ def timed(model: Model, durations: str = "derived", *, timing: "dict | None" = N
         raise ValueError(f"assume: None or 'no_loss' (with the stored derivation), not {assume!r}")
     if durations == "derived":
         t = derived_timing() if timing is None else timing
+        check_requests(model, f.name, t.get("requested"))
         table = {s: {u: tuple(iv) for u, iv in rows.items()} for s, rows in t["table"].items()}
         split = split_by_goal(model, f.name, t["classes"])
         if bins not in ("tracked", "wide"):

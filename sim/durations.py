@@ -270,11 +270,15 @@ class Timing:
     from the target of goal G at A; G ``*``: any target there, after the gripper let go;
     a fourth field names the bin copy's tag, ``above:bins:place_bins:bin2``: the target is
     in those bins); ``guards``: ``{goal copy: {tag: guard}}``, the place copies split by
-    which bin their target is in (``split_by_guard``)."""
+    which bin their target is in (``split_by_guard``); ``deep``: ``{copy u@w: {entry w@v:
+    [group, {successor: max}]}}``, the third state of history (``split_deeper``);
+    ``requested``: the goals the derived model's skill requests ask for (a copy runs only
+    for those: a model that asks for another goal needs its own derivation)."""
 
-    def __init__(self, fsm, classes, table, where, history=(), assume=None, guards=None, deep=None):
+    def __init__(self, fsm, classes, table, where, history=(), assume=None, guards=None, deep=None, requested=None):
         self.fsm, self.classes, self.table, self.where = fsm, classes, table, where
         self.deep = dict(deep or {})  # {copy: {entry: [group, {successor: max}]}}: ``split_deeper``
+        self.requested = sorted(requested or ())
         self.history = list(history)
         self.guards = dict(guards or {})  # {goal copy: {tag: guard}}: ``split_by_guard`` (the bins a place goes to)
         self.assume = assume  # None, or "no_loss": derived under "no part lost yet" (``derive``)
@@ -292,15 +296,18 @@ class Timing:
             out["guards"] = self.guards
         if self.deep:
             out["deep"] = self.deep
+        if self.requested:
+            out["requested"] = self.requested
         return out
 
     def apply(self, model):
         """``model`` split and timed (without guards; a timing with guards reads variables the
         model must track: ``btfsm.models.ariac.timed(m, timing=t.to_data())`` for ARIAC)."""
-        from btfsm.positions import split_by_entry, split_by_goal, split_deeper, split_history
+        from btfsm.positions import check_requests, split_by_entry, split_by_goal, split_deeper, split_history
 
         if self.guards:
             raise ValueError("this timing splits by guards on the bins' occupancy: apply it with ariac.timed")
+        check_requests(model, self.fsm, self.requested)
         split = split_history(split_by_goal(model, self.fsm, self.classes), self.fsm, self.history)
         split, table = split_deeper(split, self.fsm, self.table, self.deep)
         return split_by_entry(split, self.fsm, table)
@@ -358,7 +365,7 @@ def derive(model, scene=None, no_loss: bool = False, place_spots: "dict | None" 
     the token leaves halted into one of their copies is split again by the copy it was
     entered from, so those copies' runs start where that one began, not anywhere its
     entries may have left the arm."""
-    from btfsm.positions import entries_of, split_by_goal, split_by_guard, split_history
+    from btfsm.positions import entries_of, requested_goals, split_by_goal, split_by_guard, split_history
 
     scene, binding = _kitting(model, scene)
     d = binding.d
@@ -415,9 +422,7 @@ def derive(model, scene=None, no_loss: bool = False, place_spots: "dict | None" 
         base[s.id] = s.id.split("#", 1)[0]
     # the goals a copy's runs serve: its class's, requested by the model (a SkillRequest), and
     # not left at once by a direct edge (docs/semantics.md 5, step 1: then nothing runs)
-    from btfsm.bt import SkillRequest
-
-    requested = {n.goal for n in model.nodes() if isinstance(n, SkillRequest) and n.fsm == d.fsm}
+    requested = requested_goals(model, d.fsm)
     f1 = next(x for x in split_by_goal(model, d.fsm, classes).fsms if x.name == d.fsm)
     leaves = {st.id: {g for e in f1.edges if e.source == st.id and e.direct and e.guard is None
                       for g in (f1.goals if "*" in e.goals else e.goals)} for st in f1.states}
@@ -641,7 +646,7 @@ def derive(model, scene=None, no_loss: bool = False, place_spots: "dict | None" 
             deep.setdefault(u, {})[w] = [sigs.setdefault(sig, len(sigs)), nxt]
     where = {s: sorted(":".join("*" if v is None else str(v) for v in p) for p in ps) for s, ps in where.items()}
     return Timing(d.fsm, classes, table, where, history=sorted(timed_states), assume="no_loss" if no_loss else None,
-                  guards=guards, deep=deep)
+                  guards=guards, deep=deep, requested=requested)
 
 
 def derive_ariac(scene=None, no_loss: bool = False) -> Timing:

@@ -343,3 +343,16 @@ def test_the_tray_rows_cover_every_count():
     m = ariac.timed(ariac.preemptive(n_tray=2))
     assert {h for h in (s.id.split("@")[0] for s in m.fsms[0].states) if "#place_agv" in h} == \
         {f"{s}#place_agv%row0" for s in ("approach_agv", "bins_to_agv", "conveyor_to_agv")}
+
+
+def test_a_timing_holds_only_for_the_goals_it_was_derived_for():
+    """``derive`` lets a copy run only for goals some skill request asks for
+    (``positions.requested_goals``; the ARIAC trees ask for four of the six), and records
+    them: a model that asks for another goal is refused, not timed unsoundly."""
+    from btfsm.positions import requested_goals
+
+    t = ariac.derived_timing()
+    assert t["requested"] == sorted(requested_goals(ariac.baseline(n_tray=2), "arm")) == \
+        ["pick_bins", "pick_conveyor", "place_agv", "place_bins"]
+    with pytest.raises(ValueError, match="requests place_bins of FSM 'arm'"):
+        ariac.timed(ariac.preemptive(n_tray=2), timing={**t, "requested": ["pick_bins", "pick_conveyor", "place_agv"]})
