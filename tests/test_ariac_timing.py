@@ -312,9 +312,11 @@ def test_pacing_holds_each_visit_at_least_as_long_as_the_counterexample():
 
 def test_the_preemptive_worst_first_arrival_in_the_cell():
     """A first arrival is a scenario the cell can always be put in (no spacing to keep):
-    the preemptive model with the arrival allowed once proves 21.3 s; the cell, sent the
-    part at the witness's phase, reaches it in 7.6 s (docs/verification.md 2.1: where the
-    time went). Issue 21.3's 10 % is far: measured, not met. BTFSM_LONG=1 (about 10 s)."""
+    the preemptive model with the arrival allowed once proves 20.5 s (21.3 s before the
+    tray's rows and the rescue's third state of history); the cell, sent the part at the
+    witness's phase (a bin part held, one tick into its transit to the tray), reaches it in
+    8.6 s (docs/verification.md 2.1: where the time went; the plain durations, whose
+    pursuits may end where no part is). BTFSM_LONG=1 (about 10 s)."""
     import dataclasses
 
     from btfsm.expr import to_text
@@ -331,13 +333,13 @@ def test_the_preemptive_worst_first_arrival_in_the_cell():
                                effects=tuple(ev.effects) + (("once", "true"),))
     m = dataclasses.replace(m, variables=tuple(m.variables) + (Bool("once"),), environment=(once,))
     rb = ResponseBound(explore(m), m.responses[0])
-    assert rb.worst == 213
+    assert rb.worst == 205
     path, k, loop = rb.worst_witness()
     r = replay_in_cell(m, counterexample(rb, path, k, loop, "the worst first arrival", 160).to_json(), pace="phase")
     assert r.at_phase and len(r.injected) == 1 and not r.too_soon and not r.lost and not r.mismatch, r.text()
-    assert dict(r.responses)[r.injected[0][2]] == pytest.approx(7.6, abs=0.3)
+    assert dict(r.responses)[r.injected[0][2]] == pytest.approx(8.6, abs=0.3)
     parts = {st: (c, x) for st, c, x in r.decomposition}
-    assert parts["approach_bins"] == pytest.approx((9.8, 2.2), abs=0.25)
+    assert parts["approach_bins"] == pytest.approx((9.0, 3.2), abs=0.25)
 
 
 def test_the_preemptive_first_late_scenario_with_arrivals_after_the_kit():
@@ -448,10 +450,12 @@ def _bins_in_trial(args):
 
     def on_tick(rt, world):
         free, t = rt.vars["bin2_free"], rt.vars["bin_target"]
-        st = rt.fsm_state("arm")[0]
+        st, goal = rt.fsm_state("arm")
         where = f"t = {world.time:.1f} s, {st}, bin2_free {free}, bin_target {t}"
         head = st.split("@")[0]
-        if "#place_agv%" in head:  # the tray's slot the cell's rule chooses (the first free one): in the copy's row
+        if "#place_agv%" in head and goal == "place_agv":
+            # the tray's slot the cell's rule chooses (the first free one) while the place runs: in the
+            # copy's row (the copy entered from the escape after a place is never run: the count moves on)
             tag, free_slots = head.split("%")[1], binding.free_slots()
             counts[("tray", tag)] += 1
             if not free_slots or free_slots[0] not in ariac.TRAY_ROWS[tag]["slots"]:
