@@ -31,8 +31,8 @@ from .errors import ModelError
 from .fsm import Edge
 from .expr import BoolOp, Compare, Const, Expr, Name, Unary, flat
 
-__all__ = ["split_by_entry", "split_history", "split_by_goal", "split_by_guard", "base_state", "entries_of",
-           "widen_to_copies", "copies_named", "substitute", "SEP", "GOAL_SEP", "GUARD_SEP"]
+__all__ = ["split_by_entry", "split_history", "split_by_goal", "split_by_guard", "split_deeper", "base_state", "entries_of",
+           "requested_goals", "check_requests", "widen_to_copies", "copies_named", "substitute", "SEP", "GOAL_SEP", "GUARD_SEP"]
 
 SEP = "@"  # a copy by entry: "<state>@<predecessor>"
 GOAL_SEP = "#"  # a copy by goal: "<state>#<class>"
@@ -421,3 +421,69 @@ def split_by_guard(model, fsm: str, guards: dict):
                for src in copies[m.state]]
     new_f = dataclasses.replace(f, states=tuple(states), edges=tuple(edges), markers=tuple(markers))
     return _with_fsm(model, new_f, field, copies)
+
+
+def split_deeper(model, fsm: str, table: dict, deep: dict, cond: "tuple | None" = None):
+    """A third state of history where it pays: ``model`` (split by ``split_history``, before
+    ``split_by_entry(model, fsm, table)``) with each state of ``deep`` split again by the
+    copy it is entered from, and ``table`` rewritten for the result: ``(model, table)``.
+
+    ``deep``: ``{state: {entry: [group, {successor: max seconds}]}}``; the entries of one
+    group share a copy of the state (named as ``split_by_entry`` names it), which declares
+    the widest interval ``table[state]`` gives them; a successor's row for that copy is
+    ``(0, the greatest seconds of its group's entries)``. So a successor entered from a run
+    halted on its way knows where that run began (docs/verification.md 2.1). States and
+    entries of ``deep`` the model does not have are left out. ``cond``: ``(table, deep)``
+    of another derivation of the same split (its seconds on these groups): then
+    ``(model, table, its table)``, the model's copies declaring its seconds (two tables on
+    one split, as ``split_by_entry``'s ``durations``).
+
+    >>> from btfsm import FSM, Edge, Model, State, Primitive, running, success
+    >>> f = FSM("arm", states=[State("a", "move"), State("b", "move"), State("c", "move")], initial="a",
+    ...         goals=("g",), edges=[Edge("a", "b", "g"), Edge("c", "b", "g"), Edge("b", "c", "g"), Edge("c", "a", "g")])
+    >>> m = Model("m", primitives=[Primitive("move", (running(), success()))], fsms=[f])
+    >>> s, t = split_deeper(m, "arm", {"b": {"a": (0, 1), "c": (0, 2)}, "c": {"b": (0, 3)}},
+    ...                     {"b": {"a": [0, {"c": 1.0}], "c": [1, {"c": 2.5}]}})
+    >>> [st.id for st in s.fsms[0].states], t
+    (['a', 'b@a', 'b@c', 'c'], {'c': {'b@a': (0.0, 1.0), 'b@c': (0.0, 2.5)}})
+    >>> [(st.id, st.duration) for st in split_by_entry(s, "arm", t).fsms[0].states]
+    [('a', None), ('b@a', (0.0, 1.0)), ('b@c', (0.0, 2.0)), ('c@b@a', (0.0, 1.0)), ('c@b@c', (0.0, 2.5))]
+    """
+    f = _fsm_named(model, fsm)
+    entries = entries_of(f)
+    deep = {u: rows for u, rows in deep.items() if u in entries}
+    groups = {u: {w: (0, g) for w, (g, _) in rows.items() if w in entries[u]} for u, rows in deep.items()}
+    split = split_by_entry(model, fsm, groups, {u: (cond[0] if cond else table)[u] for u in groups})
+    copies = {u: [(name, preds) for name, _, preds in named] for u, named in _groups(groups, entries).items()}
+    out = []
+    for tab, dp in ((table, deep),) + ((cond,) if cond is not None else ()):
+        new = {s: dict(rows) for s, rows in tab.items() if s not in groups}
+        for u, named in copies.items():
+            for name, preds in named:
+                most: dict = {}
+                for w in preds:
+                    for y, hi in dp[u][w][1].items():
+                        most[y] = max(most.get(y, 0.0), hi)
+                for y, hi in most.items():
+                    if y in new:
+                        new[y].pop(u, None)
+                        new[y][name] = (0.0, hi)
+        out.append(new)
+    return (split, *out)
+
+
+def requested_goals(model, fsm: str) -> set:
+    """The goals of FSM ``fsm`` that some skill request of ``model`` asks for (no other goal
+    ever runs one of its states: docs/semantics.md 5)."""
+    from .bt import SkillRequest
+
+    return {n.goal for n in model.nodes() if isinstance(n, SkillRequest) and n.fsm == fsm}
+
+
+def check_requests(model, fsm: str, requested) -> None:
+    """ValueError when ``model`` asks FSM ``fsm`` for a goal a derivation (its ``requested``
+    goals; empty: not recorded) assumed no request asks for."""
+    more = sorted(requested_goals(model, fsm) - set(requested)) if requested else []
+    if more:
+        raise ValueError(f"{model.name} requests {', '.join(more)} of FSM '{fsm}', which the derivation's "
+                         "model never asks for (its copies' runs for them are not bounded): derive it for this model")

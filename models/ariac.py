@@ -42,7 +42,7 @@ __all__ = ["AREAS", "ROTATIONS", "SKILLS", "PRIMITIVES", "ARM_REQUESTS", "genera
            "PICK_WINDOW", "TIMING_FILE", "TIMING_FILE_NO_LOSS", "NO_LOSS", "derived_timing", "timed", "preemptive_timed",
            "baseline_timed", "preemptive_timed_no_loss", "baseline_timed_no_loss", "with_bins", "BIN_VARIABLES",
            "PLACE_BINS", "PICK_BINS", "BIN_COPIES", "BIN_TARGET", "AGE_STATES", "AGE_BOUNDS", "age_copies", "AGE_COPIES",
-           "spaced"]
+           "spaced", "TRAY_ROWS", "TRAY_COPIES", "THIRD"]
 
 AREAS = ("agv", "bins", "conveyor")
 # the authors' rotation order: (area, area before, area after)
@@ -389,6 +389,24 @@ def spaced(model: Model) -> Model:
 #: the states whose runs choose the place's target at the bins (their ``#place_bins`` copies)
 _PLACE_MOVES = ("approach_bins", "agv_to_bins", "conveyor_to_bins")
 
+#: Which tray slot a place on the tray goes to, by the cell's rule (``KittingBinding._choose_spot``:
+#: the first free slot, kept until used): the tray is never picked from and a part is released
+#: there only at its target slot, so the slots fill in order and the target is slot ``tray``
+#: (the count, which the model keeps as the cell does). The copies of a place's approach at
+#: the tray (``split_by_guard`` on ``tray``, which no edge changes while such a copy runs: a
+#: place's count comes after its release) by the tray's row of 3 slots (``slots``: the
+#: indices in the scene's ``slots``), and ``full`` for a count past the 18 slots (no slot:
+#: all of them, and it may stay at the hub). A model with n tray parts keeps the copies whose
+#: ``least`` count is at most n (``timed``); the 2-part models, row 0 alone.
+TRAY_ROWS = {**{f"row{r}": {"guard": f"tray >= {3 * r} and tray < {3 * r + 3}" if r else "tray < 3",
+                            "slots": [3 * r, 3 * r + 1, 3 * r + 2], "free": True, "least": 3 * r} for r in range(6)},
+             "full": {"guard": "tray >= 18", "slots": list(range(18)), "free": False, "least": 18}}
+#: ``derive``'s guard splits on the tray (every timed model keeps them): {goal: copies}
+TRAY_COPIES = {"place_agv": TRAY_ROWS}
+#: ``derive``'s third state of history: for the rescue (a place's approach at the bins,
+#: entered from a move halted at the bins: where that move began)
+THIRD = ("approach_bins#place_bins",)
+
 
 def with_bins(model: Model) -> Model:
     """``model`` (an ARIAC variant, at most 18 tray parts, its arm FSM split by goal class:
@@ -523,7 +541,8 @@ def timed(model: Model, durations: str = "derived", *, timing: "dict | None" = N
     import dataclasses
 
     from btfsm.expr import as_expr, to_text
-    from btfsm.positions import base_state, split_by_entry, split_by_goal, split_by_guard, split_history
+    from btfsm.positions import (base_state, check_requests, split_by_entry, split_by_goal, split_by_guard, split_deeper,
+                                 split_history)
 
     f = model.fsms[0]
     if arrivals not in ("job", "any"):
@@ -540,29 +559,39 @@ def timed(model: Model, durations: str = "derived", *, timing: "dict | None" = N
         raise ValueError(f"assume: None or 'no_loss' (with the stored derivation), not {assume!r}")
     if durations == "derived":
         t = derived_timing() if timing is None else timing
+        check_requests(model, f.name, t.get("requested"))
         table = {s: {u: tuple(iv) for u, iv in rows.items()} for s, rows in t["table"].items()}
         split = split_by_goal(model, f.name, t["classes"])
         if bins not in ("tracked", "wide"):
             raise ValueError(f"bins: 'tracked' or 'wide', not {bins!r}")
-        if t.get("guards") and bins == "tracked":  # the place copies read the bins' occupancy
-            split = split_by_guard(with_bins(split), f.name, t["guards"])
-        elif t.get("guards"):  # only the copy that may go to either bin is kept (the others never entered)
-            split = split_by_guard(split, f.name, {s: {c: "true" if c == "bins" else "false" for c in g}
-                                                   for s, g in t["guards"].items()})
+        n_tray = next(v for v in model.variables if v.name == "tray").hi
+        guards = {}
+        for s, g in (t.get("guards") or {}).items():
+            if set(g) <= set(TRAY_ROWS):  # the tray's rows: those the count can reach (the others never entered)
+                kept = [c for c in g if cast(int, TRAY_ROWS[c]["least"]) <= n_tray]
+                guards[s] = {c: ("true" if len(kept) == 1 else g[c]) if c in kept else "false" for c in g}
+            elif bins == "tracked":  # the copies read the bins' occupancy
+                guards[s] = g
+            else:  # only the copy that may go to either bin is kept (the others never entered)
+                guards[s] = {c: "true" if c == "bins" else "false" for c in g}
+        if guards:
+            split = split_by_guard(with_bins(split) if bins == "tracked" else split, f.name, guards)
         if t.get("ages"):  # the pursuits of a belt part by its age (``since(arrive)``, read once arrivals are spaced)
             split = split_by_guard(split, f.name, t["ages"])
         split = split_history(split, f.name, t["history"])
-        if bins == "wide":  # the rows of the copies that can be entered
-            ids = {st.id for st in split.fsms[0].states}
-            table = {s: rows for s, rows in table.items() if s in ids}
+        ids = {st.id for st in split.fsms[0].states}  # the rows of the copies that can be entered
+        table = {s: rows for s, rows in table.items() if s in ids}
         if assume is None:
+            split, table = split_deeper(split, f.name, table, t.get("deep") or {})
             model = split_by_entry(split, f.name, table)
         else:  # the same copies (state names) as without the assumption, each with its conditioned maximum
             cond = derived_timing(assume)
-            if (cond["classes"], cond["history"], cond.get("guards"), cond.get("ages")) != \
-                    (t["classes"], t["history"], t.get("guards"), t.get("ages")):
+            if (cond["classes"], cond["history"], cond.get("guards"), cond.get("ages"), set(cond.get("deep") or {})) != \
+                    (t["classes"], t["history"], t.get("guards"), t.get("ages"), set(t.get("deep") or {})):
                 raise ValueError(f"{TIMING_FILE_NO_LOSS} splits the FSM unlike {TIMING_FILE}: derive both again")
-            model = split_by_entry(split, f.name, table, cond["table"])
+            split, table, ctable = split_deeper(split, f.name, table, t.get("deep") or {},
+                                                (cond["table"], cond.get("deep") or {}))
+            model = split_by_entry(split, f.name, table, ctable)
         how = "derived from the scene per goal class and entry (models/" + \
             (TIMING_FILE if assume is None else f"{TIMING_FILE}, maxima from {TIMING_FILE_NO_LOSS}") + ")"
         if assume or t.get("assume"):

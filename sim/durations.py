@@ -275,10 +275,17 @@ class Timing:
     a fourth field names the bin copy's tag, ``above:bins:place_bins:bin2``: the target is
     in those bins); ``guards``: ``{goal copy: {tag: guard}}``, the place copies split by
     which bin their target is in (``split_by_guard``); ``ages``: ``{goal copy: {tag:
-    guard}}``, the belt pursuits split by the part's age (``since(arrive)``)."""
+    guard}}``, the belt pursuits split by the part's age (``since(arrive)``); ``deep``:
+    ``{copy u@w: {entry w@v: [group, {successor: max}]}}``, the third state of history
+    (``split_deeper``); ``requested``: the goals the derived model's skill requests ask for
+    (a copy runs only for those: a model that asks for another goal needs its own
+    derivation)."""
 
-    def __init__(self, fsm, classes, table, where, history=(), assume=None, guards=None, ages=None):
+    def __init__(self, fsm, classes, table, where, history=(), assume=None, guards=None, ages=None, deep=None,
+                 requested=None):
         self.fsm, self.classes, self.table, self.where = fsm, classes, table, where
+        self.deep = dict(deep or {})  # {copy: {entry: [group, {successor: max}]}}: ``split_deeper``
+        self.requested = sorted(requested or ())
         self.history = list(history)
         self.guards = dict(guards or {})  # {goal copy: {tag: guard}}: ``split_by_guard`` (the bins a place goes to)
         self.assume = assume  # None, or "no_loss": derived under "no part lost yet" (``derive``)
@@ -297,18 +304,24 @@ class Timing:
             out["guards"] = self.guards
         if self.ages:
             out["ages"] = self.ages
+        if self.deep:
+            out["deep"] = self.deep
+        if self.requested:
+            out["requested"] = self.requested
         return out
 
     def apply(self, model):
         """``model`` split and timed (without guards; a timing with guards reads variables the
         model must track: ``btfsm.models.ariac.timed(m, timing=t.to_data())`` for ARIAC)."""
-        from btfsm.positions import split_by_entry, split_by_goal, split_history
+        from btfsm.positions import check_requests, split_by_entry, split_by_goal, split_deeper, split_history
 
         if self.guards or self.ages:
             raise ValueError("this timing splits by guards (the bins' occupancy, a belt part's age): apply it with "
                              "ariac.timed")
-        split = split_by_goal(model, self.fsm, self.classes)
-        return split_by_entry(split_history(split, self.fsm, self.history), self.fsm, self.table)
+        check_requests(model, self.fsm, self.requested)
+        split = split_history(split_by_goal(model, self.fsm, self.classes), self.fsm, self.history)
+        split, table = split_deeper(split, self.fsm, self.table, self.deep)
+        return split_by_entry(split, self.fsm, table)
 
     def slowest(self) -> dict:
         """{state: the slowest derived run over its copies and entries} (for the table)."""
@@ -322,7 +335,7 @@ class Timing:
 
 
 def derive(model, scene=None, no_loss: bool = False, place_spots: "dict | None" = None,
-           bins: "dict | None" = None, track=None, ages: "dict | None" = None) -> Timing:
+           bins: "dict | None" = None, track=None, ages: "dict | None" = None, third=()) -> Timing:
     """The position abstraction of a kitting model's arm FSM with each state's duration
     derived from the scene, per goal class and per entry, two states deep: a copy's
     duration depends on the copy it was entered from, and on the state that one was
@@ -359,8 +372,16 @@ def derive(model, scene=None, no_loss: bool = False, place_spots: "dict | None" 
     "age": seconds}}}, e.g. ``btfsm.models.ariac.AGE_COPIES``): goal copies that pursue a belt
     part split by guards on its age (``since(arrive) >= 90``: the copy chosen when the
     state is entered; the part pursued was detected no later than the last arrival), each
-    copy's pursuit bounded over parts at least ``age`` seconds old only."""
-    from btfsm.positions import entries_of, split_by_goal, split_by_guard, split_history
+    copy's pursuit bounded over parts at least ``age`` seconds old only. A copy of ``bins``
+    with ``slots`` (indices into the area's spots, ``ariac.TRAY_ROWS``) has its target among
+    those slots.
+
+    ``third`` (goal copies, e.g. ``("approach_bins#place_bins",)``): a third state of
+    history where it pays (``Timing.deep``, ``btfsm.positions.split_deeper``): every copy
+    the token leaves halted into one of their copies is split again by the copy it was
+    entered from, so those copies' runs start where that one began, not anywhere its
+    entries may have left the arm."""
+    from btfsm.positions import entries_of, requested_goals, split_by_goal, split_by_guard, split_history
 
     scene, binding = _kitting(model, scene)
     d = binding.d
@@ -404,9 +425,9 @@ def derive(model, scene=None, no_loss: bool = False, place_spots: "dict | None" 
             if len(groups) > 1:
                 classes[s.id] = {c: tuple(gs) for c, gs in groups.items()}
     guards: dict = {}
-    for s, cl in classes.items():  # a pick's or place's approach at the bins: one copy per guard of ``bins``
+    for s, cl in classes.items():  # a pick's or place's approach (the bins, the tray): one copy per guard of ``bins``
         for c in cl:
-            if bins and area(s) == "bins" and c in bins:
+            if bins and c in bins:
                 guards[f"{s}#{c}"] = {tag: spec["guard"] for tag, spec in bins[c].items()}
     aged = {c: {tag: spec["guard"] for tag, spec in by.items()} for c, by in (ages or {}).items()}
     def by_guard(m):
@@ -417,10 +438,17 @@ def derive(model, scene=None, no_loss: bool = False, place_spots: "dict | None" 
     base = {}
     for s in f.states:
         base[s.id] = s.id.split("#", 1)[0]
-    goals_of = {}  # the goals a copy's runs serve: its class's
+    # the goals a copy's runs serve: its class's, requested by the model (a SkillRequest), and
+    # not left at once by a direct edge (docs/semantics.md 5, step 1: then nothing runs)
+    requested = requested_goals(model, d.fsm)
+    f1 = next(x for x in split_by_goal(model, d.fsm, classes).fsms if x.name == d.fsm)
+    leaves = {st.id: {g for e in f1.edges if e.source == st.id and e.direct and e.guard is None
+                      for g in (f1.goals if "*" in e.goals else e.goals)} for st in f1.states}
+    goals_of = {}
     for s in f.states:
         b, _, c = s.id.partition("#")
-        goals_of[s.id] = set(classes[b][c.split("%", 1)[0]]) if c else served(f0, b)
+        goals = set(classes[b][c.split("%", 1)[0]]) if c else served(f0, b)
+        goals_of[s.id] = {g for g in goals if g in requested and g not in leaves[s.id.split("%", 1)[0]]}
 
     def tag_of(sid):
         """The bin copy's tag of a (history-split) copy, or None."""
@@ -439,9 +467,16 @@ def derive(model, scene=None, no_loss: bool = False, place_spots: "dict | None" 
     for a, xs in (place_spots or {}).items():
         placed[a] = boxes([(x, y, z) for x, y in xs for z in geo.g["contact"][a]])
 
-    binbox = {}  # tag -> (contact box, above box) of its bins' spots
-    for tag, spec in ((tag, spec) for copies in (bins or {}).values() for tag, spec in copies.items()):
-        binbox[tag] = boxes([(x, y, z) for b in spec["bins"] for x, y in geo.g["bin"][b][0] for z in geo.g["bin"][b][1]])
+    binbox = {}  # tag -> (contact box, above box) of its bins' spots, or of its tray slots
+    for goal, copies in (bins or {}).items():
+        for tag, spec in copies.items():
+            if "slots" in spec:  # indices into the area's spots (the tray's slots; all of them past its last)
+                sp = geo.g["spots"][d.goal(goal)[1]]
+                xs = [sp[k] for k in spec["slots"] if k < len(sp)] or sp
+                binbox[tag] = boxes([(x, y, z) for x, y in xs for z in geo.g["contact"][d.goal(goal)[1]]])
+            else:
+                binbox[tag] = boxes([(x, y, z) for b in spec["bins"] for x, y in geo.g["bin"][b][0]
+                                     for z in geo.g["bin"][b][1]])
 
     def box(p):
         k, x = p[0], (p[1] if len(p) > 1 else None)
@@ -609,9 +644,29 @@ def derive(model, scene=None, no_loss: bool = False, place_spots: "dict | None" 
             hi = max((run(s1, g, p)[0] for g in goals_of[s1] for p in starts), default=0.0)
             table.setdefault(s2, {})[u] = (0.0, round(hi + geo.dt + 1e-3, 3))
             where.setdefault(s1, set()).update(starts)
+    # 5. a third state of history where it pays (``third``): a copy u@w that the token leaves
+    # halted (a direct edge) into a copy of a goal copy of ``third``, split again by the copy it
+    # is entered from (w@v: its runs from there start where w's runs from v's ends left the
+    # arm), grouped by every duration that gives (its own, each successor's from it)
+    deep: dict = {}
+    halted = sorted({u for s2, ent in entries2.items() if s2.split("@", 1)[0].split("%", 1)[0] in third
+                     for u, (direct, _) in ent.items() if u and direct and kind(base[u]) != "instant"})
+    for u in halted:
+        succ = [(y, ent[u]) for y, ent in entries2.items() if u in ent and kind(base[y]) != "instant"]
+        sigs: dict = {}
+        for w, (dw, gw) in entries2[u].items():
+            su = {("home",)} if not w else leave(w, at[w], dw, gw)
+            nxt = {}
+            for y, (dy, gy) in succ:
+                y1 = y.split("@", 1)[0]
+                starts = leave(u, su, dy, gy)
+                hi = max((run(y1, g, p)[0] for g in goals_of[y1] for p in starts), default=0.0)
+                nxt[y] = round(hi + geo.dt + 1e-3, 3)
+            sig = (table[u][w], tuple(sorted(nxt.items())))
+            deep.setdefault(u, {})[w] = [sigs.setdefault(sig, len(sigs)), nxt]
     where = {s: sorted(":".join("*" if v is None else str(v) for v in p) for p in ps) for s, ps in where.items()}
     return Timing(d.fsm, classes, table, where, history=sorted(timed_states), assume="no_loss" if no_loss else None,
-                  guards=guards, ages=aged)
+                  guards=guards, ages=aged, deep=deep, requested=requested)
 
 
 def derive_ariac(scene=None, no_loss: bool = False) -> Timing:
@@ -622,8 +677,9 @@ def derive_ariac(scene=None, no_loss: bool = False) -> Timing:
     arrivals' spacing); ``models/ariac_timing.json``."""
     from btfsm.models import ariac
 
-    return derive(ariac.spaced(ariac.preemptive()), scene, no_loss=no_loss, bins=ariac.BIN_COPIES,
-                  track=ariac.with_bins, ages=ariac.AGE_COPIES)
+    return derive(ariac.spaced(ariac.preemptive()), scene, no_loss=no_loss,
+                  bins={**ariac.BIN_COPIES, **ariac.TRAY_COPIES}, track=ariac.with_bins, ages=ariac.AGE_COPIES,
+                  third=ariac.THIRD)
 
 
 class Derived(NamedTuple):

@@ -351,3 +351,33 @@ def test_a_guard_split_refuses_the_initial_state_and_unknown_states():
         split_by_guard(m, "arm", {"a": {"x": "true"}})
     with pytest.raises(ModelError, match="positions.zz"):
         split_by_guard(m, "arm", {"zz": {"x": "true"}})
+
+
+def test_the_tray_rows_cover_every_count():
+    """``ariac.TRAY_ROWS``: a place on the tray goes to slot ``tray`` (the first free one:
+    the slots fill in order). For every kit size n, the copies a model keeps (``least`` at
+    most n) have guards of which exactly one holds for each count 0..n, and it names that
+    slot (``split_by_guard`` needs them disjoint and together true); the 2-part models keep
+    row 0 alone."""
+    for n in range(1, 19):
+        kept = {c: spec for c, spec in ariac.TRAY_ROWS.items() if spec["least"] <= n}
+        for count in range(n + 1):
+            hold = [c for c, spec in kept.items() if eval(spec["guard"], {}, {"tray": count})]  # noqa: S307
+            assert len(hold) == 1, (n, count, hold)
+            assert count >= 18 or count in kept[hold[0]]["slots"], (n, count)
+    m = ariac.timed(ariac.preemptive(n_tray=2))
+    assert {h for h in (s.id.split("@")[0] for s in m.fsms[0].states) if "#place_agv" in h} == \
+        {f"{s}#place_agv%row0" for s in ("approach_agv", "bins_to_agv", "conveyor_to_agv")}
+
+
+def test_a_timing_holds_only_for_the_goals_it_was_derived_for():
+    """``derive`` lets a copy run only for goals some skill request asks for
+    (``positions.requested_goals``; the ARIAC trees ask for four of the six), and records
+    them: a model that asks for another goal is refused, not timed unsoundly."""
+    from btfsm.positions import requested_goals
+
+    t = ariac.derived_timing()
+    assert t["requested"] == sorted(requested_goals(ariac.baseline(n_tray=2), "arm")) == \
+        ["pick_bins", "pick_conveyor", "place_agv", "place_bins"]
+    with pytest.raises(ValueError, match="requests place_bins of FSM 'arm'"):
+        ariac.timed(ariac.preemptive(n_tray=2), timing={**t, "requested": ["pick_bins", "pick_conveyor", "place_agv"]})
