@@ -89,3 +89,97 @@ def test_the_cells_worst_found_never_exceeds_the_proof(name):
         assert found.clean is not None and found.clean.worst <= proof
         at = worst.at_phase(m, w.phases[w.worst_part])
         assert at.found and at.worst >= w.worst
+
+
+# ---------------------------------------------------------------- the environment's outcomes
+
+def _recorder(model):
+    """(on_tick, ce): ``on_tick(rt, world)`` records the model's run in the cell as a
+    counterexample (the env events, the primitives' outcomes, the arm FSM's state and the
+    variables after each tick), in ``ce``."""
+    from btfsm.runtime import Runtime
+
+    rt0 = Runtime(model)
+    ce = {"initial": {"arm.state": rt0.fsm_state("arm")[0], **rt0.vars}, "steps": []}
+
+    def on_tick(rt, world):
+        evs = rt.last.events
+        ce["steps"].append({"env": [e[1] for e in evs if e[0] == "env"],
+                            "outcomes": [[e[1], e[2]] for e in evs if e[0] == "outcome"],
+                            "state": {"arm.state": rt.fsm_state("arm")[0], **rt.vars}})
+    return on_tick, ce
+
+
+def _ce_of(model, ticks, forced) -> dict:
+    """A counterexample that sends belt parts before ``ticks`` and whose grasps end as a
+    probe's ``forced`` misses say (each site's earlier runs succeed): the replay's input,
+    built without the probe's attempt numbering."""
+    sites = {s.label: s for s in model.program.sites}
+    runs: dict = {}
+    for _j, _t, label, n in forced:
+        ok = next(o[2] for o in sites[label].outcomes if o[0] == 1)
+        seq = runs.setdefault(label, [])
+        seq += [ok] * (n + 1 - len(seq))
+        seq[n] = next(o[2] for o in sites[label].outcomes if o[0] == 2)
+    steps = [{} for _ in range(max(ticks, default=0) + 1)]
+    for t in ticks:
+        steps[t] = {"env": ["arrive"]}
+    steps.append({"outcomes": [[label, o] for label, seq in runs.items() for o in seq]})
+    return {"initial": {}, "steps": steps}
+
+
+def test_a_counterexample_with_early_misses_replays_to_its_phases():
+    """The replay forces every failure of a counterexample, before its arrivals too, on
+    the cell's own tick at its phase (the site's n-th run, the model's variables as
+    there), and sends each part at its phase: a model run recorded in the cell with a
+    grasp missed at the bins before the part's arrival replays to the same run (the same
+    forced misses, phases and response); a failure whose variables differ is not forced
+    and the report says so."""
+    m = load_builtin("ariac-preemptive-timed")
+    p = worst.probe(m, (60,), misses=(0,))
+    assert p.refused is None and len(p.forced) == 1 and p.forced[0][0] == 0 and p.forced[0][1] < 6.0  # before the part
+    on_tick, ce = _recorder(m)
+    r0 = replay_in_cell(m, _ce_of(m, (60,), p.forced), pace="times", settle=1.0, on_tick=on_tick)
+    assert [(t, site) for t, site, _o in r0.forced] == [(t, site) for _j, t, site, _n in p.forced] and not r0.skipped
+    assert dict(r0.responses)[r0.injected[0][2]] == p.worst  # the probe's response, by the replay's count
+    assert sum(1 for st in ce["steps"] if "arrive" in st["env"]) == 1
+    r = replay_in_cell(m, ce, pace="phase", settle=1.0)
+    assert r.at_phase and not r.too_soon and not r.mismatch and not r.skipped, r.text()
+    # the part is sent at its phase, the state before the tick that told the model, so it
+    # is told a tick later than in the recorded run (detected in the world steps after it)
+    assert r.forced == r0.forced and [st for _t, st, _ in r.injected] == [st for _t, st, _ in r0.injected]
+    assert [t for t, _st, _ in r.injected] == pytest.approx([t + 0.1 for t, _st, _ in r0.injected])
+    assert r.responses == r0.responses and "answered 'missed' as in the counterexample" in r.text()
+    # the miss's phase changed (the retries before it): not forced, and said
+    k = next(i for i, st in enumerate(ce["steps"]) if any(o == "missed" for _l, o in st["outcomes"]))
+    ce["steps"][k - 1]["state"]["retries"] = 7
+    r = replay_in_cell(m, ce, pace="phase", settle=1.0)
+    assert not r.forced and len(r.skipped) == 1 and "retries = 0 (counterexample: 7)" in r.skipped[0][3]
+    assert "'missed' at '" + p.forced[0][2] + "' NOT forced" in r.text()
+
+
+def test_the_search_with_misses_is_the_brute_force_worst_of_a_tiny_grid_whatever_the_workers():
+    """``--misses K``: every set of up to K forced grasp misses before the response, for
+    each arrival instant; the search runs each set once (it extends a run's set only by
+    attempts that end before its response). At the baseline's slowest instant with K = 2,
+    it finds the slowest of every set of attempts 1..3 (the brute force), its worst and
+    its worst without a miss measured again by replaying a counterexample that forces
+    those misses; 1 and 2 workers give the same search; no run breaks a declared duration."""
+    import itertools
+
+    m = load_builtin("ariac-baseline-timed")
+    grid = [159]  # the baseline's slowest instant (docs/cell.md): the part is lost
+    one = worst.search_single(m, ticks=grid, misses=2, workers=1)
+    two = worst.search_single(m, ticks=grid, misses=2, workers=2)
+    assert one.grid == two.grid and one.worst == two.worst and one.plain == two.plain
+    assert not worst.duration_refusals(one) and one.refused == 0
+    brute = {S: worst.probe(m, tuple(grid), misses=S)
+             for S in itertools.chain.from_iterable(itertools.combinations(range(3), k) for k in range(3))}
+    ran = {S: w for ((_t,), S), w in one.grid}
+    assert all(brute[S].worst == w for S, w in ran.items() if max(S, default=0) < 3)
+    assert one.worst.worst == max(p.worst for p in brute.values()) > one.plain.worst == brute[()].worst
+    assert one.worst.misses and one.worst.forced  # a forced miss makes the baseline slower here
+    for p in (one.worst, one.plain):  # measured again, by the replay of a counterexample forcing its misses
+        r = replay_in_cell(m, _ce_of(m, p.ticks, p.forced), pace="times", settle=10.0)
+        assert not r.mismatch and not r.skipped and len(r.forced) == len(p.forced), r.text()
+        assert dict(r.responses)[r.injected[0][2]] == p.worst
