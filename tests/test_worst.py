@@ -183,3 +183,25 @@ def test_the_search_with_misses_is_the_brute_force_worst_of_a_tiny_grid_whatever
         r = replay_in_cell(m, _ce_of(m, p.ticks, p.forced), pace="times", settle=10.0)
         assert not r.mismatch and not r.skipped and len(r.forced) == len(p.forced), r.text()
         assert dict(r.responses)[r.injected[0][2]] == p.worst
+
+
+@pytest.mark.skipif(not LONG, reason="searches both variants with up to 2 forced misses, one part and pairs (BTFSM_LONG=1)")
+@pytest.mark.parametrize("name", ["ariac-preemptive-timed", "ariac-baseline-timed"])
+def test_the_cells_worst_with_misses_never_exceeds_the_proof(name):
+    """``--misses 2``, one part at every tick and pairs: every forced miss is one the model
+    allows and no run breaks a declared duration (no refusal but the arrivals after the
+    kit); a run without a lost part stays within the conditioned proof (read from the
+    proof); the misses never make the search's worst faster than without them; the
+    model's worst at the cell's worst phase is at least the cell's. About 2 + 6 minutes a
+    variant on 2 workers at load average 4-9."""
+    m = load_builtin(name)
+    proof = _conditioned(name)
+    for found in (worst.search_single(m, workers=2, misses=2), worst.search_pair(m, workers=2, misses=2)):
+        assert not worst.duration_refusals(found)
+        w = found.worst
+        assert w is not None and w.worst < math.inf and found.plain is not None and w.worst >= found.plain.worst
+        if name == "ariac-preemptive-timed":
+            assert not w.lost
+        assert found.clean is not None and found.clean.worst <= proof
+        at = worst.at_phase(m, w.phases[w.worst_part])
+        assert at.found and at.worst >= w.worst
