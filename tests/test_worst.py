@@ -52,6 +52,10 @@ def test_sim_worst_on_the_command_line(capsys):
     out = capsys.readouterr().out
     assert "the cell's worst response to 1 belt part(s), by search: 2 runs" in out
     assert "part 1's phase: '" in out and "where the worst response went, per FSM state" in out
+    assert main(["sim", "ariac-preemptive-timed", "--worst", "1", "--step", "200", "--misses", "1", "--workers", "1"]) == 0
+    out = capsys.readouterr().out
+    assert "each with every set of up to 1 forced grasp miss(es) before its response" in out
+    assert "forced misses: " in out and "worst without a forced miss (arrivals only): " in out
 
 
 def _conditioned(name: str) -> float:
