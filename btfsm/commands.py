@@ -214,9 +214,10 @@ def args_replay(sp) -> None:
     sp.add_argument("--pace", choices=("paced", "ticks", "phase"),
                     help="with --cell, the kitting cell: paced (the default for a response counterexample: each FSM "
                          "state lasts at least as long as there), ticks (the events at the counterexample's ticks, "
-                         "the arm at its own speed), phase (each event when the cell's FSM is at the counterexample's "
-                         "state and ticks into it, its failures forced, the arm at its own speed; prints where the "
-                         "response time went)")
+                         "its failures forced, the arm at its own speed), phase (each event when the cell's FSM is at "
+                         "the counterexample's state and ticks into it, its failures (grasp misses, before and after "
+                         "the arrivals) forced at theirs, the arm at its own speed; prints where the response time "
+                         "went)")
     cliargs.html(sp, "the counterexample or trace (with --cell: and the cell run, with pictures)")
 
 

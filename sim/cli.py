@@ -205,6 +205,10 @@ def args_sim(sp) -> None:
     sp.add_argument("--workers", type=int_range(1, MAX_WORKERS), default=None,
                     help="with --worst: worker processes (default: the CPU count; the result does not depend on "
                          "their number)")
+    sp.add_argument("--misses", type=int_range(0, 3), metavar="K", default=None,
+                    help="with --worst: also force up to K (0..3) of the cell's grasp attempts before the response "
+                         "to miss, every set of them (the gripper lets the part go: an outcome the model's "
+                         "environment may choose); the worst without a forced miss is printed beside")
 
 
 def _sim_worst(args, model) -> int:
@@ -215,10 +219,11 @@ def _sim_worst(args, model) -> int:
         raise UsageError("--worst searches the kitting cell and prints a table: not with --scene, --render or --gif")
     variant_of(model)  # UsageError unless the kitting cell runs the model
     workers = args.workers or os.cpu_count() or 1
+    misses = args.misses or 0
     if args.worst == 1:
-        found = search_single(model, workers=workers, step=args.step or 1)
+        found = search_single(model, workers=workers, step=args.step or 1, misses=misses)
     else:
-        found = search_pair(model, workers=workers, coarse=args.step or 10)
+        found = search_pair(model, workers=workers, coarse=args.step or 10, misses=misses)
     text, code = report(model, found, phase_models=args.at_phase)
     print(text)
     return code
@@ -236,8 +241,8 @@ def cli_sim(args) -> int:
     model = load_cli_model(args)
     if args.worst:
         return _sim_worst(args, model)
-    if args.step is not None or args.at_phase or args.workers is not None:
-        raise UsageError("--step, --at-phase and --workers go with --worst")
+    if args.step is not None or args.at_phase or args.workers is not None or args.misses is not None:
+        raise UsageError("--step, --at-phase, --workers and --misses go with --worst")
     if args.gif and not (args.fps > 0 and args.max_frames >= 1):
         raise UsageError("--gif needs --fps > 0 and --max-frames >= 1")
     scene = _scene_of(args, model)

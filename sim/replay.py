@@ -16,7 +16,7 @@ from typing import Any, cast
 
 from .loop import Hooks, run_loop, start
 
-__all__ = ["CellReplay", "cell_window", "triggers_of", "phases_of", "replay_in_cell", "SceneReplay", "scene_triggers", "replay_in_scene",
+__all__ = ["CellReplay", "cell_window", "wrap_answers", "triggers_of", "phases_of", "replay_in_cell", "SceneReplay", "scene_triggers", "replay_in_scene",
            "replay_for_cli"]
 
 
@@ -51,6 +51,7 @@ class CellReplay:
     at_phase: bool = False  # the parts were sent at the counterexample's FSM phase (state, ticks into its visit)
     too_soon: list = field(default_factory=list)  # (time, FSM state): a phase the cell reached before the spacing allowed
     forced: list = field(default_factory=list)  # (time, site, outcome): the counterexample's failures forced on the cell
+    skipped: list = field(default_factory=list)  # (time or None, site, outcome, why): its failures the cell did not follow
     responses: list = field(default_factory=list)  # (part id, s from its detection to the next belt grasp's start)
     grasp_states: set = field(default_factory=set)  # the FSM states that grasp on the belt
     decomposition: list = field(default_factory=list)  # (state, counterexample s, cell s): see ``decomposition``
@@ -76,6 +77,13 @@ class CellReplay:
         for t, site, outcome in self.forced:
             lines.append(f"  t = {t:6.1f} s: '{site}' answered '{outcome}' as in the counterexample "
                          "(the gripper let the part go)")
+        for t, site, outcome, why in self.skipped:
+            when = "" if t is None else f"t = {t:6.1f} s: "
+            lines.append(f"  {when}the counterexample's '{outcome}' at '{site}' NOT forced: {why}")
+        if self.at_phase and len(self.injected) < len(self.triggers):
+            for k, (st, _ev) in enumerate(self.triggers[len(self.injected):], start=len(self.injected) + 1):
+                lines.append(f"  part {k} of {len(self.triggers)} NOT sent: the cell did not reach the "
+                             f"counterexample's phase at '{st}' (it did not follow the counterexample there)")
         for t, pid in self.lost:
             lines.append(f"  t = {t:6.1f} s: belt part {pid} reached the end of the belt: LOST")
         if self.frozen:
@@ -99,8 +107,13 @@ class CellReplay:
             for st, c, x in self.decomposition:
                 lines.append(f"    {st:24s} {c:6.1f} s {x:6.1f} s {c - x:+6.1f} s")
         if self.kind == "response":  # a late response loses the belt part in the cell, or it does not
-            lines.append("  the cell shows the late response: a belt part was lost" if self.lost else
-                         "  the cell does not show the late response: no belt part was lost")
+            belt_misses = any(site.split("/", 1)[-1] in self.grasp_states for _t, site, _o in self.forced)
+            given_up = [pid for _, pid in self.lost if pid in reached and belt_misses]
+            lines.append("  the cell shows the late response: a belt part was lost" if len(given_up) < len(self.lost)
+                         else "  the cell does not show the late response: no belt part was lost" if not given_up else
+                         "  the cell does not show the late response: no belt part was lost unreached (belt part(s) "
+                         + ", ".join(map(str, given_up)) + " reached, then given up after forced misses, as in the "
+                         "counterexample)")
         if self.picture:
             lines.append(f"  picture: {self.picture}")
         return "\n".join(lines)
@@ -237,7 +250,7 @@ class _Pacer:
         return len(self.visits) - 1, 0
 
     def wrap(self, impl):
-        return _wrap(impl, self._answer)
+        return wrap_answers(impl, self._answer)
 
     def _answer(self, call, answer):
         if self.hold():
@@ -248,7 +261,7 @@ class _Pacer:
         return answer
 
 
-def _wrap(impl, change):
+def wrap_answers(impl, change):
     """``impl`` (a primitive's implementation) answering ``change(call, its answer)``."""
     tick = impl if callable(impl) else impl.tick
 
@@ -261,43 +274,77 @@ def _wrap(impl, change):
 
 
 class _Forced:
-    """The counterexample's failures after its last arrival, forced on the cell: the n-th
-    run of a site that ends after the cell's last part was sent ends as the
-    counterexample's n-th run there did when that was a failure and the cell's answer a
-    success; the gripper lets the part go (a grasp that missed: the vacuum did not hold).
-    The answer comes on the cell's own tick, so it is inside the declared duration."""
+    """The counterexample's failures, forced on the cell, before and after its arrivals:
+    the n-th run of a site (an FSM state's copy: its two states of history) that ends in
+    the cell ends as the counterexample's n-th run there did, when that was a failure (a
+    grasp's ``missed``: the only failures the ARIAC models let the environment choose) and
+    the cell's answer a success, and the model's variables are the counterexample's then
+    (the phase: the tray's count, the gripper, the queue, the retries); the gripper lets
+    the part go (a grasp that missed: the vacuum did not hold). The answer comes on the
+    cell's own tick, so it is inside the declared duration. A failure the cell does not
+    follow is listed (``skipped``): the variables differ there, the cell failed where the
+    counterexample succeeded, or the cell never ran the site that often (``finish``). A
+    variable the counterexample does not give (None) is not compared."""
 
-    def __init__(self, ce: dict, model):
+    def __init__(self, ce: dict, model, grasp: "str | None" = None):
         sites = {site.label: site for site in model.program.sites}
-        last = max([i for i, step in enumerate(ce["steps"]) if step.get("env")], default=len(ce["steps"]))
-        self.ends: dict = {}  # site label -> [outcome of each run ending after the last arrival]
-        for step in ce["steps"][last:]:
+        names = [v.name for v in model.variables]
+        values = {k: ce["initial"].get(k) for k in names}
+        self.skipped: list = []  # (time or None, site label, outcome, why): a failure of the counterexample not forced
+        self.ends: dict = {}  # site label -> [(outcome, the model's variables before that tick)] of each run's end
+        for step in ce["steps"]:
             for label, outcome in step.get("outcomes", ()):
                 site = sites.get(label)
-                if site is not None and any(o[2] == outcome and o[0] != 0 for o in site.outcomes):
-                    self.ends.setdefault(label, []).append(outcome)
-        self.seen: dict = {}  # site label -> runs ended in the cell since it became active
-        self.active = False
+                if site is None:
+                    continue
+                status = {o[2]: o[0] for o in site.outcomes}
+                if status.get(outcome, 0) == 0 or 2 not in status.values():
+                    continue
+                if grasp is None or site.primitive == grasp:
+                    self.ends.setdefault(label, []).append((outcome, dict(values)))
+                elif status[outcome] == 2:
+                    self.skipped.append((None, label, outcome, "not a grasp: the cell has no way to make it fail"))
+            values.update({k: v for k, v in step.get("state", {}).items() if k in values})
+        self.fails = {label: {o[2] for o in sites[label].outcomes if o[0] == 2} for label in self.ends}
+        self.seen: dict = {}  # site label -> runs ended in the cell
         self.forced: list = []  # (time, site label, outcome) forced on the cell
         self.world: Any = None
         self.robot: Any = None
 
     def wrap(self, impl):
-        return _wrap(impl, self._answer)
+        return wrap_answers(impl, self._answer)
 
     def _answer(self, call, answer):
         label = call.site.label
+        runs = self.ends.get(label)
         status = {o[2]: o[0] for o in call.site.outcomes}
-        if not self.active or status.get(answer, 0) == 0:
+        if runs is None or status.get(answer, 0) == 0:
             return answer
         n = self.seen.get(label, 0)
         self.seen[label] = n + 1
-        want = self.ends.get(label, [])
-        if n < len(want) and status.get(want[n]) == 2 and status.get(answer) == 1:
-            self.world.release(self.robot)
-            self.forced.append((round(call.time, 2), label, want[n]))
-            return want[n]
-        return answer
+        if n >= len(runs):
+            return answer
+        want, values = runs[n]
+        if status.get(want) != 2 or status.get(answer) == 2:
+            if status.get(want) == 1 and status.get(answer) == 2:
+                self.skipped.append((round(call.time, 2), label, want, f"the cell answered '{answer}' (run {n + 1})"))
+            return answer
+        differ = {k: call.vars[k] for k, v in values.items() if v is not None and call.vars[k] != v}
+        if differ:
+            self.skipped.append((round(call.time, 2), label, want, f"run {n + 1} there, but "
+                                 + ", ".join(f"{k} = {v} (counterexample: {values[k]})" for k, v in differ.items())))
+            return answer
+        self.world.release(self.robot)
+        self.forced.append((round(call.time, 2), label, want))
+        return want
+
+    def finish(self) -> None:
+        """List the counterexample's failures at runs the cell never made."""
+        for label, runs in self.ends.items():
+            for n in range(self.seen.get(label, 0), len(runs)):
+                if runs[n][0] in self.fails[label]:
+                    self.skipped.append((None, label, runs[n][0], f"the cell ran it {self.seen.get(label, 0)} "
+                                         f"time(s); the counterexample's failure was its run {n + 1}"))
 
 
 class _CellHooks(Hooks):
@@ -316,7 +363,6 @@ class _CellHooks(Hooks):
         self.vars: dict = {}  # the model's variables before this tick (phases)
         self.missed = False  # the cell left the phase's state before its tick: send on the next tick
         self.refused: "float | None" = None  # the visit (its start time) whose phase came too soon
-        self.forced: "_Forced | None" = None
         self.reached: set = set()
         self.responded: set = set()
         self.grasps: set = set()  # the arm FSM's states that grasp on the belt
@@ -353,8 +399,6 @@ class _CellHooks(Hooks):
             pid = world.spawn(self.beam)
             result.injected.append((round(world.time, 2), st, pid))
             pending.pop(0)
-            if not pending and self.forced is not None:
-                self.forced.active = True
         if pacer is not None:
             pacer.now = st
 
@@ -428,13 +472,14 @@ def replay_in_cell(model, ce, *, time_limit: float = 120.0, render: "str | None"
     events happen at the counterexample's ticks and a primitive the cell finishes before
     the counterexample does is held running until the counterexample's tick (the arm waits
     where its move ended); the cell's arm cannot be made faster than it is. ``pace="times"``:
-    the parts are sent at the counterexample's ticks, the arm unpaced; ``pace="phase"``: a
+    the parts are sent at the counterexample's ticks, its failures forced as below, the arm unpaced; ``pace="phase"``: a
     part is sent when the cell's FSM is in the state the counterexample had at that
     arrival, as many ticks into the visit (on the next tick when the cell leaves the state
     sooner) with the model's variables as there (the tray's count, the gripper, the queue), the arm
     unpaced; a phase reached before the arrivals' minimum interval allows
     a part is listed in ``too_soon`` and the part waits for the phase's next visit; the
-    counterexample's failures after its last arrival are forced on the cell (``_Forced``),
+    counterexample's failures, before and after its arrivals, are forced on the cell at
+    their phases (``_Forced``: a grasp's n-th run there, the model's variables as there),
     and ``decomposition`` says where the response time went, per FSM state, there and in
     the cell. ``lift_spacing``: the model's environment events lose their minimum interval
     (durations stay enforced), to put the cell in a phase that it reaches sooner than the
@@ -465,9 +510,12 @@ def replay_in_cell(model, ce, *, time_limit: float = 120.0, render: "str | None"
         from .binding import Dialect, dialect_of
 
         phases = phases_of(ce, cast(Dialect, dialect_of(model)).fsm, variables=[v.name for v in model.variables])
-        forced = _Forced(ce, model)
-    elif pace == "times":  # the counterexample's arrival ticks, the arm unpaced
+        forced = _Forced(ce, model, cast(Dialect, dialect_of(model)).grasp)
+    elif pace == "times":  # the counterexample's arrival ticks and failures, the arm unpaced
+        from .binding import Dialect, dialect_of
+
         arrive_ticks = [i - 1 for i, step in enumerate(ce["steps"], start=1) for ev in step.get("env", ()) if ev == "arrive"]
+        forced = _Forced(ce, model, cast(Dialect, dialect_of(model)).grasp)
     elif pace if pace is not None else kind == "response":
         from .binding import Dialect, dialect_of
 
@@ -489,7 +537,7 @@ def replay_in_cell(model, ce, *, time_limit: float = 120.0, render: "str | None"
     hooks = _CellHooks(d.fsm, world.scene.sensors[binding.sensor]["region"], result, pending, pacer, arrive_at,
                        frames, settle, on_tick, binding, arrive_ticks, phases, spacing)
     if forced is not None:
-        forced.world, forced.robot, hooks.forced = world, binding.robot, forced
+        forced.world, forced.robot = world, binding.robot
     end = run_loop(rt, world, binding, time_limit, hooks, stop_at_mismatch=False)
     hooks.finish(world)
     if end.ended_by is not None:
@@ -497,7 +545,8 @@ def replay_in_cell(model, ce, *, time_limit: float = 120.0, render: "str | None"
     if pacer is not None:
         result.held, result.diverged = pacer.held, pacer.diverged
     if forced is not None:
-        result.forced = forced.forced
+        forced.finish()
+        result.forced, result.skipped = forced.forced, forced.skipped
     result.end_time = round(world.time, 2)
     result.grasp_states = set(hooks.grasps)
     if phases is not None:

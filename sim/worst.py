@@ -17,6 +17,12 @@ whatever the number of worker processes (``workers``): the runs are split into c
 run in a process pool, and put back in grid order; the worst is the slowest response, the
 earliest arrival on a tie. :func:`at_phase` gives the model's own worst response to an
 arrival in the phase (the model's state) the cell's worst had.
+
+The environment chooses outcomes too: the timed model lets any grasp miss. With
+``misses=K`` the searches also force up to K of the cell's grasp attempts before the
+ranked response to miss (:class:`_Misses`: the gripper lets the part go, on the cell's own
+tick), every set of them (:func:`with_misses`), and report the worst with misses beside
+the worst without (``Search.plain``).
 """
 from __future__ import annotations
 
@@ -68,6 +74,10 @@ class Probe:
     refused: "str | None" = None  # the runtime refused a tick (an arrival the model does not allow, a duration)
     end_tick: "int | None" = None  # with ``to_end``: the first tick after which the kit is complete
     ranked: "int | None" = None  # the part whose response ranks the run (None: the slowest part's)
+    misses: tuple = ()  # ordinals of the cell's grasp attempts (every area, in the order they end) forced to miss
+    forced: tuple = ()  # ((attempt, time, site label, its runs before), ...): attempts the cell made succeed, forced to miss
+    attempts: int = 0  # the grasp attempts that ended before the ranked (else slowest) part's response (all of them
+    # with ``to_end``, or when no response ranks the run)
 
     @property
     def worst(self) -> float:
@@ -83,6 +93,45 @@ class Probe:
             return self.ranked
         rs = [math.inf if r is None else r for r in self.responses]
         return rs.index(max(rs))
+
+
+class _Misses:
+    """The cell's grasp attempts numbered in ``misses`` (0-based: every run of the grasp
+    primitive, any area, counted as it ends) miss: an attempt the cell made succeed
+    answers the site's failure outcome (``missed``) on the cell's own tick, so within the
+    declared duration, and the gripper lets the part go (the vacuum did not hold); one
+    the cell missed by itself stays missed. Every grasp site of the ARIAC models offers
+    that outcome, so the model's environment may choose it there (the runtime, which
+    steps the model on the cell's answers, refuses any other)."""
+
+    def __init__(self, grasp: str, misses):
+        self.grasp, self.misses = grasp, frozenset(misses)
+        self.ends: list = []  # the time each grasp attempt ended
+        self.forced: list = []  # (attempt ordinal, time, site label, the site's runs before this one)
+        self.runs: dict = {}  # site label -> its runs ended so far
+        self.world: Any = None
+        self.robot: Any = None
+
+    def wrap(self, impl):
+        from .replay import wrap_answers
+
+        return wrap_answers(impl, self._answer)
+
+    def _answer(self, call, answer):
+        site = call.site
+        status = {o[2]: o[0] for o in site.outcomes}
+        if site.primitive != self.grasp or status.get(answer, 0) == 0:
+            return answer
+        n = len(self.ends)
+        self.ends.append(call.time)
+        run = self.runs.get(site.label, 0)
+        self.runs[site.label] = run + 1
+        fail = next((o[2] for o in site.outcomes if o[0] == 2), None)
+        if n in self.misses and status.get(answer) == 1 and fail is not None:
+            self.world.release(self.robot)
+            self.forced.append((n, round(call.time, 2), site.label, run))
+            return fail
+        return answer
 
 
 class _ArrivalHooks(Hooks):
@@ -160,21 +209,27 @@ def _breakdown(timeline, end: float, response: float) -> tuple:
     return tuple((st, round(sec, 2)) for st, sec in cell_window(timeline, end - response, end, end).items())
 
 
-def probe(model, ticks, *, to_end: bool = False, time_limit: "float | None" = None, last: bool = False) -> Probe:
+def probe(model, ticks, *, to_end: bool = False, time_limit: "float | None" = None, last: bool = False,
+          misses=()) -> Probe:
     """Run ``model`` in the ARIAC cell (the replay's cell) with a belt part sent before each
     of ``ticks`` (runtime ticks, ascending); see :class:`Probe`. ``to_end``: run on until the
-    kit is complete (``Probe.end_tick``); ``last``: the last part's response ranks the run."""
+    kit is complete (``Probe.end_tick``); ``last``: the last part's response ranks the run;
+    ``misses``: the ordinals of the grasp attempts forced to miss (:class:`_Misses`)."""
+    from .binding import Dialect, dialect_of
     from .protocol import TrialSpec
     from .scene import LOST
     from .trial import build_trial
 
     ticks = tuple(int(t) for t in ticks)
+    misses = tuple(sorted(int(j) for j in misses))
     rate = model.tick_rate
     limit = time_limit if time_limit is not None else (max(ticks, default=0) / rate + CAP + 1.0)
     if to_end and time_limit is None:
         limit += 120.0
     spec = TrialSpec("preemptive", 1, time_limit=limit)
-    model, world, binding, rt = build_trial(spec, model, detections=())
+    forcing = _Misses(cast(Dialect, dialect_of(model)).grasp, misses)
+    model, world, binding, rt = build_trial(spec, model, detections=(), wrap=forcing.wrap)
+    forcing.world, forcing.robot = world, binding.robot
     hooks = _ArrivalHooks(binding, ticks, to_end)
     end = run_loop(rt, world, binding, limit, hooks, stop_at_mismatch=False)
     refused = str(end.ended_by) if end.ended_by is not None else None
@@ -183,11 +238,17 @@ def probe(model, ticks, *, to_end: bool = False, time_limit: "float | None" = No
     lost_ids = set(world.parts_in(LOST))
     lost = tuple(i for i, pid in enumerate(hooks.pids) if pid in lost_ids)
     p = Probe(ticks, tuple(round(t, 3) for _, t in detected), responses, lost, tuple(hooks.phases), (), refused,
-              hooks.end_tick, len(ticks) - 1 if last and ticks else None)
+              hooks.end_tick, len(ticks) - 1 if last and ticks else None, misses, tuple(forcing.forced))
+    ends = forcing.ends
     if refused is None and responses and len(responses) == len(ticks) and p.worst not in (math.inf, -math.inf):
         i = p.worst_part
-        bd = _breakdown(hooks.timeline, hooks.grasp_at[detected[i][0]], cast(float, responses[i]))
+        at = hooks.grasp_at[detected[i][0]]
+        bd = _breakdown(hooks.timeline, at, cast(float, responses[i]))
         p = dataclasses.replace(p, breakdown=bd)
+        if not to_end:
+            p = dataclasses.replace(p, attempts=sum(1 for t in ends if t < at - 1e-9))
+    if refused is None and (to_end or not p.attempts and p.worst in (math.inf, -math.inf)):
+        p = dataclasses.replace(p, attempts=len(ends))
     return p
 
 
@@ -217,18 +278,20 @@ def _init(model) -> None:
 
 def _run_chunk(item) -> list:
     chunk, to_end, last = item
-    return [probe(_MODEL, t, to_end=to_end, last=last) for t in chunk]
+    return [probe(_MODEL, t, to_end=to_end, last=last, misses=m) for t, m in chunk]
 
 
-def run_probes(model, grid, *, workers: int = 1, to_end: bool = False, last: bool = False) -> list:
-    """``probe(model, ticks, to_end=, last=)`` for every ``ticks`` of ``grid``, in grid order, in ``workers``
-    processes (the same list whatever their number: each run depends on its ticks alone;
-    chunks of up to 8 runs, at least two per worker)."""
+def run_probes(model, grid, *, workers: int = 1, to_end: bool = False, last: bool = False, misses=None) -> list:
+    """``probe(model, ticks, to_end=, last=, misses=)`` for every ``ticks`` of ``grid`` (and the
+    ``misses`` at the same index of that list, if given), in grid order, in ``workers``
+    processes (the same list whatever their number: each run depends on its ticks and
+    misses alone; chunks of up to 8 runs, at least two per worker)."""
     grid = [tuple(t) for t in grid]
-    chunk = max(1, min(8, len(grid) // (2 * max(workers, 1))))
-    items = [(grid[i:i + chunk], to_end, last) for i in range(0, len(grid), chunk)]
+    runs = list(zip(grid, [tuple(m) for m in misses] if misses is not None else [()] * len(grid)))
+    chunk = max(1, min(8, len(runs) // (2 * max(workers, 1))))
+    items = [(runs[i:i + chunk], to_end, last) for i in range(0, len(runs), chunk)]
     if workers <= 1 or len(items) <= 1:
-        return [probe(model, t, to_end=to_end, last=last) for t in grid]
+        return [probe(model, t, to_end=to_end, last=last, misses=m) for t, m in runs]
     import multiprocessing as mp
 
     ctx = mp.get_context("fork" if sys.platform.startswith("linux") else "spawn")
@@ -250,6 +313,8 @@ class Search:
     grid: list = field(default_factory=list, repr=False)  # (ticks, worst response) of every run, grid order
     top: list = field(default_factory=list)  # the slowest runs (Probe), slowest first
     clean: "Probe | None" = None  # the slowest run in which no part was lost
+    misses: int = 0  # up to this many grasp attempts forced to miss per run
+    plain: "Probe | None" = None  # with misses: the slowest run without a forced miss (arrivals only)
 
     def text(self, rate: float = 10.0) -> str:
         lines = [f"{self.model}: the cell's worst response to {self.arrivals} belt part(s), by search: "
@@ -270,12 +335,22 @@ class Search:
                      f"part {w.worst_part + 1} of {len(w.ticks)}, sent at t0 = "
                      + ", ".join(f"{t / rate:.1f}" for t in w.ticks) + " s (detected at "
                      + ", ".join(f"{t:.2f}" for t in w.detections) + " s)")
+        if self.misses:
+            lines.append("  forced misses: " + ("; ".join(
+                f"grasp attempt {j + 1} at t = {t:.1f} s ('{site}': the gripper let the part go)"
+                for j, t, site, _n in w.forced) if w.forced else "none"))
         for i, ph in enumerate(w.phases):
             lines.append(f"  part {i + 1}'s phase: {ph.text()}")
         c = self.clean
         if c is not None and c is not w:
             lines.append(f"  worst without a lost part: {c.worst:.2f} s (sent at t0 = "
-                         + ", ".join(f"{t / rate:.1f}" for t in c.ticks) + " s)")
+                         + ", ".join(f"{t / rate:.1f}" for t in c.ticks) + " s"
+                         + (f"; {len(c.forced)} forced miss(es)" if self.misses else "") + ")")
+        q = self.plain
+        if self.misses and q is not None:
+            lines.append(f"  worst without a forced miss (arrivals only): {q.worst:.2f} s (sent at t0 = "
+                         + ", ".join(f"{t / rate:.1f}" for t in q.ticks) + " s"
+                         + (", part lost" if q.lost else "") + ")")
         resp = ", ".join("none" if x is None else f"{x:.2f} s" for x in w.responses)
         lines.append(f"  responses: {resp}; lost: " + (", ".join(f"part {i + 1}" for i in w.lost) or "none"))
         if w.breakdown:
@@ -285,27 +360,98 @@ class Search:
         return "\n".join(lines)
 
 
-def _found(model, arrivals: int, probes: list, runs: int, how: str) -> Search:
+def _rank(p: Probe) -> tuple:
+    """The search's order: slowest first, then the earliest arrival ticks, the fewest misses."""
+    return (-p.worst, p.ticks, len(p.misses), p.misses)
+
+
+def _found(model, arrivals: int, probes: list, runs: int, how: str, misses: int = 0) -> Search:
     """The worst run is the slowest (its ranked part's response, else its slowest), the
-    earliest arrival ticks on a tie; refused runs are left out."""
-    ok = sorted((p for p in probes if p.worst != -math.inf), key=lambda p: (-p.worst, p.ticks))
+    earliest arrival ticks on a tie (then the fewest forced misses); refused runs are left out."""
+    ok = sorted((p for p in probes if p.worst != -math.inf), key=_rank)
     refusals = [p.refused for p in probes if p.refused is not None]
+    grid = [((p.ticks, p.misses) if misses else p.ticks, p.worst) for p in probes]
     return Search(model.name, arrivals, ok[0] if ok else None, runs, len(refusals), how, refusals,
-                  [(p.ticks, p.worst) for p in probes], ok[:5], next((p for p in ok if not p.lost), None))
+                  grid, ok[:5], next((p for p in ok if not p.lost), None), misses,
+                  next((p for p in ok if not p.misses), None) if misses else None)
 
 
-def search_single(model, *, workers: int = 1, step: int = 1, ticks=None) -> Search:
+def with_misses(model, grid, misses: int, *, workers: int = 1, last: bool = False) -> list:
+    """Every run of ``grid`` (arrival ticks) with every set of up to ``misses`` forced misses
+    among its grasp attempts that end before the ranked response (an attempt ending
+    after it cannot change it), level by level: the runs with k misses, then each run's set
+    extended by one attempt after its last forced one and before its response
+    (``Probe.attempts``; a run up to attempt j is the same with or without a miss after
+    it, so every set is run once). Refused runs are not extended. In grid order, level
+    after level: the same list for any ``workers``."""
+    level = [(tuple(t), ()) for t in grid]
+    out: list = []
+    for k in range(misses + 1):
+        probes = run_probes(model, [t for t, _m in level], workers=workers, last=last, misses=[m for _t, m in level])
+        out += probes
+        level = [(p.ticks, p.misses + (j,)) for p in probes if p.refused is None
+                 for j in range(max(p.misses, default=-1) + 1, p.attempts)]
+        if not level:
+            break
+    return out
+
+
+def _job_end(model, misses: int, workers: int = 1) -> int:
+    """The first tick after which the kit is complete in the job without arrivals, the
+    latest over every set of up to ``misses`` forced misses among its grasp attempts (a
+    forced miss may delay the kit's completion)."""
+    end = _ends(model, [()], misses, workers)[()]
+    if end is None:
+        raise ValueError(f"{model.name}: the job does not complete within an hour of simulated time")
+    return end
+
+
+def _ends(model, grid, misses: int, workers: int) -> dict:
+    """{ticks: the latest tick after which the kit is complete (None: never)} over the runs
+    with parts at each ``ticks`` of ``grid`` to the kit's completion, with every set of up
+    to ``misses`` forced misses among all their grasp attempts; and how many runs it took
+    (the key ``None``)."""
+    level = [(tuple(t), ()) for t in grid]
+    out: dict = {tuple(t): None for t in grid}
+    runs = 0
+    for _k in range(misses + 1):
+        probes = run_probes(model, [t for t, _m in level], workers=workers, to_end=True,
+                            misses=[m for _t, m in level])
+        runs += len(probes)
+        for p in probes:
+            if p.end_tick is not None:
+                out[p.ticks] = max(p.end_tick, out[p.ticks] if out[p.ticks] is not None else -1)
+        level = [(p.ticks, p.misses + (j,)) for p in probes if p.refused is None
+                 for j in range(max(p.misses, default=-1) + 1, p.attempts)]
+        if not level:
+            break
+    out[None] = runs
+    return out
+
+
+def search_single(model, *, workers: int = 1, step: int = 1, ticks=None, misses: int = 0) -> Search:
     """One belt part sent before every ``step``-th tick of the job (``job_ticks``; or the
-    given ``ticks``): the slowest response over them."""
-    grid = [(t,) for t in (job_ticks(model)[::step] if ticks is None else ticks)]
-    probes = run_probes(model, grid, workers=workers)
-    every = "the given ticks" if ticks is not None else "every tick" if step == 1 else f"every {step}th tick"
+    given ``ticks``): the slowest response over them. ``misses``: each instant also with
+    every set of up to that many forced grasp misses before the part's response
+    (:func:`with_misses`); the job then runs to its latest end over the misses of the run
+    without arrivals (an instant after the kit is complete is refused by the model and left out)."""
+    if ticks is None:
+        ticks = job_ticks(model) if not misses else list(range(0, _job_end(model, misses, workers)))
+        ticks, every = ticks[::step], "every tick" if step == 1 else f"every {step}th tick"
+    else:
+        every = "the given ticks"
+    grid = [(t,) for t in ticks]
+    probes = with_misses(model, grid, misses, workers=workers)
     how = (f"one part before {every} of the job, t0 = {grid[0][0] / model.tick_rate:.1f}.."
            f"{grid[-1][0] / model.tick_rate:.1f} s" if grid else "no tick")
-    return _found(model, 1, probes, len(probes), how)
+    if misses:
+        how += (f", each with every set of up to {misses} forced grasp miss(es) before its response "
+                f"({len(probes) - len(grid)} runs with misses)")
+    return _found(model, 1, probes, len(probes), how, misses)
 
 
-def search_pair(model, *, workers: int = 1, coarse: int = 10, keep: int = 3, spacing: int = SPACING_TICKS) -> Search:
+def search_pair(model, *, workers: int = 1, coarse: int = 10, keep: int = 3, spacing: int = SPACING_TICKS,
+                misses: int = 0) -> Search:
     """Two belt parts, the second at least ``spacing`` ticks after the first and while the
     kit is incomplete, ranked by the second part's response (the first's is the one-part
     search's whenever it comes before the second part). Coarse: the first part before every ``coarse``-th tick of the job,
@@ -313,31 +459,44 @@ def search_pair(model, *, workers: int = 1, coarse: int = 10, keep: int = 3, spa
     ``coarse``-th tick from ``spacing`` after the first to that end. Refined: around each of
     the ``keep`` slowest coarse pairs, every pair of ticks less than ``coarse`` from it
     (kept at least ``spacing`` apart; a pair whose second part comes after the kit is
-    complete is refused by the model and left out)."""
-    firsts = job_ticks(model)[::coarse]
-    ends = run_probes(model, [(t,) for t in firsts], workers=workers, to_end=True)
+    complete is refused by the model and left out). ``misses``: every coarse pair also
+    with every set of up to that many forced grasp misses before the second part's
+    response (:func:`with_misses`), its second part up to the latest end of the job over
+    the first part's run's misses; refined around the ``keep`` slowest coarse runs with
+    misses and the ``keep`` slowest without, each with its own misses."""
+    firsts = job_ticks(model)[::coarse] if not misses else list(range(0, _job_end(model, misses, workers), coarse))
     grid = []
-    for t0, p in zip(firsts, ends):
-        if p.end_tick is None:
-            continue
-        grid += [(t0, t1) for t1 in range(t0 + spacing, p.end_tick, coarse)]
-    runs = len(firsts)
-    probes = run_probes(model, grid, workers=workers, last=True)
+    ends = _ends(model, [(t,) for t in firsts], misses, workers)
+    runs = ends[None]
+    for t0 in firsts:
+        end = ends[(t0,)]
+        if end is not None:
+            grid += [(t0, t1) for t1 in range(t0 + spacing, end, coarse)]
+    probes = with_misses(model, grid, misses, workers=workers, last=True)
     runs += len(probes)
-    best = sorted((p for p in probes if p.worst != -math.inf), key=lambda p: (-p.worst, p.ticks))[:keep]
+    ok = sorted((p for p in probes if p.worst != -math.inf), key=_rank)
+    best = ok[:keep]
+    if misses:
+        best += [p for p in ok if not p.misses][:keep]
     fine: set = set()
     for p in best:
         a, b = p.ticks
-        fine |= {(x, y) for x in range(max(0, a - coarse + 1), a + coarse)
+        fine |= {((x, y), p.misses) for x in range(max(0, a - coarse + 1), a + coarse)
                  for y in range(b - coarse + 1, b + coarse) if y - x >= spacing}
-    fine -= {p.ticks for p in probes}
-    fprobes = run_probes(model, sorted(fine), workers=workers, last=True)
+    fine -= {(p.ticks, p.misses) for p in probes}
+    fine_runs = sorted(fine)
+    fprobes = run_probes(model, [t for t, _m in fine_runs], workers=workers, last=True,
+                         misses=[m for _t, m in fine_runs])
     runs += len(fprobes)
     every = probes + fprobes
     how = (f"coarse: the first part every {coarse} ticks, the second every {coarse} ticks from {spacing} ticks after "
-           f"it to the job's end ({len(firsts)} runs to the end, {len(grid)} pairs); refined: every tick within "
-           f"{coarse - 1} of the {len(best)} slowest pairs ({len(fprobes)} pairs)")
-    return _found(model, 2, every, runs, how)
+           f"it to the job's end ({runs - len(every)} runs to the end, {len(grid)} pairs"
+           + (f", {len(probes) - len(grid)} more runs with up to {misses} forced grasp miss(es) before the second "
+              f"part's response" if misses else "")
+           + f"); refined: every tick within {coarse - 1} of the {len(best)} slowest "
+           + ("runs (with and without misses, each with its misses)" if misses else "pairs")
+           + f" ({len(fprobes)} {'runs' if misses else 'pairs'})")
+    return _found(model, 2, every, runs, how, misses)
 
 
 # ---------------------------------------------------------------- the model at the cell's phase

@@ -231,6 +231,7 @@ def test_the_preemptive_first_late_scenario_in_the_cell():
     assert worst == 150
     r = replay_in_cell(load_builtin("ariac-preemptive-timed"), ce, pace="phase")
     assert r.at_phase and len(r.injected) == 1 and not r.too_soon and not r.lost and not r.mismatch, r.text()
+    assert not r.forced and not r.skipped  # the run chooses no failure: its whole environment is the arrival
     assert dict(r.responses)[r.injected[0][2]] == pytest.approx(8.6, abs=0.3)
     parts = {st: (c, x) for st, c, x in r.decomposition}
     assert sum(c for c, _ in parts.values()) == pytest.approx(15.0)
@@ -257,6 +258,7 @@ def test_the_baseline_first_late_scenario_loses_the_part_in_the_cell():
     assert [pid for _, pid in r.lost] == [pid for _, _, pid in r.injected], r.text()
     assert 15.9 <= r.lost[0][0] - r.injected[0][0] <= 16.3 and "the cell shows the late response" in r.text()
     assert [site.split("@")[0] for _, site, out in r.forced] == ["arm/grasp_bins"]  # the counterexample's missed grasp
+    assert not r.skipped  # every failure of the run followed
     # the cell's response (its next belt grasp starts) 23.4 s after the detection: the
     # conditioned figure (25.0 s) is 1.07 times it; where the 1.6 s went, per FSM state
     assert dict(r.responses)[r.injected[0][2]] == pytest.approx(23.4, abs=0.3)
@@ -421,6 +423,36 @@ def test_lever_3_which_bin_the_rescue_goes_to(monkeypatch):
     monkeypatch.setattr(B.KittingBinding, "_choose_spot", choose)
     run_trial(TrialSpec("preemptive", 1))
     assert "bin3" in chosen  # the 18-part job places in bin3 too
+
+
+def test_the_tracked_bins_first_late_scenario_with_its_whole_environment():
+    """The tracked-bins model's conditioned first late run (16.3 s, lever 3 above) needs
+    four misses: part A missed twice at the belt (reached in time, given up), then two
+    at the bins, and part B 30 s after A. Replayed at its phases with every failure
+    forced (before B's arrival too), the cell follows the misses (A reached, then lost as
+    in the run), but reaches B's phase sooner than the arrivals' spacing allows (the
+    model's run takes every state at its slowest), and the phase does not come again: B is
+    never sent, and the report says so. BTFSM_LONG=1 (explores 1.3 M states, 9 s)."""
+    from btfsm.sim.replay import replay_in_cell
+
+    if os.environ.get("BTFSM_LONG") != "1":
+        pytest.skip("explores the tracked-bins conditioned model, 1.3 M states (BTFSM_LONG=1)")
+    from btfsm.verify.explore import explore
+    from btfsm.verify.properties.response import ResponseBound, counterexample
+
+    nl = ariac.timed(ariac.preemptive(n_tray=2), assume="no_loss", bins="tracked")
+    rb = ResponseBound(explore(nl), nl.responses[0])
+    w, path, k = rb.first_late(160)
+    ce = counterexample(rb, path, k, None, "first late", 160).to_json()
+    r = replay_in_cell(ariac.timed(ariac.preemptive(n_tray=2), bins="tracked"), ce, pace="phase")
+    sites = [site.split("@")[0] for _t, site, _o in r.forced]
+    assert sites == ["arm/grasp_conveyor"] * 2 + ["arm/grasp_bins"] * 2 and not r.skipped, r.text()
+    assert len(r.injected) == 1 and r.too_soon and not r.mismatch, r.text()
+    a = r.injected[0][2]
+    assert a in dict(r.reaches) and [pid for _, pid in r.lost] == [a]  # reached in time, given up, lost
+    assert r.too_soon[0][0] - r.injected[0][0] < 30.0  # B's phase came before the spacing allowed B
+    text = r.text()
+    assert "part 2 of 2 NOT sent" in text and "given up after forced misses" in text
 
 
 def _bins_in_trial(args):

@@ -107,7 +107,7 @@ TABLE = {
                                        "--max-frames": _ints(1, MAX_FRAMES) + ["0"],
                                        "--render": BAD_OUTPUT_FILES + ["x.jpg", "x"],
                                        "--gif": BAD_OUTPUT_FILES + ["x.png", "x"],
-                                       "--worst": _ints(1, 2), "--step": _ints(1, 1000),
+                                       "--worst": _ints(1, 2), "--step": _ints(1, 1000), "--misses": _ints(0, 3),
                                        "--workers": _ints(1, MAX_WORKERS) + ["0"]}),
     "import": ([XML], {"--output": BAD_OUTPUT_FILES + ["x.txt", "x"], "--leaves": BAD_INPUTS,
                        "--semantics": CHOICE_BAD}),
@@ -125,7 +125,7 @@ STRUCTURAL = ([[]] + [[c] for c in COMMANDS if c not in ("experiment", "sweep")]
               ["sweep", "positional"], ["sweep", "--belt-speed"], ["sweep", "--belt-speed", "-0.1"],
               ["sweep", "--period", "0"], ["sweep", "--pick-window", "nan"], ["sweep", "--workers", "0"],
               ["bound", TWO], ["bound", TWO, "--trigger", "x"], ["sim", ARIAC, "--step", "3"],
-              ["sim", ARIAC, "--at-phase"], ["sim", ARIAC, "--workers", "2"], ["sim", TWO, "--worst", "1"], ["sim", ARIAC, "--worst", "1", "--gif", "w.gif"],
+              ["sim", ARIAC, "--at-phase"], ["sim", ARIAC, "--workers", "2"], ["sim", ARIAC, "--misses", "1"], ["sim", TWO, "--worst", "1"], ["sim", ARIAC, "--worst", "1", "--gif", "w.gif"],
               ["sim", ARIAC, "--worst", "2", "--scene", "models/scenes/two_area.yaml"]]
               + [[c, bad] for c in COMMANDS if c not in ("experiment", "sweep", "replay") for bad in BAD_INPUTS]
               + [["replay", bad, TWO] for bad in BAD_INPUTS if bad != A_FILE]
