@@ -160,6 +160,10 @@ class Model:
     def nodes(self) -> list[Node]:
         return [n for _, root in self.roots() for n in walk(root)]
 
+    def requests_of(self, fsm: str) -> list[SkillRequest]:
+        """The SkillRequest nodes (anywhere in the model) that request FSM ``fsm``."""
+        return [n for n in self.nodes() if isinstance(n, SkillRequest) and n.fsm == fsm]
+
     @property
     def program(self) -> Program:
         """The compiled program (``btfsm.semantics.Program``), built once."""

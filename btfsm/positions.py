@@ -475,9 +475,7 @@ def split_deeper(model, fsm: str, table: dict, deep: dict, cond: "tuple | None" 
 def requested_goals(model, fsm: str) -> set:
     """The goals of FSM ``fsm`` that some skill request of ``model`` asks for (no other goal
     ever runs one of its states: docs/semantics.md 5)."""
-    from .bt import SkillRequest
-
-    return {n.goal for n in model.nodes() if isinstance(n, SkillRequest) and n.fsm == fsm}
+    return {n.goal for n in model.requests_of(fsm)}
 
 
 def check_requests(model, fsm: str, requested) -> None:

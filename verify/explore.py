@@ -196,7 +196,7 @@ def _tree_footprint(prog, root, seen) -> tuple:
 
 def requests_of(model, fsm: str) -> list:
     """The SkillRequest nodes (anywhere in the model) that request FSM ``fsm``."""
-    return [n for n in model.nodes() if isinstance(n, SkillRequest) and n.fsm == fsm]
+    return model.requests_of(fsm)
 
 
 def open_fsm(model, fsm: str, goals=None) -> OpenFSM:
