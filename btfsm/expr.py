@@ -36,7 +36,7 @@ __all__ = [
 ]
 
 MAX_DEPTH = 64  # nesting of an expression (operators inside operators)
-MAX_LENGTH = 10_000  # characters of an expression in the string syntax
+MAX_LENGTH = 100_000  # characters of an expression in the string syntax (a split FSM's widened requirements reach 12,000)
 INT_LIMIT = 2 ** 53  # every int constant, bound and intermediate value lies in -INT_LIMIT..INT_LIMIT
 
 

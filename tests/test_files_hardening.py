@@ -67,8 +67,8 @@ def _with_expr(expr: str) -> str:
     ("(" * 150 + "n" + ")" * 150 + " == 3", None),  # parentheses alone add no depth
     ("-" * 150 + "n == 3", "nested too deeply (limit 64)"),
     ("not " * 100 + "n == 3", "nested too deeply (limit 64)"),
-    ("not " * 3000 + "n == 3", "characters long (limit 10000)"),
-    ("n" + " + n" * 5000 + " == 3", "characters long (limit 10000)"),
+    ("not " * 30000 + "n == 3", "characters long (limit 100000)"),
+    ("n" + " + n" * 50000 + " == 3", "characters long (limit 100000)"),
     ("n" + " + n" * 100 + " > 3", "nested too deeply (limit 64)"),
     ("n" + " + 1" * 60 + " > 3", None),
     (" and ".join(["n > 0"] * 900), None),  # wide, not deep
