@@ -76,12 +76,17 @@ def test_the_proof_is_within_10_percent_of_the_cells_worst(name, ticks):
     the cell's response is at most the conditioned proof (the worst first late response
     ``btfsm bound`` prints) and the proof is within 10 % of it; the model's own worst
     response to an arrival in the cell's exact state there is that proof."""
-    m = load_builtin(name)
-    (probe,) = worst.run_probes(m, [ticks])
-    cell, proof = probe.worst, _conditioned(name)
+    from btfsm.verify.explore import explore
+    from btfsm.verify.properties.response import ResponseBound
+
+    (probe,) = worst.run_probes(load_builtin(name), [ticks])
+    nl = load_builtin(name + "-no-loss")
+    ts = explore(nl)  # once: the proof and the model at the cell's phase
+    rb = ResponseBound(ts, nl.responses[0])
+    cell, proof = probe.worst, rb.first_late(rb.bound_ticks())[0] / rb.rate
     assert probe.refused is None and bool(probe.lost) == (name == "ariac-baseline-timed")
     assert cell <= proof <= 1.10 * cell, (cell, proof)
-    at = worst.at_phase(load_builtin(name + "-no-loss"), probe.phases[len(ticks) - 1])
+    at = worst.at_phase(nl, probe.phases[len(ticks) - 1], ts)
     assert at.found and at.worst == pytest.approx(proof)
 
 
