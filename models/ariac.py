@@ -564,7 +564,6 @@ def timed(model: Model, durations: str = "derived", *, timing: "dict | None" = N
         split = split_by_goal(model, f.name, t["classes"])
         if bins not in ("tracked", "wide"):
             raise ValueError(f"bins: 'tracked' or 'wide', not {bins!r}")
-        n_tray = next(v for v in model.variables if v.name == "tray").hi
         guards = {}
         for s, g in (t.get("guards") or {}).items():
             if set(g) <= set(TRAY_ROWS):  # the tray's rows: those the count can reach (the others never entered)

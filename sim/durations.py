@@ -430,18 +430,18 @@ def derive(model, scene=None, no_loss: bool = False, place_spots: "dict | None" 
             if bins and c in bins:
                 guards[f"{s}#{c}"] = {tag: spec["guard"] for tag, spec in bins[c].items()}
     aged = {c: {tag: spec["guard"] for tag, spec in by.items()} for c, by in (ages or {}).items()}
-    def by_guard(m):
-        return split_by_guard(split_by_guard(track(m) if track is not None and guards else m, d.fsm, guards),
-                              d.fsm, aged)
-
-    f = next(x for x in by_guard(split_by_goal(model, d.fsm, classes)).fsms if x.name == d.fsm)
+    by_goal = split_by_goal(model, d.fsm, classes)
+    # the goal copies split by their guards: the bins, the tray's rows, the ages
+    tracked = track(by_goal) if track is not None and guards else by_goal
+    guarded = split_by_guard(split_by_guard(tracked, d.fsm, guards), d.fsm, aged)
+    f = next(x for x in guarded.fsms if x.name == d.fsm)
     base = {}
     for s in f.states:
         base[s.id] = s.id.split("#", 1)[0]
     # the goals a copy's runs serve: its class's, requested by the model (a SkillRequest), and
     # not left at once by a direct edge (docs/semantics.md 5, step 1: then nothing runs)
     requested = requested_goals(model, d.fsm)
-    f1 = next(x for x in split_by_goal(model, d.fsm, classes).fsms if x.name == d.fsm)
+    f1 = next(x for x in by_goal.fsms if x.name == d.fsm)
     leaves = {st.id: {g for e in f1.edges if e.source == st.id and e.direct and e.guard is None
                       for g in (f1.goals if "*" in e.goals else e.goals)} for st in f1.states}
     goals_of = {}
@@ -451,8 +451,15 @@ def derive(model, scene=None, no_loss: bool = False, place_spots: "dict | None" 
         goals_of[s.id] = {g for g in goals if g in requested and g not in leaves[s.id.split("%", 1)[0]]}
 
     def tag_of(sid):
-        """The bin copy's tag of a (history-split) copy, or None."""
-        return sid.split("@", 1)[0].partition("%")[2] or None
+        """The tag of a (history-split) copy of a bin or tray-row guard copy, or None (an age
+        copy's tag names no target: ``age_of``)."""
+        head, _, tag = sid.split("@", 1)[0].partition("%")
+        return tag if tag and head not in aged else None
+
+    def age_of(sid) -> float:
+        """The least age (s) of the part a copy's runs pursue (0 but for an age copy)."""
+        head, _, tag = sid.split("@", 1)[0].partition("%")
+        return float(ages[head][tag]["age"]) if ages and head in ages else 0.0
 
     def tagged(p):
         return p[3] if len(p) > 3 else None
@@ -554,9 +561,8 @@ def derive(model, scene=None, no_loss: bool = False, place_spots: "dict | None" 
             return rest(p, t), {t, p}
         t = approach_target(x, g)
         sure = False
-        head, _, tag = sid.split("@", 1)[0].partition("%")
-        age = float((ages or {}).get(head, {}).get(tag, {}).get("age", 0.0))  # its part's least age
-        if t[0] == "above" and tag_of(sid) is not None and head not in (ages or {}):
+        age = age_of(sid)
+        if t[0] == "above" and tag_of(sid) is not None:
             t += (tag_of(sid),)
             sure = bool((bins or {})[g][tag_of(sid)]["free"])
         if t[0] == "above" and x == "conveyor":
@@ -608,7 +614,7 @@ def derive(model, scene=None, no_loss: bool = False, place_spots: "dict | None" 
     # history: a copy s@u's runs start where u's own runs, from u's entries, left the arm)
     entries = entries_of(f)
     timed_states = list(entries)  # instants too: a state after an instant knows what preceded it
-    f2 = next(x for x in split_history(by_guard(split_by_goal(model, d.fsm, classes)), d.fsm, timed_states).fsms
+    f2 = next(x for x in split_history(guarded, d.fsm, timed_states).fsms
               if x.name == d.fsm)
     for s2 in f2.states:
         b1 = s2.id.split("@", 1)[0]

@@ -506,20 +506,17 @@ def replay_in_cell(model, ce, *, time_limit: float = 120.0, render: "str | None"
     pacer = arrive_at = None
     arrive_ticks = phases = None
     forced = None
+    from .binding import Dialect, dialect_of
+
+    dialect = cast(Dialect, dialect_of(model))  # the kitting vocabulary: the arm FSM, the grasp primitive
     if pace == "phase":  # the counterexample's FSM phase at each arrival, its failures, the arm unpaced
-        from .binding import Dialect, dialect_of
-
-        phases = phases_of(ce, cast(Dialect, dialect_of(model)).fsm, variables=[v.name for v in model.variables])
-        forced = _Forced(ce, model, cast(Dialect, dialect_of(model)).grasp)
+        phases = phases_of(ce, dialect.fsm, variables=[v.name for v in model.variables])
+        forced = _Forced(ce, model, dialect.grasp)
     elif pace == "times":  # the counterexample's arrival ticks and failures, the arm unpaced
-        from .binding import Dialect, dialect_of
-
         arrive_ticks = [i - 1 for i, step in enumerate(ce["steps"], start=1) for ev in step.get("env", ()) if ev == "arrive"]
-        forced = _Forced(ce, model, cast(Dialect, dialect_of(model)).grasp)
+        forced = _Forced(ce, model, dialect.grasp)
     elif pace if pace is not None else kind == "response":
-        from .binding import Dialect, dialect_of
-
-        pacer = _Pacer(fsm_states_of(ce, cast(Dialect, dialect_of(model)).fsm))
+        pacer = _Pacer(fsm_states_of(ce, dialect.fsm))
         # a part for the counterexample's tick i reaches the sensor in the world steps before
         # the cell's tick at the same point of the same visit
         arrive_at = [pacer.position(i) for i, step in enumerate(ce["steps"], start=1)

@@ -376,18 +376,19 @@ def _found(model, arrivals: int, probes: list, runs: int, how: str, misses: int 
                   next((p for p in ok if not p.misses), None) if misses else None)
 
 
-def with_misses(model, grid, misses: int, *, workers: int = 1, last: bool = False) -> list:
+def with_misses(model, grid, misses: int, *, workers: int = 1, last: bool = False, to_end: bool = False) -> list:
     """Every run of ``grid`` (arrival ticks) with every set of up to ``misses`` forced misses
     among its grasp attempts that end before the ranked response (an attempt ending
-    after it cannot change it), level by level: the runs with k misses, then each run's set
-    extended by one attempt after its last forced one and before its response
-    (``Probe.attempts``; a run up to attempt j is the same with or without a miss after
-    it, so every set is run once). Refused runs are not extended. In grid order, level
-    after level: the same list for any ``workers``."""
+    after it cannot change it; with ``to_end``, among all of them), level by level: the
+    runs with k misses, then each run's set extended by one attempt after its last forced
+    one and before its response (``Probe.attempts``; a run up to attempt j is the same with
+    or without a miss after it, so every set is run once). Refused runs are not extended.
+    In grid order, level after level: the same list for any ``workers``."""
     level = [(tuple(t), ()) for t in grid]
     out: list = []
     for k in range(misses + 1):
-        probes = run_probes(model, [t for t, _m in level], workers=workers, last=last, misses=[m for _t, m in level])
+        probes = run_probes(model, [t for t, _m in level], workers=workers, last=last, to_end=to_end,
+                            misses=[m for _t, m in level])
         out += probes
         level = [(p.ticks, p.misses + (j,)) for p in probes if p.refused is None
                  for j in range(max(p.misses, default=-1) + 1, p.attempts)]
@@ -411,21 +412,12 @@ def _ends(model, grid, misses: int, workers: int) -> dict:
     with parts at each ``ticks`` of ``grid`` to the kit's completion, with every set of up
     to ``misses`` forced misses among all their grasp attempts; and how many runs it took
     (the key ``None``)."""
-    level = [(tuple(t), ()) for t in grid]
     out: dict = {tuple(t): None for t in grid}
-    runs = 0
-    for _k in range(misses + 1):
-        probes = run_probes(model, [t for t, _m in level], workers=workers, to_end=True,
-                            misses=[m for _t, m in level])
-        runs += len(probes)
-        for p in probes:
-            if p.end_tick is not None:
-                out[p.ticks] = max(p.end_tick, out[p.ticks] if out[p.ticks] is not None else -1)
-        level = [(p.ticks, p.misses + (j,)) for p in probes if p.refused is None
-                 for j in range(max(p.misses, default=-1) + 1, p.attempts)]
-        if not level:
-            break
-    out[None] = runs
+    probes = with_misses(model, grid, misses, workers=workers, to_end=True)
+    for p in probes:
+        if p.end_tick is not None:
+            out[p.ticks] = max(p.end_tick, out[p.ticks] if out[p.ticks] is not None else -1)
+    out[None] = len(probes)
     return out
 
 
